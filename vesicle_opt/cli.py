@@ -1,0 +1,103 @@
+"""Command line: ``vesicle-opt solve SCENE.toml [--out DIR] [--set KEY=VALUE ...]`` and
+``vesicle-opt study NAME --out DIR [--quick]``.
+
+Exit codes: 0 converged; 1 the solver did not converge (results still written); 2 bad input
+(one line naming the key and the allowed range, no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+from pathlib import Path
+
+from .errors import InputError, VesicleError
+
+PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2
+        print(f"vesicle-opt: error: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def resolve_scene(arg: str) -> Path:
+    """A path, or the name of a bundled scene in problems/ (``ellipse-2d``)."""
+    p = Path(arg)
+    if p.exists():
+        return p
+    bundled = PROBLEMS / (arg if arg.endswith(".toml") else arg + ".toml")
+    if bundled.exists():
+        return bundled
+    raise InputError("scene", f"file not found: {arg} (bundled scenes: "
+                     f"{', '.join(sorted(q.stem for q in PROBLEMS.glob('*.toml')))})")
+
+
+def cmd_solve(args) -> int:
+    from . import output, scene
+    from .solve import solve
+    from .nlp import build_nlp
+    sc = scene.load(resolve_scene(args.scene), args.set)
+    nlp = build_nlp(sc)
+    result = solve(nlp)
+    summary = output.write_result(Path(args.out), sc, nlp.disc, result)
+    print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
+          f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
+    if not result.converged:
+        print(f"vesicle-opt: not converged: status {summary['status']}, kkt_residual "
+              f"{summary['kkt_residual']}, volume_residual {summary['volume_residual']}, "
+              f"area_residual {summary['area_residual']}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_study(args) -> int:
+    name = args.name.replace("-", "_")
+    try:
+        module = importlib.import_module(f"studies.{name}")
+    except ModuleNotFoundError as exc:
+        if exc.name != f"studies.{name}":
+            raise
+        raise InputError("study", f"unknown study {args.name!r}") from None
+    if not hasattr(module, "main"):
+        raise InputError("study", f"{args.name!r} is not a study (no main(out, quick))")
+    status = module.main(Path(args.out), quick=args.quick)
+    return int(status or 0)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="vesicle-opt", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="verb", required=True, parser_class=_Parser)
+    s = sub.add_parser("solve", help="solve the equilibrium problem of a scene")
+    s.add_argument("scene", help="scene TOML file or bundled scene name")
+    s.add_argument("--out", default="out", help="output directory (default: out)")
+    s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key (dotted, value parsed as TOML); repeatable")
+    s.set_defaults(func=cmd_solve)
+    st = sub.add_parser("study", help="run a study from studies/ writing CSV and figures")
+    st.add_argument("name")
+    st.add_argument("--out", default="out", help="output directory (default: out)")
+    st.add_argument("--quick", action="store_true", help="small, fast variant")
+    st.set_defaults(func=cmd_study)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+
+    def one_line_warning(message, category, filename, lineno, file=None, line=None):
+        print(f"vesicle-opt: warning: {message}", file=sys.stderr)
+
+    warnings.showwarning = one_line_warning
+    try:
+        return args.func(args)
+    except VesicleError as exc:
+        print(f"vesicle-opt: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,122 @@
+"""The discrete equilibrium problem (6)-(8) as a CasADi NLP: ``build_nlp(scene)``.
+
+Unknowns x = phi (lumped mass, FD) or x = (phi, w) (consistent mass, with the linear equality
+M w + K phi = 0 of Definition 2.2 among the constraints). Built once with MX and sparse constant
+matrices; the Hessian of the Lagrangian stays sparse (the bi-Laplacian stencil).
+
+Scaling (documented contract; the stopping test means the same on every mesh):
+    f = E_h / (E_ref * m_bar)        E_ref = sharp-interface circle/sphere energy of area beta,
+                                     m_bar = |Omega| / N, so df/dphi_i ~ (m_i/m_bar) dE/dphi / E_ref
+    g_A = (A - alpha) / |Omega|,  g_B = (B - beta) / beta,  g_w = eps^2 (M w + K phi) / m_bar
+IPOPT's multipliers lam_g of these scaled rows convert to the physical convention
+    rigidity * grad E_h = lambda_A grad A + lambda_B grad B
+by lambda_A = -rigidity E_ref m_bar lam_g[0] / |Omega|, lambda_B = -rigidity E_ref m_bar lam_g[1] / beta.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from . import functionals as F
+from .discretization import Discretization, discretize
+from .feasibility import check_feasible
+from .scene import Scene
+from .shapes import phase_field
+
+
+@dataclass(frozen=True, eq=False)
+class NLP:
+    """The CasADi pieces of one discrete problem; ``as_dict()`` goes to any ``ca.nlpsol``."""
+
+    scene: Scene
+    disc: Discretization
+    alpha: float
+    beta: float
+    x: ca.MX
+    f: ca.MX
+    g: ca.MX
+    p: ca.MX
+    x0: np.ndarray
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    f_scale: float  # f = energy / f_scale
+    g_scale: np.ndarray  # g[:2] = (A - alpha, B - beta) / g_scale
+
+    def as_dict(self) -> dict:
+        return {"x": self.x, "f": self.f, "g": self.g, "p": self.p}
+
+    @property
+    def n_phi(self) -> int:
+        return self.disc.n_nodes
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        x = np.asarray(x, float).ravel()
+        n = self.n_phi
+        return x[:n], (x[n:] if self.disc.consistent else None)
+
+    def multipliers(self, lam_g: np.ndarray) -> tuple[float, float]:
+        """Physical (lambda_A, lambda_B) from IPOPT's lam_g (see the module docstring)."""
+        k = self.f_scale
+        lam = np.asarray(lam_g, float).ravel()[:2]
+        return float(-k * lam[0] / self.g_scale[0]), float(-k * lam[1] / self.g_scale[1])
+
+
+def constraint_data(scene: Scene, disc: Discretization) -> tuple[float, float]:
+    """(alpha, beta): given directly, or A_h and B_h of the target shape's tanh profile on this mesh."""
+    c = scene.constraints
+    eps = scene.model.epsilon
+    alpha, beta = c.alpha, c.beta
+    if c.target is not None:
+        vals = F.evaluate(disc, phase_field(c.target, disc.nodes, disc.box, eps), eps, scene.model.C)
+        alpha = vals["A"] if alpha is None else alpha
+        beta = vals["B"] if beta is None else beta
+    return float(alpha), float(beta)
+
+
+def initial_guess(scene: Scene, disc: Discretization) -> np.ndarray:
+    phi0 = phase_field(scene.initial, disc.nodes, disc.box, scene.model.epsilon)
+    if disc.consistent:
+        return np.concatenate([phi0, disc.apply_laplacian(phi0)])
+    return phi0
+
+
+def build_nlp(scene: Scene, disc: Discretization | None = None, check: bool = True) -> NLP:
+    """Build the exact-constraint NLP (6)-(8) of a scene (``solver.method = 'exact'``)."""
+    if scene.solver.method != "exact":
+        from .errors import InputError
+        raise InputError("solver.method", f"{scene.solver.method!r} is not available yet; allowed: exact")
+    disc = disc or discretize(scene)
+    alpha, beta = constraint_data(scene, disc)
+    if check:
+        check_feasible(alpha, beta, scene, disc)
+    eps, C = scene.model.epsilon, scene.model.C
+    ops = F.CasadiOps(disc)
+    n = disc.n_nodes
+    m_bar = disc.volume / n
+    x = ca.MX.sym("x", 2 * n if disc.consistent else n)
+    phi = x[:n]
+    if disc.consistent:
+        lap = x[n:]
+    else:
+        lap = ca.mtimes(ca.DM(disc.laplacian.tocsc()), phi)
+    E = F.energy(ops, phi, lap, eps, C)
+    A = F.volume_functional(ops, phi)
+    B = F.area_functional(ops, phi, eps)
+    e_ref = F.sharp_energy_sphere(beta, disc.dim)
+    f_scale = scene.model.rigidity * e_ref * m_bar  # physical energy / f_scale = E_h / (E_ref m_bar)
+    g_scale = np.array([disc.volume, beta])
+    rows = [(A - alpha) / g_scale[0], (B - beta) / g_scale[1]]
+    if disc.consistent:
+        rows.append(eps**2 / m_bar * (ca.mtimes(ca.DM(disc.M.tocsc()), lap) + ca.mtimes(ops.K, phi)))
+    g = ca.vertcat(*rows)
+    ng = g.shape[0]
+    inf = np.full(x.shape[0], np.inf)
+    return NLP(scene=scene, disc=disc, alpha=alpha, beta=beta, x=x,
+               f=scene.model.rigidity * E / f_scale, g=g, p=ca.MX.sym("p", 0),
+               x0=initial_guess(scene, disc), lbx=-inf, ubx=inf, lbg=np.zeros(ng), ubg=np.zeros(ng),
+               f_scale=f_scale, g_scale=g_scale)

@@ -1,0 +1,312 @@
+"""Scenes: TOML files describing one equilibrium problem, validated into frozen dataclasses.
+
+A scene has the sections ``domain``, ``mesh``, ``model``, ``constraints``, ``initial`` and ``solver``
+(keys listed in ``SCHEMA``). Every key is checked for existence, type and range; a violation raises
+:class:`~vesicle_opt.errors.InputError` naming the key and the allowed range. ``--set KEY=VALUE``
+overrides use the same dotted keys, with values parsed as TOML.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .errors import InputError
+
+SHAPES = ("circle", "sphere", "ellipse", "ellipsoid", "disk", "torus", "biconcave")
+SHAPE_KEYS = ("shape", "center", "radius", "semi_axes", "radii", "thickness")
+
+
+@dataclass(frozen=True)
+class Shape:
+    """An initial or target shape; phi = tanh(-d/(sqrt(2) eps)), +1 inside (see ``shapes``)."""
+
+    shape: str
+    center: tuple[float, ...] | None = None
+    radius: float | None = None
+    semi_axes: tuple[float, ...] | None = None
+    radii: tuple[float, float] | None = None  # torus: (major R, minor r)
+    thickness: float | None = None  # disk: full thickness of the rounded flat disk
+
+
+@dataclass(frozen=True)
+class Domain:
+    box: tuple[tuple[float, float], ...]
+    boundary: str  # "periodic" | "natural"
+
+    @property
+    def dim(self) -> int:
+        return len(self.box)
+
+    @property
+    def volume(self) -> float:
+        return math.prod(b - a for a, b in self.box)
+
+
+@dataclass(frozen=True)
+class Mesh:
+    kind: str  # "fem-p1" | "fd"
+    n: tuple[int, ...]  # cells per side
+    mass: str  # "lumped" | "consistent"
+    quadrature: str  # "nodal" | "gauss"
+    file: str | None = None
+
+
+@dataclass(frozen=True)
+class Model:
+    epsilon: float
+    c0: float = 0.0
+    rigidity: float = 1.0
+
+    @property
+    def C(self) -> float:
+        """The paper's C = sqrt(2) c0."""
+        return math.sqrt(2.0) * self.c0
+
+
+@dataclass(frozen=True)
+class Constraints:
+    alpha: float | None = None
+    beta: float | None = None
+    target: Shape | None = None
+
+
+@dataclass(frozen=True)
+class Solver:
+    method: str  # "exact" | "penalty" | "continuation"
+    M: float
+    tol: float
+    max_iter: int
+    backend: str = "ipopt"
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    domain: Domain
+    mesh: Mesh
+    model: Model
+    constraints: Constraints
+    initial: Shape
+    solver: Solver
+
+    @property
+    def dim(self) -> int:
+        return self.domain.dim
+
+    def replace(self, **sections) -> "Scene":
+        return dataclasses.replace(self, **sections)
+
+
+# --- schema: key -> (kind, default, allowed). kind in {float, int, str, shape, box, ints, floats}.
+_REQ = object()
+SCHEMA: dict[str, tuple[str, Any, Any]] = {
+    "domain.box": ("box", _REQ, "list of [lo, hi] pairs with lo < hi, 2 or 3 of them"),
+    "domain.boundary": ("str", "periodic", ("periodic", "natural")),
+    "mesh.kind": ("str", "fem-p1", ("fem-p1", "fd")),
+    "mesh.n": ("ints", _REQ, "integer >= 4, or one per dimension"),
+    "mesh.mass": ("str", "lumped", ("lumped", "consistent")),
+    "mesh.quadrature": ("str", "nodal", ("nodal", "gauss")),
+    "mesh.file": ("str", None, "path to a mesh file meshio can read"),
+    "model.epsilon": ("float", _REQ, "> 0"),
+    "model.c0": ("float", 0.0, "any real"),
+    "model.rigidity": ("float", 1.0, "> 0"),
+    "constraints.alpha": ("float", None, "-|Omega| < alpha < |Omega|"),
+    "constraints.beta": ("float", None, "> 0"),
+    "constraints.target": ("shape", None, "a shape table"),
+    "initial": ("shape", _REQ, "a shape table"),
+    "solver.method": ("str", "exact", ("exact", "penalty", "continuation")),
+    "solver.M": ("float", 1e4, "> 0"),
+    "solver.tol": ("float", 1e-8, "> 0"),
+    "solver.max_iter": ("int", 500, ">= 1"),
+    "solver.backend": ("str", "ipopt", ("ipopt",)),
+}
+_POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "solver.M", "solver.tol"}
+
+
+def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if key in SCHEMA:
+            out[key] = v
+        elif isinstance(v, dict):
+            out.update(_flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def _num(key: str, v: Any, integer: bool = False) -> float | int:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InputError(key, f"expected a {'integer' if integer else 'number'}, got {v!r}")
+    if integer and not isinstance(v, int):
+        raise InputError(key, f"expected an integer, got {v!r}")
+    if not math.isfinite(v):
+        raise InputError(key, f"must be finite, got {v!r}")
+    return v
+
+
+def _floats(key: str, v: Any, length: int | None = None) -> tuple[float, ...]:
+    if not isinstance(v, (list, tuple)) or (length is not None and len(v) != length):
+        raise InputError(key, f"expected a list of {length or 'some'} numbers, got {v!r}")
+    return tuple(float(_num(key, x)) for x in v)
+
+
+def parse_shape(key: str, spec: Any, dim: int) -> Shape:
+    """Validate a shape table (``initial`` or ``constraints.target``)."""
+    if not isinstance(spec, dict):
+        raise InputError(key, f"expected a table with 'shape' in {SHAPES}, got {spec!r}")
+    unknown = set(spec) - set(SHAPE_KEYS)
+    if unknown:
+        raise InputError(f"{key}.{sorted(unknown)[0]}", f"unknown key (allowed: {', '.join(SHAPE_KEYS)})")
+    shape = spec.get("shape")
+    if shape not in SHAPES:
+        raise InputError(f"{key}.shape", f"must be one of {', '.join(SHAPES)}, got {shape!r}")
+    need = {"circle": ("radius",), "sphere": ("radius",), "ellipse": ("semi_axes",),
+            "ellipsoid": ("semi_axes",), "disk": ("radius", "thickness"), "torus": ("radii",),
+            "biconcave": ("radius",)}[shape]
+    for k in need:
+        if k not in spec:
+            raise InputError(f"{key}.{k}", f"required for shape '{shape}'")
+    if shape in ("torus", "biconcave", "disk") and dim != 3:
+        raise InputError(f"{key}.shape", f"'{shape}' needs a 3D domain, this one is {dim}D")
+    center = _floats(f"{key}.center", spec["center"], dim) if "center" in spec else None
+    radius = spec.get("radius")
+    if radius is not None and _num(f"{key}.radius", radius) <= 0:
+        raise InputError(f"{key}.radius", f"must be > 0, got {radius!r}")
+    semi = _floats(f"{key}.semi_axes", spec["semi_axes"], dim) if "semi_axes" in spec else None
+    if semi is not None and min(semi) <= 0:
+        raise InputError(f"{key}.semi_axes", f"must all be > 0, got {list(semi)}")
+    radii = _floats(f"{key}.radii", spec["radii"], 2) if "radii" in spec else None
+    if radii is not None and not (0 < radii[1] < radii[0]):
+        raise InputError(f"{key}.radii", f"need 0 < minor < major, got {list(radii)}")
+    thick = spec.get("thickness")
+    if thick is not None and _num(f"{key}.thickness", thick) <= 0:
+        raise InputError(f"{key}.thickness", f"must be > 0, got {thick!r}")
+    return Shape(shape, center, None if radius is None else float(radius), semi, radii,
+                 None if thick is None else float(thick))
+
+
+def parse_value(text: str) -> Any:
+    """Parse a ``--set`` value as TOML; a bare word that is not TOML is taken as a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _set_dotted(d: dict, key: str, value: Any) -> None:
+    parts = key.split(".")
+    for p in parts[:-1]:
+        d = d.setdefault(p, {})
+        if not isinstance(d, dict):
+            raise InputError(key, "cannot set a sub-key of a non-table value")
+    d[parts[-1]] = value
+
+
+def _known(key: str) -> bool:
+    if key in SCHEMA:
+        return True
+    for base in ("initial", "constraints.target"):
+        if key.startswith(base + ".") and key[len(base) + 1:] in SHAPE_KEYS:
+            return True
+    return False
+
+
+def apply_overrides(raw: dict, overrides: list[str] | None) -> dict:
+    """Apply ``KEY=VALUE`` overrides (dotted keys) to a raw scene dict, refusing unknown keys."""
+    for item in overrides or []:
+        if "=" not in item:
+            raise InputError("--set", f"expected KEY=VALUE, got {item!r}")
+        key, text = item.split("=", 1)
+        key = key.strip()
+        if not _known(key):
+            raise InputError(key, f"unknown scene key (allowed: {', '.join(SCHEMA)})")
+        _set_dotted(raw, key, parse_value(text.strip()))
+    return raw
+
+
+def from_dict(raw: dict, name: str = "scene") -> Scene:
+    """Validate a raw scene dict (as read from TOML) into a :class:`Scene`."""
+    flat = _flatten(raw)
+    for key in flat:
+        if not _known(key):
+            raise InputError(key, f"unknown scene key (allowed: {', '.join(SCHEMA)})")
+    val: dict[str, Any] = {}
+    for key, (kind, default, allowed) in SCHEMA.items():
+        if key not in flat:
+            if default is _REQ:
+                raise InputError(key, f"missing (allowed: {allowed})")
+            val[key] = default
+            continue
+        v = flat[key]
+        if kind == "str":
+            if not isinstance(v, str) or (isinstance(allowed, tuple) and v not in allowed):
+                raise InputError(key, f"must be one of {', '.join(allowed)}, got {v!r}"
+                                 if isinstance(allowed, tuple) else f"expected a string, got {v!r}")
+        elif kind in ("float", "int"):
+            v = _num(key, v, integer=kind == "int")
+            v = int(v) if kind == "int" else float(v)
+            if key in _POSITIVE and v <= 0:
+                raise InputError(key, f"must be > 0, got {v!r}")
+            if kind == "int" and v < 1:
+                raise InputError(key, f"must be >= 1, got {v!r}")
+        val[key] = v
+    box_raw = val["domain.box"]
+    if (not isinstance(box_raw, list) or len(box_raw) not in (2, 3)
+            or not all(isinstance(p, list) and len(p) == 2 for p in box_raw)):
+        raise InputError("domain.box", f"expected 2 or 3 [lo, hi] pairs, got {box_raw!r}")
+    box = tuple(_floats("domain.box", p, 2) for p in box_raw)
+    if any(hi <= lo for lo, hi in box):
+        raise InputError("domain.box", f"each pair needs lo < hi, got {[list(p) for p in box]}")
+    dim = len(box)
+    n_raw = val["mesh.n"]
+    n = (n_raw,) * dim if isinstance(n_raw, int) and not isinstance(n_raw, bool) else n_raw
+    if (not isinstance(n, (list, tuple)) or len(n) != dim
+            or not all(isinstance(k, int) and not isinstance(k, bool) for k in n)):
+        raise InputError("mesh.n", f"expected an integer or {dim} integers, got {n_raw!r}")
+    if min(n) < 4:
+        raise InputError("mesh.n", f"must be >= 4 cells per side, got {n_raw!r}")
+    domain = Domain(box, val["domain.boundary"])
+    if val["mesh.kind"] == "fd" and domain.boundary != "periodic":
+        raise InputError("domain.boundary", "mesh.kind 'fd' supports only 'periodic'")
+    if val["mesh.kind"] == "fd" and val["mesh.mass"] == "consistent":
+        raise InputError("mesh.mass", "mesh.kind 'fd' is lumped by construction; use 'lumped'")
+    if val["mesh.quadrature"] == "gauss" and val["mesh.kind"] != "fem-p1":
+        raise InputError("mesh.quadrature", "'gauss' needs mesh.kind = 'fem-p1'; use 'nodal'")
+    if val["mesh.file"] is not None and val["mesh.kind"] != "fem-p1":
+        raise InputError("mesh.file", "a mesh file needs mesh.kind = 'fem-p1'")
+    mesh = Mesh(val["mesh.kind"], tuple(n), val["mesh.mass"], val["mesh.quadrature"], val["mesh.file"])
+    model = Model(val["model.epsilon"], val["model.c0"], val["model.rigidity"])
+    target = None
+    if val["constraints.target"] is not None:
+        target = parse_shape("constraints.target", val["constraints.target"], dim)
+    alpha, beta = val["constraints.alpha"], val["constraints.beta"]
+    if target is None and (alpha is None or beta is None):
+        raise InputError("constraints.alpha" if alpha is None else "constraints.beta",
+                         "missing: give constraints.alpha and constraints.beta, or constraints.target")
+    if alpha is not None and not (-domain.volume < alpha < domain.volume):
+        raise InputError("constraints.alpha",
+                         f"must lie in (-|Omega|, |Omega|) = ({-domain.volume:.6g}, {domain.volume:.6g}), got {alpha!r}")
+    constraints = Constraints(alpha, beta, target)
+    initial = parse_shape("initial", val["initial"], dim)
+    solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
+                    val["solver.backend"])
+    return Scene(name, domain, mesh, model, constraints, initial, solver)
+
+
+def load(path: str | Path, overrides: list[str] | None = None) -> Scene:
+    """Read and validate a scene file, applying ``--set`` style overrides."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError("scene", f"file not found: {path}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError("scene", f"{path} is not valid TOML: {exc}") from None
+    return from_dict(apply_overrides(raw, overrides), name=path.stem)
