@@ -27,7 +27,7 @@ def bare_solve(n: int, tol: float = 1e-8, L: float = 4.0, eps: float = 0.2) -> d
     def tanh_ellipse(a, b):
         f = (X / a) ** 2 + (Y / b) ** 2 - 1
         g = np.hypot(2 * X / a**2, 2 * Y / b**2)
-        return np.tanh(-(f / g) / (np.sqrt(2) * eps)).ravel()
+        return np.tanh(-(f / np.maximum(g, 1e-12)) / (np.sqrt(2) * eps)).ravel()
     w = h * h
     def AB(p):
         return w * p.sum(), eps / 2 * w * (-p @ (Lap @ p)) + w * ((p**2 - 1) ** 2).sum() / (4 * eps)
