@@ -1,0 +1,49 @@
+"""Scene loading, overrides and bad input (one-line InputError naming the key)."""
+
+import pytest
+
+from vesicle_opt import scene
+from vesicle_opt.errors import InputError
+
+from _scenes import PROBLEMS, bundled
+
+
+@pytest.mark.parametrize("path", sorted(PROBLEMS.glob("*.toml")), ids=lambda p: p.stem)
+def test_bundled_scenes_load(path):
+    sc = scene.load(path)
+    assert sc.name == path.stem and sc.model.epsilon > 0
+
+
+def test_override_parses_toml_values():
+    sc = bundled("ellipse-2d", "mesh.n=[32, 16]", "model.c0=0.5", "mesh.kind=fem-p1", 'initial.center=[0.5, 0.0]')
+    assert sc.mesh.n == (32, 16) and sc.model.c0 == 0.5 and sc.mesh.kind == "fem-p1"
+    assert sc.initial.center == (0.5, 0.0)
+
+
+@pytest.mark.parametrize("override, key", [
+    ("model.epsilon=0", "model.epsilon"),
+    ("model.rigidity=-1", "model.rigidity"),
+    ("mesh.n=3", "mesh.n"),
+    ("mesh.kind='fx'", "mesh.kind"),
+    ("domain.box=[[1, 0], [0, 1]]", "domain.box"),
+    ("constraints.alpha=1e6", "constraints.alpha"),
+    ("constraints.beta=-2", "constraints.beta"),
+    ("solver.tol=0", "solver.tol"),
+    ("solver.M=-1", "solver.M"),
+    ("solver.method='newton'", "solver.method"),
+    ("model.epsilon='small'", "model.epsilon"),
+    ("nope.key=1", "nope.key"),
+    ("initial.shape='cube'", "initial.shape"),
+    ("initial.semi_axes=[1.0]", "initial.semi_axes"),
+    ("mesh.quadrature='gauss'", "mesh.quadrature"),  # gauss needs fem-p1; ellipse-2d is fd
+])
+def test_bad_input_names_the_key(override, key):
+    with pytest.raises(InputError) as info:
+        bundled("ellipse-2d", override)
+    assert info.value.key == key and "\n" not in str(info.value)
+
+
+def test_missing_required_key():
+    with pytest.raises(InputError, match="model.epsilon: missing"):
+        scene.from_dict({"domain": {"box": [[0, 1], [0, 1]]}, "mesh": {"n": 8}, "initial": {"shape": "circle", "radius": 0.3},
+                         "constraints": {"alpha": 0.0, "beta": 1.0}})
