@@ -1,0 +1,100 @@
+"""Benchmark of the exact-constraint IPOPT solve: iterations, wall time, derivative-evaluation
+time, Hessian nonzeros per row and peak memory against mesh size, for FD, FEM-lumped and
+FEM-consistent in 2D (ellipse-2d, 32^2 ... 512^2) and 3D (sphere-3d, 16^3 ... 32^3), beside the bare
+hand-written CasADi model of ``bare_casadi.py`` (2D FD). Each case runs in a fresh process so its
+peak memory (ru_maxrss) is its own. Rows are appended as they finish; a re-run resumes.
+
+    vesicle-opt study bench_equilibrium --out results [--quick]
+"""
+
+from __future__ import annotations
+
+import resource
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+COLUMNS = ["case", "dim", "discretisation", "n", "n_nodes", "iterations", "wall_time_s",
+           "derivative_time_s", "derivative_fraction", "hessian_nnz_per_row", "peak_memory_mb",
+           "energy", "status", "converged"]
+
+
+def cases(quick: bool) -> list[dict]:
+    out = []
+    ns2 = [32, 64] if quick else [32, 64, 128, 256, 512]
+    for n in ns2:
+        out.append({"case": "bare-casadi", "dim": 2, "discretisation": "fd", "n": n})
+        for disc in ("fd", "fem-lumped", "fem-consistent"):
+            if disc == "fem-consistent" and n > 256:
+                continue  # 2 x 512^2 unknowns with MUMPS: beyond this machine's minutes
+            out.append({"case": "ellipse-2d", "dim": 2, "discretisation": disc, "n": n})
+    for n in ([8] if quick else [12, 16, 20, 24, 32]):
+        for disc in ("fd", "fem-consistent") if n <= 16 else ("fd",):
+            out.append({"case": "sphere-3d", "dim": 3, "discretisation": disc, "n": n})
+    return out
+
+
+def run_case(case: dict) -> dict:
+    import casadi  # noqa: F401  (imported before timing in every fresh process)
+
+    if case["case"] == "bare-casadi":
+        sys.path.insert(0, str(Path(__file__).parent))
+        from studies.bare_casadi import bare_solve
+        r = bare_solve(case["n"])
+        row = {**case, "n_nodes": case["n"] ** 2, "iterations": r["iterations"],
+               "wall_time_s": r["wall_time_s"], "energy": r["energy"], "status": r["status"],
+               "converged": r["status"] == "Solve_Succeeded"}
+    else:
+        from vesicle_opt import scene, solve
+        from vesicle_opt.cli import resolve_scene
+        kind = {"fd": ["mesh.kind='fd'"], "fem-lumped": ["mesh.kind='fem-p1'", "mesh.mass='lumped'"],
+                "fem-consistent": ["mesh.kind='fem-p1'", "mesh.mass='consistent'"]}[case["discretisation"]]
+        sc = scene.load(resolve_scene(case["case"]), [f"mesh.n={case['n']}", *kind])
+        r = solve.solve(sc)
+        row = {**case, "n_nodes": r.n_nodes, "iterations": r.iterations, "wall_time_s": r.wall_time_s,
+               "derivative_time_s": r.derivative_time_s,
+               "derivative_fraction": r.derivative_time_s / r.wall_time_s,
+               "hessian_nnz_per_row": r.hessian_nnz_per_row, "energy": r.energy, "status": r.status,
+               "converged": r.converged}
+    row["peak_memory_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return row
+
+
+def main(out: Path, quick: bool = False) -> int:
+    from vesicle_opt.table import CsvTable
+    table = CsvTable(Path(out) / "bench_equilibrium.csv", COLUMNS, key=("case", "discretisation", "n"))
+    todo = [c for c in cases(quick) if not table.done(c)]
+    with ProcessPoolExecutor(max_workers=1, max_tasks_per_child=1) as pool:  # fresh process each
+        for i, row in enumerate(pool.map(run_case, todo), 1):
+            table.append(row)
+            print(f"[{i}/{len(todo)}] {row['case']} {row['discretisation']} n={row['n']}: "
+                  f"{row['wall_time_s']:.2f}s, {row['iterations']} it, {row['peak_memory_mb']:.0f} MB",
+                  flush=True)
+    _plot(table.rows(), Path(out) / "bench_equilibrium.png")
+    return 0
+
+
+def _plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    groups: dict[tuple, list] = {}
+    for r in rows:
+        if r["wall_time_s"]:
+            groups.setdefault((r["case"], r["discretisation"]), []).append(
+                (int(r["n_nodes"]), float(r["wall_time_s"])))
+    for (case, disc), pts in sorted(groups.items()):
+        pts.sort()
+        ax.loglog(*zip(*pts), "o-", label=f"{case} {disc}")
+    ax.set_xlabel("nodes")
+    ax.set_ylabel("IPOPT wall time [s]")
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1] if len(sys.argv) > 1 else "results"), quick="--quick" in sys.argv)

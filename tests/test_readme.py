@@ -1,0 +1,28 @@
+"""The README's opening commands: the main job must run on the default scene and converge."""
+
+import json
+import re
+import shlex
+from pathlib import Path
+
+from vesicle_opt import cli
+
+README = Path(__file__).resolve().parent.parent / "README.md"
+
+
+def test_readme_opens_with_install_and_test_commands():
+    block = re.search(r"```bash\n(.*?)```", README.read_text(), re.S).group(1).strip().splitlines()
+    assert len(block) == 2 and "vesicle-opt solve" in block[0] and "pytest" in block[1]
+
+
+def test_readme_main_job_runs(tmp_path):
+    first = re.search(r"```bash\n(.*?)\n", README.read_text(), re.S).group(1)
+    argv = shlex.split(first.split("&&")[-1])
+    assert argv[0] == "vesicle-opt"
+    args = argv[1:]
+    args[args.index("--out") + 1] = str(tmp_path)
+    args[1] = str(README.parent / args[1])
+    assert cli.main(args) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["converged"] and summary["scene"] == "ellipse-2d"
+    assert (tmp_path / "phi.vtu").exists() and (tmp_path / "phi.png").exists()
