@@ -99,7 +99,8 @@ def check_feasible(alpha: float, beta: float, scene, disc=None) -> float:
                               f"alpha = {alpha:.6g} must lie in (-|Omega|, |Omega|) = ({-volume:.6g}, {volume:.6g})")
     if not beta > 0:
         raise InfeasibleError("constraints.beta", f"beta = {beta:.6g} must be > 0")
-    bound = beta_min(alpha, scene.model.epsilon, scene.domain.box, scene.domain.boundary)
+    box = scene.domain.box if disc is None else disc.box  # a mesh file brings its own bounding box
+    bound = beta_min(alpha, scene.model.epsilon, box, scene.domain.boundary)
     if beta < bound:
         raise InfeasibleError("constraints.beta",
                               f"infeasible: beta = {beta:.6g} is below the least area functional "

@@ -8,6 +8,9 @@ exactly like the FD grid. Any mesh scikit-fem/meshio can read works with natural
 
 from __future__ import annotations
 
+import os
+from contextlib import redirect_stderr, redirect_stdout
+
 import numpy as np
 import scipy.sparse as sp
 import skfem
@@ -59,10 +62,12 @@ def p1(box, n, periodic: bool, mass: str = "lumped", quadrature: str = "nodal",
     if mesh_file is not None:
         if periodic:
             raise InputError("domain.boundary", "a mesh file supports only 'natural'")
-        try:
-            mesh = skfem.Mesh.load(mesh_file)
-        except Exception as exc:  # meshio raises many types for unreadable files
-            raise InputError("mesh.file", f"cannot read {mesh_file!r}: {exc}") from None
+        try:  # meshio raises many types, even SystemExit, and prints, for unreadable files
+            with open(os.devnull, "w") as null, redirect_stdout(null), redirect_stderr(null):
+                mesh = skfem.Mesh.load(mesh_file)
+        except (Exception, SystemExit) as exc:
+            why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise InputError("mesh.file", f"cannot read {mesh_file!r} as a mesh ({why})") from None
         if not isinstance(mesh, (skfem.MeshTri1, skfem.MeshTet1)):
             raise InputError("mesh.file", f"need a triangle or tetrahedron mesh, got {type(mesh).__name__}")
         lo, hi = mesh.p.min(axis=1), mesh.p.max(axis=1)

@@ -290,7 +290,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     if target is None and (alpha is None or beta is None):
         raise InputError("constraints.alpha" if alpha is None else "constraints.beta",
                          "missing: give constraints.alpha and constraints.beta, or constraints.target")
-    if alpha is not None and not (-domain.volume < alpha < domain.volume):
+    if alpha is not None and val["mesh.file"] is None and not (-domain.volume < alpha < domain.volume):
         raise InputError("constraints.alpha",
                          f"must lie in (-|Omega|, |Omega|) = ({-domain.volume:.6g}, {domain.volume:.6g}), got {alpha!r}")
     constraints = Constraints(alpha, beta, target)
