@@ -46,6 +46,10 @@ def cmd_solve(args) -> int:
     summary = output.write_result(Path(args.out), sc, nlp.disc, result)
     print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
+    if result.converged and summary.get("second_order") == "saddle":
+        print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser (smallest tangent "
+              f"Hessian eigenvalue {summary['second_order_min_eigenvalue']:.3g} mu_ref); try another "
+              f"initial shape", file=sys.stderr)
     if not result.converged:
         print(f"vesicle-opt: not converged: status {summary['status']}, kkt_residual "
               f"{summary['kkt_residual']}, volume_residual {summary['volume_residual']}, "

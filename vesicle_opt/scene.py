@@ -82,6 +82,7 @@ class Solver:
     tol: float
     max_iter: int
     backend: str = "ipopt"
+    second_order: bool = True  # run the second-order check after a converged solve
 
 
 @dataclass(frozen=True)
@@ -124,6 +125,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.tol": ("float", 1e-8, "> 0"),
     "solver.max_iter": ("int", 500, ">= 1"),
     "solver.backend": ("str", "ipopt", ("ipopt",)),
+    "solver.second_order": ("bool", True, "true or false"),
 }
 _POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "solver.M", "solver.tol"}
 
@@ -249,6 +251,9 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
             if not isinstance(v, str) or (isinstance(allowed, tuple) and v not in allowed):
                 raise InputError(key, f"must be one of {', '.join(allowed)}, got {v!r}"
                                  if isinstance(allowed, tuple) else f"expected a string, got {v!r}")
+        elif kind == "bool":
+            if not isinstance(v, bool):
+                raise InputError(key, f"expected true or false, got {v!r}")
         elif kind in ("float", "int"):
             v = _num(key, v, integer=kind == "int")
             v = int(v) if kind == "int" else float(v)
@@ -296,7 +301,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     constraints = Constraints(alpha, beta, target)
     initial = parse_shape("initial", val["initial"], dim)
     solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
-                    val["solver.backend"])
+                    val["solver.backend"], val["solver.second_order"])
     return Scene(name, domain, mesh, model, constraints, initial, solver)
 
 

@@ -62,6 +62,11 @@ def _hessian_nnz_per_row(solver, n: int) -> float:
     return nnz / n
 
 
+def replace_extra(result: Result, **items) -> Result:
+    from dataclasses import replace
+    return replace(result, extra={**result.extra, **items})
+
+
 def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=None,
           options: IpoptOptions | None = None, throw: bool = False) -> Result:
     """Minimise rigidity * E_h subject to A = alpha, B = beta exactly; see the module docstring."""
@@ -102,6 +107,13 @@ def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=Non
         history=history, x=x, lam_x=np.asarray(sol["lam_x"]).ravel(),
         lam_g=np.asarray(sol["lam_g"]).ravel(),
         extra={"alpha": nlp.alpha, "beta": nlp.beta, "epsilon": eps, "h": disc.h})
+    if converged and scene.solver.second_order:
+        from .second_order import check
+        so = check(nlp, result)
+        result = replace_extra(result, second_order=so.verdict,
+                               second_order_min_eigenvalue=so.relative_min_eigenvalue)
+    else:
+        result = replace_extra(result, second_order="not checked")
     if throw and not converged:
         raise SolverError(f"not converged: status {result.status}, kkt_residual {kkt:.3g}, "
                           f"A-alpha {res_A:.3g}, B-beta {res_B:.3g}", result)
