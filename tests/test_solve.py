@@ -96,3 +96,17 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err.count("\n") == 0 and "model.epsilon" in err and "> 0" in err
     assert not (tmp_path / "summary.json").exists()
+
+
+def test_nlp_pieces_work_with_a_plain_nlpsol(ellipse64):
+    """build_nlp's dict, bounds and x0 go to any casadi.nlpsol and give the same solution."""
+    import casadi as ca
+    nlp, res = ellipse64
+    solver = ca.nlpsol("user", "ipopt", nlp.as_dict(), {"ipopt.tol": TOL, "ipopt.print_level": 0,
+                                                        "print_time": False, "ipopt.sb": "yes"})
+    sol = solver(x0=nlp.x0, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+    assert solver.stats()["success"]
+    energy = float(sol["f"]) * nlp.f_scale
+    assert energy == pytest.approx(res.energy, rel=1e-8)  # same minimiser to IPOPT's tolerance
+    lam = nlp.multipliers(np.asarray(sol["lam_g"]))
+    assert lam[0] == pytest.approx(res.lambda_volume, rel=1e-5)  # multipliers: tol / |lambda| sensitivity
