@@ -50,6 +50,9 @@ def cmd_solve(args) -> int:
         print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser (smallest tangent "
               f"Hessian eigenvalue {summary['second_order_min_eigenvalue']:.3g} mu_ref); try another "
               f"initial shape", file=sys.stderr)
+    if summary.get("wraps"):
+        print(f"vesicle-opt: warning: the inside {summary['topology']}: a slab or tube joined to its "
+              f"periodic image, not a closed vesicle", file=sys.stderr)
     if not result.converged:
         print(f"vesicle-opt: not converged: status {summary['status']}, kkt_residual "
               f"{summary['kkt_residual']}, volume_residual {summary['volume_residual']}, "

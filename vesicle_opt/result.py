@@ -63,6 +63,11 @@ class Result:
         if self.M is not None:
             out["M"] = num(self.M)
             out["penalized_energy"] = num(self.penalized_energy)
-        out.update({k: (num(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v)
-                    for k, v in self.extra.items()})
+        def item(v):
+            if isinstance(v, bool) or v is None or isinstance(v, (str, list)):
+                return v
+            if isinstance(v, (int, np.integer)):
+                return int(v)
+            return num(v)
+        out.update({k: item(v) for k, v in self.extra.items()})
         return out

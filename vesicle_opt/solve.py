@@ -107,6 +107,12 @@ def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=Non
         history=history, x=x, lam_x=np.asarray(sol["lam_x"]).ravel(),
         lam_g=np.asarray(sol["lam_g"]).ravel(),
         extra={"alpha": nlp.alpha, "beta": nlp.beta, "epsilon": eps, "h": disc.h})
+    if finite:
+        from .topology import analyse
+        topo = analyse(disc, phi)
+        result = replace_extra(result, topology=topo.describe(disc.dim), components=topo.components,
+                               euler_characteristic=topo.euler_characteristic,
+                               wraps=None if topo.wraps is None else list(topo.wraps))
     if converged and scene.solver.second_order:
         from .second_order import check
         so = check(nlp, result)
