@@ -31,3 +31,11 @@ def test_corrupt_mesh_file_is_bad_input(tmp_path):
         assert exc.key == "mesh.file" and "\n" not in str(exc)
     else:
         raise AssertionError("a corrupt mesh file was accepted")
+
+
+def test_missing_mesh_file_is_bad_input(tmp_path):
+    import pytest
+    with pytest.raises(InputError) as info:
+        S.solve(bundled("ellipse-2d", "mesh.kind='fem-p1'", "domain.boundary='natural'",
+                        f"mesh.file='{tmp_path / 'absent.msh'}'"))
+    assert info.value.key == "mesh.file"

@@ -47,3 +47,25 @@ def test_missing_required_key():
     with pytest.raises(InputError, match="model.epsilon: missing"):
         scene.from_dict({"domain": {"box": [[0, 1], [0, 1]]}, "mesh": {"n": 8}, "initial": {"shape": "circle", "radius": 0.3},
                          "constraints": {"alpha": 0.0, "beta": 1.0}})
+
+
+def test_warm_start_file_restarts_at_the_solution(tmp_path):
+    from vesicle_opt import cli
+    assert cli.main(["solve", "ellipse-2d", "--out", str(tmp_path / "a"), "--set", "mesh.n=32"]) == 0
+    from vesicle_opt.solve import solve
+    res = solve(bundled("ellipse-2d", "mesh.n=32", "initial.shape='file'", f"initial.file='{tmp_path / 'a' / 'phi.npz'}'"))
+    assert res.converged and res.iterations <= 3  # already optimal: IPOPT only confirms it
+
+
+@pytest.mark.parametrize("content", [b"garbage", None, "wrong-size"])
+def test_bad_warm_start_file_is_bad_input(tmp_path, content):
+    import numpy as np
+    from vesicle_opt.nlp import build_nlp
+    path = tmp_path / "phi.npz"
+    if content == "wrong-size":
+        np.savez(path, phi=np.zeros(7))
+    elif content is not None:
+        path.write_bytes(content)
+    with pytest.raises(InputError) as info:
+        build_nlp(bundled("ellipse-2d", "mesh.n=32", "initial.shape='file'", f"initial.file='{path}'"))
+    assert info.value.key == "initial.file" and "\n" not in str(info.value)

@@ -22,6 +22,7 @@ import numpy as np
 
 from . import functionals as F
 from .discretization import Discretization, discretize
+from .errors import InputError
 from .feasibility import check_feasible
 from .scene import Scene
 from .shapes import phase_field
@@ -78,8 +79,27 @@ def constraint_data(scene: Scene, disc: Discretization) -> tuple[float, float]:
     return float(alpha), float(beta)
 
 
+def load_warm_start(path: str, disc: Discretization) -> np.ndarray:
+    """phi from a phi.npz of an earlier solve on the same mesh; InputError if unusable."""
+    try:
+        with np.load(path) as data:
+            phi = np.asarray(data["phi"], float)
+    except FileNotFoundError:
+        raise InputError("initial.file", f"file not found: {path}") from None
+    except Exception as exc:  # zip/pickle/key errors of a corrupt or foreign file
+        raise InputError("initial.file", f"{path} is not a phi.npz written by vesicle-opt ({type(exc).__name__})") from None
+    if phi.shape != (disc.n_nodes,):
+        raise InputError("initial.file", f"{path} holds {phi.size} values, this mesh has {disc.n_nodes} nodes")
+    if not np.all(np.isfinite(phi)):
+        raise InputError("initial.file", f"{path} contains non-finite values")
+    return phi
+
+
 def initial_guess(scene: Scene, disc: Discretization) -> np.ndarray:
-    phi0 = phase_field(scene.initial, disc.nodes, disc.box, scene.model.epsilon)
+    if scene.initial.shape == "file":
+        phi0 = load_warm_start(scene.initial.file, disc)
+    else:
+        phi0 = phase_field(scene.initial, disc.nodes, disc.box, scene.model.epsilon)
     if disc.consistent:
         return np.concatenate([phi0, disc.apply_laplacian(phi0)])
     return phi0
@@ -88,7 +108,6 @@ def initial_guess(scene: Scene, disc: Discretization) -> np.ndarray:
 def build_nlp(scene: Scene, disc: Discretization | None = None, check: bool = True) -> NLP:
     """Build the exact-constraint NLP (6)-(8) of a scene (``solver.method = 'exact'``)."""
     if scene.solver.method != "exact":
-        from .errors import InputError
         raise InputError("solver.method", f"{scene.solver.method!r} is not available yet; allowed: exact")
     disc = disc or discretize(scene)
     alpha, beta = constraint_data(scene, disc)

@@ -17,8 +17,8 @@ from typing import Any
 
 from .errors import InputError
 
-SHAPES = ("circle", "sphere", "ellipse", "ellipsoid", "disk", "torus", "biconcave")
-SHAPE_KEYS = ("shape", "center", "radius", "semi_axes", "radii", "thickness")
+SHAPES = ("circle", "sphere", "ellipse", "ellipsoid", "disk", "torus", "biconcave", "file")
+SHAPE_KEYS = ("shape", "center", "radius", "semi_axes", "radii", "thickness", "file")
 
 
 @dataclass(frozen=True)
@@ -31,6 +31,7 @@ class Shape:
     semi_axes: tuple[float, ...] | None = None
     radii: tuple[float, float] | None = None  # torus: (major R, minor r)
     thickness: float | None = None  # disk: full thickness of the rounded flat disk
+    file: str | None = None  # shape "file": a phi.npz written by an earlier solve (warm start)
 
 
 @dataclass(frozen=True)
@@ -171,7 +172,7 @@ def parse_shape(key: str, spec: Any, dim: int) -> Shape:
         raise InputError(f"{key}.shape", f"must be one of {', '.join(SHAPES)}, got {shape!r}")
     need = {"circle": ("radius",), "sphere": ("radius",), "ellipse": ("semi_axes",),
             "ellipsoid": ("semi_axes",), "disk": ("radius", "thickness"), "torus": ("radii",),
-            "biconcave": ("radius",)}[shape]
+            "biconcave": ("radius",), "file": ("file",)}[shape]
     for k in need:
         if k not in spec:
             raise InputError(f"{key}.{k}", f"required for shape '{shape}'")
@@ -190,8 +191,13 @@ def parse_shape(key: str, spec: Any, dim: int) -> Shape:
     thick = spec.get("thickness")
     if thick is not None and _num(f"{key}.thickness", thick) <= 0:
         raise InputError(f"{key}.thickness", f"must be > 0, got {thick!r}")
+    file = spec.get("file")
+    if file is not None and not isinstance(file, str):
+        raise InputError(f"{key}.file", f"expected a path string, got {file!r}")
+    if shape == "file" and key != "initial":
+        raise InputError(f"{key}.shape", "'file' is allowed only for the initial shape")
     return Shape(shape, center, None if radius is None else float(radius), semi, radii,
-                 None if thick is None else float(thick))
+                 None if thick is None else float(thick), file)
 
 
 def parse_value(text: str) -> Any:
