@@ -45,3 +45,18 @@ def test_eigenvalues_match_a_dense_reduced_hessian():
     mu = np.linalg.eigvalsh(Z.T @ H @ Z)[:3]
     # the same matrix, eigensolved two ways (ARPACK tol 1e-10 vs LAPACK): agreement to ~1e-10
     assert np.allclose(so.eigenvalues, mu / (so.min_eigenvalue / so.relative_min_eigenvalue), rtol=1e-8)
+
+
+def test_a_saddle_verdict_is_confirmed_by_descent():
+    """Non-square periodic box, symmetric start: flagged saddle; stepping along the negative
+    mode and re-solving must reach a lower energy, and that point must check as a minimum."""
+    sc = bundled("ellipse-2d", "mesh.n=[48, 36]", "domain.box=[[-4.0, 4.0], [-3.0, 3.0]]",
+                 "solver.second_order=false")
+    nlp = build_nlp(sc)
+    res = S.solve(nlp)
+    so = SO.check(nlp, res)
+    assert res.converged and so.verdict == "saddle"
+    mode = so.lowest_mode / np.abs(so.lowest_mode).max()
+    pushed = S.solve(nlp, x0=res.phi + 0.2 * mode)
+    assert pushed.converged and pushed.energy < res.energy
+    assert SO.check(nlp, pushed).verdict == "minimum"

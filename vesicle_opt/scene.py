@@ -17,8 +17,9 @@ from typing import Any
 
 from .errors import InputError
 
-SHAPES = ("circle", "sphere", "ellipse", "ellipsoid", "disk", "torus", "biconcave", "file")
-SHAPE_KEYS = ("shape", "center", "radius", "semi_axes", "radii", "thickness", "file")
+SHAPES = ("circle", "sphere", "ellipse", "ellipsoid", "disk", "torus", "biconcave", "file",
+          "constant", "noise")
+SHAPE_KEYS = ("shape", "center", "radius", "semi_axes", "radii", "thickness", "file", "value", "seed")
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,8 @@ class Shape:
     radii: tuple[float, float] | None = None  # torus: (major R, minor r)
     thickness: float | None = None  # disk: full thickness of the rounded flat disk
     file: str | None = None  # shape "file": a phi.npz written by an earlier solve (warm start)
+    value: float | None = None  # shape "constant": phi = value everywhere, -1 <= value <= 1
+    seed: int | None = None  # shape "noise": phi uniform in (-1, 1), seeded
 
 
 @dataclass(frozen=True)
@@ -172,7 +175,7 @@ def parse_shape(key: str, spec: Any, dim: int) -> Shape:
         raise InputError(f"{key}.shape", f"must be one of {', '.join(SHAPES)}, got {shape!r}")
     need = {"circle": ("radius",), "sphere": ("radius",), "ellipse": ("semi_axes",),
             "ellipsoid": ("semi_axes",), "disk": ("radius", "thickness"), "torus": ("radii",),
-            "biconcave": ("radius",), "file": ("file",)}[shape]
+            "biconcave": ("radius",), "file": ("file",), "constant": ("value",), "noise": ("seed",)}[shape]
     for k in need:
         if k not in spec:
             raise InputError(f"{key}.{k}", f"required for shape '{shape}'")
@@ -194,10 +197,17 @@ def parse_shape(key: str, spec: Any, dim: int) -> Shape:
     file = spec.get("file")
     if file is not None and not isinstance(file, str):
         raise InputError(f"{key}.file", f"expected a path string, got {file!r}")
-    if shape == "file" and key != "initial":
-        raise InputError(f"{key}.shape", "'file' is allowed only for the initial shape")
+    if shape in ("file", "constant", "noise") and key != "initial":
+        raise InputError(f"{key}.shape", f"'{shape}' is allowed only for the initial shape")
+    value = spec.get("value")
+    if value is not None and not -1 <= _num(f"{key}.value", value) <= 1:
+        raise InputError(f"{key}.value", f"must lie in [-1, 1], got {value!r}")
+    seed = spec.get("seed")
+    if seed is not None:
+        seed = _num(f"{key}.seed", seed, integer=True)
     return Shape(shape, center, None if radius is None else float(radius), semi, radii,
-                 None if thick is None else float(thick), file)
+                 None if thick is None else float(thick), file,
+                 None if value is None else float(value), seed)
 
 
 def parse_value(text: str) -> Any:

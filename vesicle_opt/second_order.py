@@ -20,7 +20,7 @@ relies on is checked independently in ``kkt.py``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -42,6 +42,7 @@ class SecondOrder:
     translation_rayleigh: tuple[float, ...]  # Rayleigh quotients of the translation modes / mu_ref
     residual: float  # largest relative residual of the constrained eigenpairs
     reason: str = ""
+    lowest_mode: np.ndarray | None = field(default=None, repr=False)  # M-normalised phi direction
 
 
 def _hessian(nlp, x, lam_g) -> sp.csr_matrix:
@@ -130,4 +131,4 @@ def check(nlp, result, n_eig: int = N_EIG) -> SecondOrder:
         negative = rel < -TOL_REL or any(t < -TOL_REL for t in t_rq)
         verdict, reason = ("saddle" if negative else "minimum"), ""
     return SecondOrder(verdict, float(mu[0]), rel, tuple(float(m / mu_ref) for m in mu), t_rq,
-                       residual, reason)
+                       residual, reason, V[:, 0] / np.sqrt(V[:, 0] @ (Mphi @ V[:, 0])))

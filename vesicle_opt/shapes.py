@@ -52,5 +52,13 @@ def signed_distance(shape: Shape, points: np.ndarray, box) -> np.ndarray:
 
 
 def phase_field(shape: Shape, points: np.ndarray, box, epsilon: float) -> np.ndarray:
-    """phi = tanh(-d / (sqrt(2) eps)): +1 inside the shape, -1 outside."""
+    """phi = tanh(-d / (sqrt(2) eps)): +1 inside the shape, -1 outside.
+
+    Two starts that are no shape, for stress tests: "constant" (phi = value) and "noise"
+    (phi uniform in (-1, 1) from a seeded generator, reproducible).
+    """
+    if shape.shape == "constant":
+        return np.full(len(points), shape.value)
+    if shape.shape == "noise":
+        return np.random.default_rng(shape.seed).uniform(-1.0, 1.0, len(points))
     return np.tanh(-signed_distance(shape, points, box) / (np.sqrt(2.0) * epsilon))

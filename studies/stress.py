@@ -1,0 +1,152 @@
+"""Stress study: stiff and extreme cases, each ending as a verified solution or an honest failure.
+
+One CSV row per case with its outcome — ``converged`` (IPOPT success and the recomputed KKT and
+constraint residuals within tolerance; ``second_order`` and ``topology`` say what was found),
+``failed: <status>``, or ``refused: <reason>`` (bad or infeasible input, before any solve).
+Groups:
+
+* ``resolution``: eps/h = 8, 4, 2, 1, 0.5 at fixed h, energy against a 4x finer mesh;
+* ``feasibility``: beta = beta_min(alpha) (1 + delta), delta = 1e-2, 1e-3, 1e-4, and -1e-3 (refused);
+* ``curvature``: spontaneous curvature c0 R in {-3, -1, 0, 1, 3} (R: radius of equal area);
+* ``initial``: starts far from the target (constant phi, noise, a shape across the periodic
+  boundary; 3D: a torus start for a sphere target, a sphere start for the torus data);
+* ``symmetry``: a circle start for the ellipse target (a saddle) and a large flat disk in a
+  periodic box (a slab joined to its periodic image);
+* ``domain``: a non-square box, an anisotropic grid, an unstructured mesh read from a file.
+
+    vesicle-opt study stress --out DIR [--quick]
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+COLUMNS = ["study", "group", "case", "scene", "parameter", "outcome", "status", "energy",
+           "reference_energy", "relative_energy_error", "kkt_residual", "volume_residual",
+           "area_residual", "iterations", "wall_time_s", "second_order", "second_order_min_eigenvalue",
+           "topology"]
+
+
+def _cases(quick: bool, mesh_dir: Path) -> list[dict]:
+    n = 48 if quick else 64
+    base = ("ellipse-2d", [f"mesh.n={n}"])
+    out: list[dict] = []
+
+    def add(group, case, parameter, scene=base[0], overrides=(), reference=None):
+        out.append({"group": group, "case": case, "parameter": parameter, "scene": scene,
+                    "overrides": [*(base[1] if scene == base[0] else []), *overrides],
+                    "reference": reference})
+
+    h = 8.0 / n
+    for ratio in ([4, 1] if quick else [8, 4, 2, 1, 0.5]):
+        eps = ratio * h
+        ref = None if quick else [f"mesh.n={4 * n}", f"model.epsilon={eps!r}"]
+        add("resolution", f"eps/h={ratio}", ratio, overrides=[f"model.epsilon={eps!r}"], reference=ref)
+    for delta in ([1e-3, -1e-3] if quick else [1e-2, 1e-3, 1e-4, -1e-3]):
+        add("feasibility", f"beta=beta_min(1{delta:+g})", delta, overrides=[f"@beta_factor={1 + delta!r}"])
+    R = math.sqrt(2.0 * 1.0)  # circle with the area of the 2 x 1 ellipse
+    for c0R in ([-1, 1] if quick else [-3, -1, 0, 1, 3]):
+        add("curvature", f"c0*R={c0R}", c0R, overrides=[f"model.c0={c0R / R!r}"])
+    add("initial", "phi=0.2 everywhere", 0.2, overrides=["initial.shape='constant'", "initial.value=0.2"])
+    add("initial", "uniform noise", 0, overrides=["initial.shape='noise'", "initial.seed=1"])
+    add("initial", "across the periodic boundary", 3.3, overrides=["initial.center=[3.3, 0.5]"])
+    add("symmetry", "circle start, ellipse target", 1.5,
+        overrides=["initial.shape='circle'", "initial.radius=1.5"])
+    add("domain", "non-square box 8 x 6", 0.75,
+        overrides=["domain.box=[[-4.0, 4.0], [-3.0, 3.0]]", f"mesh.n=[{n}, {3 * n // 4}]"])
+    add("domain", "anisotropic grid", 0.5, overrides=[f"mesh.n=[{n}, {n // 2}]"])
+    add("domain", "unstructured mesh file", 0, overrides=[
+        "mesh.kind='fem-p1'", "domain.boundary='natural'", f"mesh.file='{mesh_dir / 'disk.vtk'}'",
+        "model.epsilon=0.25", "constraints.target.semi_axes=[1.6, 0.9]", "initial.semi_axes=[1.5, 1.0]"])
+    if not quick:
+        add("initial", "torus start, sphere target", 0, scene="sphere-3d",
+            overrides=["mesh.kind='fd'", "initial.shape='torus'", "initial.radii=[1.0, 0.45]"])
+        add("initial", "sphere start, torus data", 0, scene="torus-table1-3d",
+            overrides=["initial.shape='sphere'", "initial.radius=1.7"])
+        add("symmetry", "large flat disk, periodic box", 2.9, scene="torus-table1-3d",
+            overrides=["initial.shape='disk'", "initial.radius=2.9", "initial.thickness=0.6"])
+    return out
+
+
+def _scene(case: dict, extra=()):
+    from vesicle_opt import scene
+    from vesicle_opt.cli import resolve_scene
+    overrides = [o for o in case["overrides"] if not o.startswith("@")]
+    return scene.load(resolve_scene(case["scene"]), [*overrides, *extra])
+
+
+def run_case(case: dict) -> dict:
+    from vesicle_opt import feasibility, solve
+    from vesicle_opt.discretization import discretize
+    from vesicle_opt.errors import InputError
+    from vesicle_opt.nlp import constraint_data
+    row = {k: case[k] for k in ("group", "case", "scene", "parameter")}
+    t0 = time.perf_counter()
+    try:
+        extra = []
+        factor = [o for o in case["overrides"] if o.startswith("@beta_factor=")]
+        if factor:  # place beta relative to the phase-field bound of this alpha
+            sc = _scene(case)
+            alpha, _ = constraint_data(sc, discretize(sc))
+            bound = feasibility.beta_min(alpha, sc.model.epsilon, sc.domain.box, sc.domain.boundary)
+            extra = [f"constraints.alpha={alpha!r}", f"constraints.beta={float(factor[0].split('=')[1]) * bound!r}"]
+        res = solve.solve(_scene(case, extra))
+    except InputError as exc:
+        return {**row, "outcome": f"refused: {exc}", "wall_time_s": time.perf_counter() - t0}
+    row.update(status=res.status, energy=res.energy, kkt_residual=res.kkt_residual,
+               volume_residual=res.volume_residual, area_residual=res.area_residual,
+               iterations=res.iterations, wall_time_s=res.wall_time_s,
+               second_order=res.extra.get("second_order"), topology=res.extra.get("topology"),
+               second_order_min_eigenvalue=res.extra.get("second_order_min_eigenvalue"),
+               outcome="converged" if res.converged else f"failed: {res.status}")
+    if case["reference"] and res.converged:
+        ref = solve.solve(_scene(case, case["reference"]))
+        if ref.converged:
+            row["reference_energy"] = ref.energy
+            row["relative_energy_error"] = abs(res.energy - ref.energy) / abs(ref.energy)
+    return row
+
+
+def main(out: Path, quick: bool = False) -> int:
+    import skfem
+    from vesicle_opt.table import CsvTable
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    mesh_path = out / "disk.vtk"
+    if not mesh_path.exists():
+        skfem.MeshTri.init_circle(5).scaled(3.0).save(str(mesh_path))
+    table = CsvTable(out / "stress.csv", COLUMNS, key=("group", "case"))
+    todo = [c for c in _cases(quick, out) if not table.done(c)]
+    for i, case in enumerate(todo, 1):
+        row = {"study": "stress", **run_case(case)}
+        table.append(row)
+        print(f"[{i}/{len(todo)}] {row['group']}: {row['case']} -> {row['outcome']}", flush=True)
+    _plot(table.rows(), out / "stress.png")
+    return 0
+
+
+def _plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    colours = {"converged": "tab:green", "failed": "tab:red", "refused": "tab:grey"}
+    fig, ax = plt.subplots(figsize=(8, 0.3 * len(rows) + 1))
+    for i, r in enumerate(rows):
+        kind = r["outcome"].split(":")[0]
+        t = float(r["wall_time_s"] or 0)
+        ax.barh(i, max(t, 1e-3), color=colours.get(kind, "k"))
+        label = r["outcome"][:40] + (f" ({r['second_order']})" if r["second_order"] else "")
+        ax.text(max(t, 1e-3), i, " " + label, va="center", fontsize=7)
+    ax.set_yticks(range(len(rows)), [f"{r['group']}: {r['case']}" for r in rows], fontsize=7)
+    ax.set_xscale("log")
+    ax.set_xlabel("wall time [s] (green: converged, red: failed, grey: refused)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main(Path(sys.argv[1] if len(sys.argv) > 1 else "results"), quick="--quick" in sys.argv))

@@ -1,0 +1,44 @@
+"""The stress study: every case ends as converged (verified), failed (honest) or refused."""
+
+import csv
+import math
+
+import pytest
+
+from studies import stress
+
+
+def _case(quick_cases, name):
+    return next(c for c in quick_cases if c["case"] == name)
+
+
+@pytest.fixture(scope="module")
+def quick_cases(tmp_path_factory):
+    return stress._cases(True, tmp_path_factory.mktemp("mesh"))
+
+
+def test_infeasible_case_is_refused_before_solving(quick_cases):
+    row = stress.run_case(_case(quick_cases, "beta=beta_min(1-0.001)"))
+    assert row["outcome"].startswith("refused: constraints.beta: infeasible")
+    assert "energy" not in row
+
+
+def test_constant_start_fails_honestly(quick_cases):
+    row = stress.run_case(_case(quick_cases, "phi=0.2 everywhere"))
+    assert row["outcome"].startswith("failed: ") and row["second_order"] == "not checked"
+    assert all(math.isfinite(row[k]) for k in ("energy", "kkt_residual", "volume_residual"))
+
+
+def test_circle_start_reports_the_saddle(quick_cases):
+    row = stress.run_case(_case(quick_cases, "circle start, ellipse target"))
+    assert row["outcome"] == "converged" and row["second_order"] == "saddle"
+
+
+@pytest.mark.slow
+def test_quick_study_writes_one_row_per_case_and_resumes(tmp_path):
+    assert stress.main(tmp_path, quick=True) == 0
+    rows = list(csv.DictReader((tmp_path / "stress.csv").open()))
+    assert len(rows) == len(stress._cases(True, tmp_path))
+    assert all(r["outcome"].split(":")[0] in ("converged", "failed", "refused") for r in rows)
+    assert stress.main(tmp_path, quick=True) == 0  # resume: nothing is run or written twice
+    assert len(list(csv.DictReader((tmp_path / "stress.csv").open()))) == len(rows)
