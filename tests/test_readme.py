@@ -26,3 +26,11 @@ def test_readme_main_job_runs(tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"] and summary["scene"] == "ellipse-2d"
     assert (tmp_path / "phi.vtu").exists() and (tmp_path / "phi.png").exists()
+
+
+def test_readme_python_example_runs():
+    code = re.search(r"```python\n(.*?)```", README.read_text(), re.S).group(1)
+    namespace: dict = {}
+    exec(compile(code.replace("problems/", str(README.parent / "problems") + "/"), "README", "exec"), namespace)
+    res = namespace["res"]
+    assert res.converged and res.extra["second_order"] == "minimum"
