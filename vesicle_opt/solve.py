@@ -66,6 +66,11 @@ def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=Non
           options: IpoptOptions | None = None, throw: bool = False) -> Result:
     """Minimise rigidity * E_h subject to A = alpha, B = beta exactly; see the module docstring."""
     nlp = problem if isinstance(problem, NLP) else build_nlp(problem)
+    from .penalty import PenaltyNLP
+    if isinstance(nlp, PenaltyNLP):  # penalty (11), continuation, augmented Lagrangian
+        from .continuation import solve_penalised
+        return solve_penalised(nlp, x0=x0, lam_x0=lam_x0, lam_g0=lam_g0, solver=solver,
+                               options=options, throw=throw)
     scene, disc = nlp.scene, nlp.disc
     options = options or IpoptOptions(tol=scene.solver.tol, max_iter=scene.solver.max_iter)
     solver = solver or make_solver(nlp, options)
