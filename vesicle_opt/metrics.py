@@ -1,0 +1,53 @@
+"""Error measures between discrete phase fields (Theorem 3.3 / Corollary 3.2 norms).
+
+* ``h1_error``: the discrete H^1 norm sqrt(|e|_M^2 + e^T K e) of e = phi - psi (phi^h in H^1);
+* ``laplacian_error``: the L^2 norm |Delta_h phi - Delta_h psi|_M (Delta_h phi^h in L^2);
+* ``restrict``: injection from a fine periodic grid onto a coarse one whose nodes it contains
+  (n_fine = k n_coarse per direction; FD and periodic P1 grids share the C-order node numbering),
+  so a coarse solution is compared with the fine one at the coarse nodes, in the coarse norms.
+* ``observed_order``: least-squares slope of log(error) against log(h) (``np.polyfit``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .discretization import Discretization
+
+
+def h1_error(disc: Discretization, phi: np.ndarray, psi: np.ndarray) -> float:
+    e = np.asarray(phi) - np.asarray(psi)
+    return float(np.sqrt(disc.l2_norm(e) ** 2 + disc.h1_seminorm(e) ** 2))
+
+
+def laplacian_error(disc: Discretization, phi: np.ndarray, psi: np.ndarray) -> float:
+    return disc.l2_norm(disc.apply_laplacian(phi) - disc.apply_laplacian(psi))
+
+
+def restrict(fine: Discretization, coarse: Discretization, v: np.ndarray) -> np.ndarray:
+    """Values of a fine-grid nodal vector at the coarse grid's nodes (injection)."""
+    if fine.grid_shape is None or coarse.grid_shape is None:
+        raise ValueError("injection needs structured periodic grids (FD or periodic P1 boxes)")
+    ratio = [f // c for f, c in zip(fine.grid_shape, coarse.grid_shape)]
+    if any(r * c != f for r, c, f in zip(ratio, coarse.grid_shape, fine.grid_shape)):
+        raise ValueError(f"grid {fine.grid_shape} does not refine {coarse.grid_shape} by integer factors")
+    V = np.asarray(v).reshape(fine.grid_shape)
+    out = V[tuple(slice(None, None, r) for r in ratio)].ravel()
+    if not np.allclose(fine.nodes.reshape(*fine.grid_shape, -1)[tuple(slice(None, None, r) for r in ratio)]
+                       .reshape(-1, fine.dim), coarse.nodes):
+        raise ValueError("coarse nodes are not fine nodes (different boxes?)")
+    return out
+
+
+def field_errors(disc: Discretization, phi: np.ndarray, ref: np.ndarray) -> dict[str, float]:
+    """error_h1 and error_lap of phi against ref on the same discretisation."""
+    return {"error_h1": h1_error(disc, phi, ref), "error_lap": laplacian_error(disc, phi, ref)}
+
+
+def observed_order(h, err) -> float:
+    """Slope p of log err = p log h + c fitted by least squares (np.polyfit); nan if < 2 points."""
+    h, err = np.asarray(h, float), np.asarray(err, float)
+    ok = (h > 0) & (err > 0) & np.isfinite(err)
+    if ok.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(np.log(h[ok]), np.log(err[ok]), 1)[0])
