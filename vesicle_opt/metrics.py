@@ -2,9 +2,11 @@
 
 * ``h1_error``: the discrete H^1 norm sqrt(|e|_M^2 + e^T K e) of e = phi - psi (phi^h in H^1);
 * ``laplacian_error``: the L^2 norm |Delta_h phi - Delta_h psi|_M (Delta_h phi^h in L^2);
-* ``restrict``: injection from a fine periodic grid onto a coarse one whose nodes it contains
-  (n_fine = k n_coarse per direction; FD and periodic P1 grids share the C-order node numbering),
-  so a coarse solution is compared with the fine one at the coarse nodes, in the coarse norms.
+* ``restrict``: a fine periodic-grid field at the nodes of a coarser grid of the same box, so a
+  coarse solution is compared with the fine one in the coarse norms: injection when n_fine is a
+  multiple of n_coarse, otherwise trigonometric (Fourier) interpolation per direction, exact for
+  trigonometric polynomials and spectrally accurate for the smooth tanh profiles (width eps >> h).
+  FD and periodic P1 grids share the C-order node numbering.
 * ``observed_order``: least-squares slope of log(error) against log(h) (``np.polyfit``).
 """
 
@@ -24,14 +26,32 @@ def laplacian_error(disc: Discretization, phi: np.ndarray, psi: np.ndarray) -> f
     return disc.l2_norm(disc.apply_laplacian(phi) - disc.apply_laplacian(psi))
 
 
+def trig_matrix(n_fine: int, n_coarse: int) -> np.ndarray:
+    """1D periodic trigonometric interpolation from n_fine equispaced nodes to n_coarse ones."""
+    k = np.arange(-(n_fine // 2), n_fine // 2 + 1)
+    w = np.ones(k.size)
+    if n_fine % 2 == 0:
+        w[0] = w[-1] = 0.5  # the Nyquist mode, split symmetrically (real interpolant)
+    else:
+        k, w = k[:-1], w[:-1]
+    tf = 2 * np.pi * np.arange(n_fine) / n_fine
+    tc = 2 * np.pi * np.arange(n_coarse) / n_coarse
+    return np.real(np.exp(1j * np.outer(tc, k)) @ (w[:, None] * np.exp(-1j * np.outer(k, tf)))) / n_fine
+
+
 def restrict(fine: Discretization, coarse: Discretization, v: np.ndarray) -> np.ndarray:
-    """Values of a fine-grid nodal vector at the coarse grid's nodes (injection)."""
+    """Values of a fine-grid nodal vector at the coarse grid's nodes (see the module docstring)."""
     if fine.grid_shape is None or coarse.grid_shape is None:
-        raise ValueError("injection needs structured periodic grids (FD or periodic P1 boxes)")
+        raise ValueError("restriction needs structured periodic grids (FD or periodic P1 boxes)")
+    if not np.allclose([a for a, _ in fine.box], [a for a, _ in coarse.box]) or \
+            not np.allclose([b for _, b in fine.box], [b for _, b in coarse.box]):
+        raise ValueError("fine and coarse grids cover different boxes")
     ratio = [f // c for f, c in zip(fine.grid_shape, coarse.grid_shape)]
-    if any(r * c != f for r, c, f in zip(ratio, coarse.grid_shape, fine.grid_shape)):
-        raise ValueError(f"grid {fine.grid_shape} does not refine {coarse.grid_shape} by integer factors")
     V = np.asarray(v).reshape(fine.grid_shape)
+    if any(r * c != f for r, c, f in zip(ratio, coarse.grid_shape, fine.grid_shape)):
+        for axis, (nf, nc) in enumerate(zip(fine.grid_shape, coarse.grid_shape)):
+            V = np.moveaxis(np.tensordot(trig_matrix(nf, nc), V, axes=([1], [axis])), 0, axis)
+        return V.ravel()
     out = V[tuple(slice(None, None, r) for r in ratio)].ravel()
     if not np.allclose(fine.nodes.reshape(*fine.grid_shape, -1)[tuple(slice(None, None, r) for r in ratio)]
                        .reshape(-1, fine.dim), coarse.nodes):
