@@ -14,7 +14,8 @@ from vesicle_opt.metrics import field_errors
 from vesicle_opt.nlp import build_nlp
 from vesicle_opt.result import Result
 
-EXTRA = ["error_lap", "penalized_energy", "kkt_residual", "converged", "tol", "setting"]
+EXTRA = ["error_lap", "error_h1_raw", "shift", "penalized_energy", "kkt_residual", "converged", "tol",
+         "setting"]
 
 
 def load(name: str, overrides: list[str] | tuple = ()) -> scene_mod.Scene:

@@ -22,7 +22,7 @@ from studies._common import EXTRA, column, load, nlp_for, plt, row, savefig, sel
 from studies.h_refinement import richardson
 from vesicle_opt.continuation import continuation, schedule
 from vesicle_opt.discretization import discretize
-from vesicle_opt.metrics import h1_error, observed_order, restrict
+from vesicle_opt.metrics import field_errors, observed_order, restrict
 from vesicle_opt.solve import solve
 from vesicle_opt.study_runner import run_cases
 
@@ -57,7 +57,7 @@ def rule(rows: list[dict], fields: Path) -> list[dict]:
     E_inf, _ = richardson([float(r["h"]) for r in ex], E) if len(ex) >= 3 else (E[-1], math.nan)
     out = []
     for r, n in zip(ex[:-1], ns[:-1]):  # the finest mesh is the reference
-        e_disc = h1_error(discs[n], phis[n], restrict(discs[ns[-1]], discs[n], phis[ns[-1]]))
+        e_disc = field_errors(discs[n], phis[n], restrict(discs[ns[-1]], discs[n], phis[ns[-1]]))["error_h1"]
         e_disc_E = abs(float(r["energy"]) - E_inf) / abs(E_inf)
         pen = select(rows, n=n, method="continuation")
         M, eh1, eE = column(pen, "M"), column(pen, "error_h1"), column(pen, "error_energy")

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from studies._common import EXTRA, column, nlp_for, plt, row, savefig, select
-from vesicle_opt.metrics import h1_error, laplacian_error, observed_order, restrict
+from vesicle_opt.metrics import field_errors, observed_order, restrict
 from vesicle_opt.solve import solve
 from vesicle_opt.study_runner import run_cases
 
@@ -76,13 +76,11 @@ def run(case: dict) -> list[dict]:
     for k, (n, disc, r) in enumerate(results):
         ref = restrict(fine_disc, disc, fine.phi)
         nxt = restrict(results[k + 1][1], disc, results[k + 1][2].phi) if k + 1 < len(results) else None
-        rows.append(row(r, case["scene"], case["method"], n, disc.h, setting=case["disc"],
-                        error_h1=h1_error(disc, r.phi, ref) if r is not fine else 0.0,
-                        error_lap=laplacian_error(disc, r.phi, ref) if r is not fine else 0.0,
+        errs = field_errors(disc, r.phi, ref) if r is not fine else {"error_h1": 0.0, "error_lap": 0.0}
+        diff = field_errors(disc, r.phi, nxt) if nxt is not None else {"error_h1": math.nan, "error_lap": math.nan}
+        rows.append(row(r, case["scene"], case["method"], n, disc.h, setting=case["disc"], **errs,
                         error_energy=abs(r.energy - E_inf) / abs(E_inf), energy_limit=E_inf,
-                        energy_order=p,
-                        diff_h1=h1_error(disc, r.phi, nxt) if nxt is not None else math.nan,
-                        diff_lap=laplacian_error(disc, r.phi, nxt) if nxt is not None else math.nan))
+                        energy_order=p, diff_h1=diff["error_h1"], diff_lap=diff["error_lap"]))
     return rows
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from studies._common import EXTRA, column, nlp_for, plt, row, savefig, select
-from vesicle_opt.metrics import h1_error
+from vesicle_opt.metrics import field_errors
 from vesicle_opt.solve import IpoptOptions, solve
 from vesicle_opt.study_runner import run_cases
 
@@ -76,7 +76,7 @@ def run(case: dict) -> list[dict]:
                              "area_residual": info["area_residual"], "iterations": info["iterations"],
                              "wall_time_s": info["wall_time_s"], "status": "running",
                              "error_energy": abs(info["energy"] - E_ref) / E_ref,
-                             "error_h1": h1_error(nlp.disc, phi, ref["phi"]), "setting": case["setting"]})
+                             **field_errors(nlp.disc, phi, ref["phi"]), "setting": case["setting"]})
         res = scp(nlp, max_iter=case["max_iter"], tol=case["tol"], record=rec)
         if rows:
             rows[-1]["status"] = res["status"]
@@ -90,7 +90,7 @@ def run(case: dict) -> list[dict]:
     nlp = nlp_for(case["scene"], over)
     r = solve(nlp)
     out = row(r, case["scene"], case["method"], case["n"], nlp.disc.h, tol=case["tol"], setting=case["setting"],
-              error_energy=abs(r.energy - E_ref) / E_ref, error_h1=h1_error(nlp.disc, r.phi, ref["phi"]))
+              error_energy=abs(r.energy - E_ref) / E_ref, **field_errors(nlp.disc, r.phi, ref["phi"]))
     return [out]
 
 

@@ -60,8 +60,24 @@ def restrict(fine: Discretization, coarse: Discretization, v: np.ndarray) -> np.
 
 
 def field_errors(disc: Discretization, phi: np.ndarray, ref: np.ndarray) -> dict[str, float]:
-    """error_h1 and error_lap of phi against ref on the same discretisation."""
-    return {"error_h1": h1_error(disc, phi, ref), "error_lap": laplacian_error(disc, phi, ref)}
+    """error_h1 and error_lap of phi against ref on the same discretisation, modulo translation.
+
+    On periodic grids phi is first shifted onto ref (``translation``, ``shift``) when that lowers the
+    H1 error: the minimisers form near-degenerate translation families (measured: a warm-started
+    continuation on 128^2 drifts by 2e-5 along x, which alone gives a raw H1 error of 2e-4 while
+    the aligned error follows 6.2e-2/M... down to 6e-8). ``error_h1_raw`` and ``shift`` record it.
+    """
+    raw = h1_error(disc, phi, ref)
+    out = {"error_h1": raw, "error_h1_raw": raw, "shift": 0.0}
+    if disc.grid_shape is not None:
+        s = translation(disc, phi, ref)
+        moved = shift(disc, phi, s)
+        e = h1_error(disc, moved, ref)
+        if e < raw:
+            phi = moved
+            out.update(error_h1=e, shift=float(np.linalg.norm(s)))
+    out["error_lap"] = laplacian_error(disc, phi, ref)
+    return out
 
 
 def observed_order(h, err) -> float:
@@ -71,3 +87,43 @@ def observed_order(h, err) -> float:
     if ok.sum() < 2:
         return float("nan")
     return float(np.polyfit(np.log(h[ok]), np.log(err[ok]), 1)[0])
+
+
+def translation(disc: Discretization, phi: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Shift s (per axis, in box units) with phi(x + s) ~ ref(x), from the first Fourier modes.
+
+    On a periodic box the problem is invariant under continuous translations up to grid effects,
+    so minimisers come in near-degenerate families; comparing fields modulo translation removes
+    this mode. The phase of the lowest mode of each axis gives the circular centroid.
+    """
+    if disc.grid_shape is None:
+        raise ValueError("translations need a periodic structured grid")
+    P, R = (np.fft.fftn(np.asarray(v).reshape(disc.grid_shape)) for v in (phi, ref))
+    s = []
+    for axis, (lo, hi) in enumerate(disc.box):
+        idx = [0] * disc.dim
+        idx[axis] = 1
+        dphase = np.angle(P[tuple(idx)] / R[tuple(idx)])
+        s.append(-dphase / (2 * np.pi) * (hi - lo))  # phi = ref(x - s) has phase -k s
+    return np.array(s)
+
+
+def shift(disc: Discretization, phi: np.ndarray, s) -> np.ndarray:
+    """phi(x + s) on a periodic grid by the Fourier shift theorem (spectrally accurate)."""
+    F = np.fft.fftn(np.asarray(phi).reshape(disc.grid_shape))
+    for axis, ((lo, hi), n) in enumerate(zip(disc.box, disc.grid_shape)):
+        k = np.fft.fftfreq(n, d=1.0 / n)
+        if n % 2 == 0:
+            k[n // 2] = 0.0  # Nyquist mode: keep it real
+        shape = [1] * disc.dim
+        shape[axis] = n
+        F = F * np.exp(2j * np.pi * k * s[axis] / (hi - lo)).reshape(shape)
+    return np.real(np.fft.ifftn(F)).ravel()
+
+
+def aligned_h1_error(disc: Discretization, phi: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    """(H1 error of phi shifted onto ref, |shift|); the raw error when shifting does not reduce it."""
+    s = translation(disc, phi, ref)
+    raw = h1_error(disc, phi, ref)
+    moved = h1_error(disc, shift(disc, phi, s), ref)
+    return (min(raw, moved), float(np.linalg.norm(s)) if moved < raw else 0.0)
