@@ -33,7 +33,12 @@ WARM_OPTIONS = (("ipopt.warm_start_init_point", "yes"), ("ipopt.warm_start_bound
 # The NLP is scaled by design (nlp.py); IPOPT's gradient-based rescaling of f would loosen the
 # dual tolerance by the large u-gradient at a warm start with a 10x larger M (measured on 64^2:
 # stationarity 5e-6 instead of 6e-8 at M = 1e6, and cold solves at M >= 1e8 ending off the minimiser).
-PENALTY_OPTIONS = (("ipopt.nlp_scaling_method", "none"),)
+# The lifted rows A - a, B - b must hold far below the penalty bias ~1/M, or M (A - alpha) is off
+# by M |A - a|: with constr_viol_tol = tol IPOPT stopped at |B - b|/beta = 4e-12 on 128^2, i.e. an
+# error 4e-5 in lambda_B at M = 1e6 and 1e-3 at 1e8. The rows are O(1)-scaled, so 1e-14 is a few
+# ulps above their evaluation round-off (measured lift gaps 1e-16 ... 6e-15 on FD, P1 lumped,
+# consistent and Gauss, M = 1e1 ... 1e8), reached by one extra Newton step on these rows.
+PENALTY_OPTIONS = (("ipopt.nlp_scaling_method", "none"), ("ipopt.constr_viol_tol", 1e-14))
 AL_REDUCTION = 0.25  # increase M when a residual did not drop by this factor (standard choice)
 
 

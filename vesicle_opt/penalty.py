@@ -152,9 +152,8 @@ def solve_stage(nlp: PenaltyNLP, solver, p: np.ndarray, *, x0=None, lam_x0=None,
     E_{M,h} (kkt.py with lambda = mu - M (A - alpha), mu - M (B - beta)) at most
     KKT_FACTOR * max(tol, floor), the round-off floor of ``roundoff_floor`` (<= FLOOR_LIMIT),
     and the lifted unknowns consistent with phi (they enter only through the NLP).
-    Note: IPOPT's constraint tolerance on the lifted rows allows |A - a| ~ tol |Omega|, which at large
-    M exceeds the penalty bias ~1/M; a cold start at M >= 1e6 can stop there and is then (rightly)
-    reported not converged. Warm-started continuation ends each stage with a full Newton step.
+    The lifted rows need a constraint tolerance far below tol (continuation.PENALTY_OPTIONS): a gap
+    |B - b| shifts the estimate by M |B - b|, which this test then (rightly) reports.
     """
     from .solve import KKT_FACTOR, _hessian_nnz_per_row, _times
     scene, disc = nlp.scene, nlp.disc
