@@ -1,9 +1,11 @@
 """Theorem 3.2: minimisers of the penalised energy E_{M,h} (11) approach the constrained one as M -> inf.
 
-Per scene: the exact-constraint minimiser phi* on the mesh (IPOPT), then ONE warm-started penalty
+Per scene: the exact-constraint solution phi* on the mesh (IPOPT), then ONE warm-started penalty
 continuation M = M0, 10 M0, ..., M_max on one solver. Every stage is a CSV row with E_h, E_{M,h},
 A - alpha, B - beta, the multiplier estimates -M(A - alpha), -M(B - beta), |phi_M - phi*|_{H1},
-|Delta_h phi_M - Delta_h phi*|_{L2}, iterations and wall time. ``<out>/penalty_continuation_rates.csv``
+|Delta_h phi_M - Delta_h phi*|_{L2}, iterations and wall time, each against the nearer of two exact references (from the scene's start, and an exact
+solve from the last penalty stage: the problem is non-convex with near-degenerate translation
+families on the periodic box). ``<out>/penalty_continuation_rates.csv``
 holds the observed rates against M (least-squares slopes over FIT_RANGE, expected -1: the bias
 is O(1/M)) and the figure shows all of them. Full mode adds sphere-3d and a cold-started
 continuation (every stage from the initial shape) to measure what the warm starts buy.
@@ -20,13 +22,12 @@ import numpy as np
 from studies._common import EXTRA, column, load, nlp_for, plt, row, savefig, select
 from vesicle_opt.continuation import continuation, schedule
 from vesicle_opt.metrics import observed_order
-from vesicle_opt.solve import solve
+from vesicle_opt.solve import IpoptOptions, solve
 from vesicle_opt.study_runner import run_cases
 
 NAME = "penalty_continuation"
 FIT_RANGE = (1e2, 1e6)  # above ~1e6 round-off in M (A - alpha) (penalty.roundoff_floor) competes with the 1/M bias
 RATE_BAND = (-1.15, -0.85)  # O(1/M): slope -1; +-0.15 allows the O(1/M^2) curvature seen from M = 1e2
-REF_TOL = 1e-8  # the solves' tol: a lower energy beyond it is a different stationary point
 QUANTITIES = ("volume_residual", "area_residual", "error_energy", "error_h1", "error_lambda")
 
 
@@ -49,25 +50,31 @@ def run(case: dict) -> list[dict]:
     exact = solve(nlp.exact)
     stages = []
     continuation(nlp, case["Ms"], warm=case["warm"], stage_callback=lambda k, r: stages.append(r))
-    # non-convex: check the reference. An exact solve started from the last penalty stage must not
-    # find a lower energy; if it does (seen on sphere-3d 16^3: 0.1% lower, a translated sphere at
-    # another grid position), it replaces the reference and the rows say so.
-    polish = solve(nlp.exact, x0=stages[-1].x[: nlp.n_base])
-    note = ""
-    if polish.converged and polish.energy < exact.energy - REF_TOL * abs(exact.energy):
-        note = f" (reference: exact solve from the penalty endpoint, E lower by {exact.energy - polish.energy:.3g})"
-        exact = polish
+    # Non-convex, with near-degenerate translation families on the periodic box: an exact solve
+    # started from the last penalty stage may end on another constrained stationary point (seen:
+    # 64^2, the warm path slides at M = 1e7 to a translated state 3e-5 lower in energy; sphere-3d
+    # 16^3, 0.1% lower). Theorem 3.2 speaks of convergence to *some* minimiser, so each stage is
+    # measured against the nearer (aligned H1) of the two references, named in ``reference``.
+    # constraints to 1e-14: at tol 1e-8 the M = 1e8 stage (residual 4e-9/|Omega|) passes as exact
+    polish = solve(nlp.exact, x0=stages[-1].x[: nlp.n_base],
+                   options=IpoptOptions(tol=nlp.scene.solver.tol, extra=(("ipopt.constr_viol_tol", 1e-14),)))
+    refs = [("scene start", exact)]
+    if polish.converged and np.linalg.norm(polish.phi - exact.phi) > 0:
+        refs.append(("penalty endpoint", polish))
     method = "continuation" if case["warm"] else "continuation-cold"
-    rows = [row(exact, case["scene"], "exact", n, disc.h, error_lambda=0.0)]
-    lam_ref = np.hypot(exact.lambda_volume, exact.lambda_area)
+    rows = [row(ref, case["scene"], "exact", n, disc.h, error_lambda=0.0, reference=name) for name, ref in refs]
     for r in stages:
-        err_lam = np.hypot(r.lambda_volume - exact.lambda_volume, r.lambda_area - exact.lambda_area) / lam_ref
-        rows.append(row(r, case["scene"], method, n, disc.h, ref=exact, disc=disc, error_lambda=err_lam,
-                        error_penalized=abs(r.penalized_energy - exact.energy) / abs(exact.energy)))
+        cands = []
+        for name, ref in refs:
+            lam_ref = np.hypot(ref.lambda_volume, ref.lambda_area)
+            err_lam = np.hypot(r.lambda_volume - ref.lambda_volume, r.lambda_area - ref.lambda_area) / lam_ref
+            cands.append(row(r, case["scene"], method, n, disc.h, ref=ref, disc=disc, error_lambda=err_lam,
+                             error_penalized=abs(r.penalized_energy - ref.energy) / abs(ref.energy),
+                             reference=name))
+        rows.append(min(cands, key=lambda c: c["error_h1"]))
     for r in rows:
-        if not exact.converged:
-            r["status"] = f"{r['status']} (reference not converged)"
-        r["status"] += note
+        if not all(ref.converged for _, ref in refs):
+            r["status"] = f"{r['status']} (a reference did not converge)"
     return rows
 
 
@@ -108,7 +115,7 @@ def main(out, quick: bool = False, executor=None) -> int:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = run_cases(NAME, cases(quick), run, out / f"{NAME}.csv", executor=executor,
-                     extra_columns=EXTRA + ["error_lambda", "error_penalized"])
+                     extra_columns=EXTRA + ["error_lambda", "error_penalized", "reference"])
     rs = rates(rows)
     with open(out / f"{NAME}_rates.csv", "w", newline="") as f:
         w = csv.DictWriter(f, ["case", "quantity", "rate", "M_from", "M_to"], lineterminator="\n")
