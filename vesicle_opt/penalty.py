@@ -26,6 +26,7 @@ rigidity grad E_h = lambda_A grad A + lambda_B grad B:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -131,12 +132,7 @@ def build_penalty_nlp(exact: NLP) -> PenaltyNLP:
                      x=ca.vertcat(exact.x, u), f=exact.f + pen, g=g, p=p, x0=x0,
                      lbx=np.concatenate([exact.lbx, -inf]), ubx=np.concatenate([exact.ubx, inf]),
                      lbg=exact.lbg, ubg=exact.ubg, f_scale=k, g_scale=exact.g_scale, exact=exact)
-    return _with_x0(nlp, nlp.lift(exact.x0))
-
-
-def _with_x0(nlp: PenaltyNLP, x0: np.ndarray) -> PenaltyNLP:
-    import dataclasses
-    return dataclasses.replace(nlp, x0=x0)
+    return dataclasses.replace(nlp, x0=nlp.lift(exact.x0))
 
 
 def penalised_energy(rigidity: float, E: float, res: tuple[float, float], M1: float, M2: float) -> float:
