@@ -15,7 +15,7 @@ by lambda_A = -rigidity E_ref m_bar lam_g[0] / |Omega|, lambda_B = -rigidity E_r
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -106,9 +106,12 @@ def initial_guess(scene: Scene, disc: Discretization) -> np.ndarray:
 
 
 def build_nlp(scene: Scene, disc: Discretization | None = None, check: bool = True) -> NLP:
-    """Build the exact-constraint NLP (6)-(8) of a scene (``solver.method = 'exact'``)."""
+    """Build the exact-constraint NLP (6)-(8) of a scene (``solver.method = 'exact'``); for the
+    methods penalty, continuation and augmented, the lifted penalty NLP (11) (``penalty.py``)."""
     if scene.solver.method != "exact":
-        raise InputError("solver.method", f"{scene.solver.method!r} is not available yet; allowed: exact")
+        from .penalty import build_penalty_nlp
+        exact = build_nlp(scene.replace(solver=replace(scene.solver, method="exact")), disc, check)
+        return replace(build_penalty_nlp(exact), scene=scene)
     disc = disc or discretize(scene)
     alpha, beta = constraint_data(scene, disc)
     if check:

@@ -87,6 +87,11 @@ class Solver:
     max_iter: int
     backend: str = "ipopt"
     second_order: bool = True  # run the second-order check after a converged solve
+    # penalty continuation / augmented Lagrangian (see vesicle_opt.continuation)
+    M0: float = 10.0
+    M_factor: float = 10.0
+    M_max: float = 1e8
+    max_outer: int = 20
 
 
 @dataclass(frozen=True)
@@ -109,6 +114,7 @@ class Scene:
 
 # --- schema: key -> (kind, default, allowed). kind in {float, int, str, shape, box, ints, floats}.
 _REQ = object()
+M_LIMIT = 1e12  # largest penalty constant accepted (double precision: M |A - alpha| loses digits beyond)
 SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "domain.box": ("box", _REQ, "list of [lo, hi] pairs with lo < hi, 2 or 3 of them"),
     "domain.boundary": ("str", "periodic", ("periodic", "natural")),
@@ -124,14 +130,31 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "constraints.beta": ("float", None, "> 0"),
     "constraints.target": ("shape", None, "a shape table"),
     "initial": ("shape", _REQ, "a shape table"),
-    "solver.method": ("str", "exact", ("exact", "penalty", "continuation")),
-    "solver.M": ("float", 1e4, "> 0"),
+    "solver.method": ("str", "exact", ("exact", "penalty", "continuation", "augmented")),
+    "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
     "solver.tol": ("float", 1e-8, "> 0"),
     "solver.max_iter": ("int", 500, ">= 1"),
     "solver.backend": ("str", "ipopt", ("ipopt",)),
     "solver.second_order": ("bool", True, "true or false"),
+    "solver.M0": ("float", 10.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
+    "solver.M_factor": ("float", 10.0, "> 1"),
+    "solver.M_max": ("float", 1e8, f"M0 <= M_max <= {M_LIMIT:g}"),
+    "solver.max_outer": ("int", 20, ">= 1"),
 }
-_POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "solver.M", "solver.tol"}
+_POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "solver.M", "solver.tol",
+             "solver.M0", "solver.M_max"}
+
+
+def _check_penalty(val: dict) -> None:
+    """Ranges of the penalty keys (methods penalty, continuation, augmented)."""
+    for key in ("solver.M", "solver.M0", "solver.M_max"):
+        if val[key] > M_LIMIT:
+            raise InputError(key, f"allowed range {SCHEMA[key][2]}, got {val[key]!r}")
+    if val["solver.M_factor"] <= 1:
+        raise InputError("solver.M_factor", f"allowed range > 1, got {val['solver.M_factor']!r}")
+    if val["solver.M0"] > val["solver.M_max"]:
+        raise InputError("solver.M0", f"allowed range {SCHEMA['solver.M0'][2]}, got M0 = "
+                         f"{val['solver.M0']!r} > M_max = {val['solver.M_max']!r}")
 
 
 def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
@@ -316,8 +339,11 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
                          f"must lie in (-|Omega|, |Omega|) = ({-domain.volume:.6g}, {domain.volume:.6g}), got {alpha!r}")
     constraints = Constraints(alpha, beta, target)
     initial = parse_shape("initial", val["initial"], dim)
+    _check_penalty(val)
     solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
-                    val["solver.backend"], val["solver.second_order"])
+                    val["solver.backend"], second_order=val["solver.second_order"], M0=val["solver.M0"],
+                    M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
+                    max_outer=val["solver.max_outer"])
     return Scene(name, domain, mesh, model, constraints, initial, solver)
 
 

@@ -67,10 +67,28 @@ def replace_extra(result: Result, **items) -> Result:
     return replace(result, extra={**result.extra, **items})
 
 
+def with_topology(disc, result: Result) -> Result:
+    """Add the topology report of {phi > 0} (``topology.py``) to a result with a finite phi."""
+    if not np.all(np.isfinite(result.phi)):
+        return result
+    from .topology import analyse
+    topo = analyse(disc, result.phi)
+    return replace_extra(result, topology=topo.describe(disc.dim), components=topo.components,
+                         euler_characteristic=topo.euler_characteristic,
+                         wraps=None if topo.wraps is None else list(topo.wraps))
+
+
 def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=None,
           options: IpoptOptions | None = None, throw: bool = False) -> Result:
     """Minimise rigidity * E_h subject to A = alpha, B = beta exactly; see the module docstring."""
     nlp = problem if isinstance(problem, NLP) else build_nlp(problem)
+    from .penalty import PenaltyNLP
+    if isinstance(nlp, PenaltyNLP):  # penalty (11), continuation, augmented Lagrangian
+        from .continuation import solve_penalised
+        result = solve_penalised(nlp, x0=x0, lam_x0=lam_x0, lam_g0=lam_g0, solver=solver,
+                                 options=options, throw=throw)
+        # the tangent-space test belongs to the exact problem; for E_M it is not implemented
+        return replace_extra(with_topology(nlp.disc, result), second_order="not checked")
     scene, disc = nlp.scene, nlp.disc
     options = options or IpoptOptions(tol=scene.solver.tol, max_iter=scene.solver.max_iter)
     solver = solver or make_solver(nlp, options)
@@ -107,12 +125,7 @@ def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=Non
         history=history, x=x, lam_x=np.asarray(sol["lam_x"]).ravel(),
         lam_g=np.asarray(sol["lam_g"]).ravel(),
         extra={"alpha": nlp.alpha, "beta": nlp.beta, "epsilon": eps, "h": disc.h})
-    if finite:
-        from .topology import analyse
-        topo = analyse(disc, phi)
-        result = replace_extra(result, topology=topo.describe(disc.dim), components=topo.components,
-                               euler_characteristic=topo.euler_characteristic,
-                               wraps=None if topo.wraps is None else list(topo.wraps))
+    result = with_topology(disc, result)
     if converged and scene.solver.second_order:
         from .second_order import check
         so = check(nlp, result)

@@ -1,0 +1,151 @@
+"""Run a study's cases through any ``concurrent.futures.Executor`` into one resumable CSV.
+
+* A *case* is a dict of plain values with a unique ``case`` id; a module-level function (picklable)
+  turns it into a list of rows (dicts). Cases run on ``executor`` (default: a local process pool;
+  a ``dask.distributed`` ``Client(...).get_executor()`` works unchanged).
+* ONE writer, in the calling process, appends each finished case's rows to the CSV in a single
+  write, flushed and fsynced at once; every row carries ``case`` and ``case_rows`` (how many rows
+  the case has), so a case is finished iff all its rows are in the file.
+* Re-running resumes: a torn last line (a kill mid-write) is cut off, rows of incomplete cases are
+  dropped, and finished cases are skipped. Every row is therefore in the file exactly once.
+* Progress: a one-line bar on stderr (cases done / total, the last case and its wall time).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import sys
+import time
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Callable, Iterable
+
+COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual", "area_residual",
+           "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
+           "status"]
+BOOKKEEPING = ["case", "case_rows"]
+
+
+class CsvLog:
+    """The single appending writer of a study CSV (see the module docstring)."""
+
+    def __init__(self, path: Path, extra_columns: Iterable[str] = ()):
+        self.path = Path(path)
+        self.columns = COLUMNS + [c for c in extra_columns if c not in COLUMNS] + BOOKKEEPING
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._repair()
+
+    def _repair(self) -> None:
+        """Cut a torn last line, drop incomplete cases, keep the header of an existing file."""
+        if not self.path.exists() or self.path.stat().st_size == 0:
+            self.path.write_text(",".join(self.columns) + "\n")
+            return
+        text = self.path.read_text()
+        if not text.endswith("\n"):
+            text = text[: text.rfind("\n") + 1]
+        rows = list(csv.DictReader(io.StringIO(text)))
+        header = text.splitlines()[0].split(",") if text else self.columns
+        counts: dict[str, int] = {}
+        for r in rows:
+            counts[r.get("case", "")] = counts.get(r.get("case", ""), 0) + 1
+        keep = [r for r in rows if r.get("case_rows", "").isdigit()
+                and counts[r["case"]] == int(r["case_rows"])]
+        if set(header) != set(self.columns):  # an older layout: keep its columns, add the new ones
+            self.columns = header + [c for c in self.columns if c not in header]
+        self._rewrite(keep)
+
+    def _rewrite(self, rows: list[dict]) -> None:
+        buf = io.StringIO()
+        w = csv.DictWriter(buf, self.columns, extrasaction="ignore", lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+        tmp = self.path.with_suffix(".tmp")
+        tmp.write_text(buf.getvalue())
+        tmp.replace(self.path)
+
+    def rows(self) -> list[dict]:
+        with open(self.path, newline="") as f:
+            return list(csv.DictReader(f))
+
+    def done(self) -> set[str]:
+        return {r["case"] for r in self.rows()}
+
+    def append(self, case: str, rows: list[dict]) -> None:
+        buf = io.StringIO()
+        w = csv.DictWriter(buf, self.columns, extrasaction="ignore", lineterminator="\n")
+        for r in rows:
+            w.writerow({**{k: _fmt(v) for k, v in r.items()}, "case": case, "case_rows": len(rows)})
+        with open(self.path, "a", newline="") as f:
+            f.write(buf.getvalue())
+            f.flush()
+            os.fsync(f.fileno())
+
+
+def _fmt(v):
+    """Plain text for numpy scalars too (full precision floats, no 'np.float64(...)')."""
+    import numpy as np
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    if isinstance(v, np.integer):
+        return int(v)
+    return v
+
+
+def progress(done: int, total: int, label: str, stream=sys.stderr, width: int = 30) -> None:
+    k = int(width * done / max(total, 1))
+    stream.write(f"\r[{'#' * k}{'.' * (width - k)}] {done}/{total} {label[:60]:<60}")
+    if done == total:
+        stream.write("\n")
+    stream.flush()
+
+
+def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], csv_path: Path,
+              executor: Executor | None = None, workers: int = 1, show_progress: bool = True,
+              extra_columns: Iterable[str] = ()) -> list[dict]:
+    """Run the unfinished ``cases`` with ``fn`` and append their rows; returns all rows of the CSV.
+
+    Rows get ``study`` filled in. A case that raises is recorded as one row with status
+    ``error: ...`` (so it is not retried forever; delete its row to retry).
+    """
+    ids = [c["case"] for c in cases]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"case ids are not unique in {study}")
+    log = CsvLog(csv_path, extra_columns)
+    finished = log.done()
+    todo = [c for c in cases if c["case"] not in finished]
+    total, done = len(cases), len(cases) - len(todo)
+    if show_progress:
+        progress(done, total, f"{study}: {done} done before" if done else study)
+    if not todo:
+        return log.rows()
+    own = executor is None
+    if own:
+        import multiprocessing as mp
+        executor = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+    try:
+        futures = {executor.submit(_timed, fn, c): c for c in todo}
+        for fut in as_completed(futures):
+            case = futures[fut]
+            try:
+                rows, wall = fut.result()
+            except Exception as exc:  # noqa: BLE001 - recorded in the CSV, never silently dropped
+                rows, wall = [{"scene": case.get("scene", ""), "method": case.get("method", ""),
+                               "status": f"error: {type(exc).__name__}: {exc}"[:200]}], float("nan")
+            log.append(case["case"], [{"study": study, **r} for r in rows])
+            done += 1
+            if show_progress:
+                progress(done, total, f"{case['case']} ({wall:.1f}s)")
+    finally:
+        if own:
+            executor.shutdown(wait=True, cancel_futures=True)
+    return log.rows()
+
+
+def _timed(fn, case):
+    t0 = time.perf_counter()
+    rows = fn(case)
+    return rows, time.perf_counter() - t0
