@@ -14,30 +14,32 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-COLUMNS = ["case", "dim", "discretisation", "n", "n_nodes", "iterations", "wall_time_s",
-           "derivative_time_s", "derivative_fraction", "hessian_nnz_per_row", "peak_memory_mb",
-           "energy", "status", "converged"]
+EXTRA = ["dim", "discretisation", "n_nodes", "derivative_time_s", "derivative_fraction",
+         "hessian_nnz_per_row", "peak_memory_mb", "converged"]
 
 
 def cases(quick: bool) -> list[dict]:
     out = []
     ns2 = [32, 64] if quick else [32, 64, 128, 256, 512]
+    def add(scene, dim, disc, n):
+        out.append({"case": f"{scene} {disc} {n}", "scene": scene, "dim": dim,
+                    "discretisation": disc, "n": n})
     for n in ns2:
-        out.append({"case": "bare-casadi", "dim": 2, "discretisation": "fd", "n": n})
+        add("bare-casadi", 2, "fd", n)
         for disc in ("fd", "fem-lumped", "fem-consistent"):
             if disc == "fem-consistent" and n > 128:
                 continue  # crawls along the soft rotation mode (README): 128 iterations at 64^2
-            out.append({"case": "ellipse-2d", "dim": 2, "discretisation": disc, "n": n})
+            add("ellipse-2d", 2, disc, n)
     for n in ([8] if quick else [12, 16, 20, 24, 32]):
         for disc in ("fd", "fem-consistent") if n <= 16 else ("fd",):
-            out.append({"case": "sphere-3d", "dim": 3, "discretisation": disc, "n": n})
+            add("sphere-3d", 3, disc, n)
     return out
 
 
 def run_case(case: dict) -> dict:
     import casadi  # noqa: F401  (imported before timing in every fresh process)
 
-    if case["case"] == "bare-casadi":
+    if case.get("scene", case["case"]) == "bare-casadi":
         sys.path.insert(0, str(Path(__file__).parent))
         from studies.bare_casadi import bare_solve
         r = bare_solve(case["n"])
@@ -49,7 +51,7 @@ def run_case(case: dict) -> dict:
         from vesicle_opt.cli import resolve_scene
         kind = {"fd": ["mesh.kind='fd'"], "fem-lumped": ["mesh.kind='fem-p1'", "mesh.mass='lumped'"],
                 "fem-consistent": ["mesh.kind='fem-p1'", "mesh.mass='consistent'"]}[case["discretisation"]]
-        sc = scene.load(resolve_scene(case["case"]), [f"mesh.n={case['n']}", *kind])
+        sc = scene.load(resolve_scene(case.get("scene", case["case"])), [f"mesh.n={case['n']}", *kind])
         r = solve.solve(sc)
         row = {**case, "n_nodes": r.n_nodes, "iterations": r.iterations, "wall_time_s": r.wall_time_s,
                "derivative_time_s": r.derivative_time_s,
@@ -57,20 +59,23 @@ def run_case(case: dict) -> dict:
                "hessian_nnz_per_row": r.hessian_nnz_per_row, "energy": r.energy, "status": r.status,
                "converged": r.converged}
     row["peak_memory_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    row["method"] = "exact"
     return row
 
 
+def case_rows(case: dict) -> list[dict]:
+    return [run_case(case)]
+
+
 def main(out: Path, quick: bool = False) -> int:
-    from vesicle_opt.table import CsvTable
-    table = CsvTable(Path(out) / "bench_equilibrium.csv", COLUMNS, key=("case", "discretisation", "n"))
-    todo = [c for c in cases(quick) if not table.done(c)]
-    with ProcessPoolExecutor(max_workers=1, max_tasks_per_child=1) as pool:  # fresh process each
-        for i, row in enumerate(pool.map(run_case, todo), 1):
-            table.append(row)
-            print(f"[{i}/{len(todo)}] {row['case']} {row['discretisation']} n={row['n']}: "
-                  f"{row['wall_time_s']:.2f}s, {row['iterations']} it, {row['peak_memory_mb']:.0f} MB",
-                  flush=True)
-    _plot(table.rows(), Path(out) / "bench_equilibrium.png")
+    import multiprocessing as mp
+    from vesicle_opt.study_runner import run_cases
+    # a fresh process per case, so that each peak memory (ru_maxrss) is the case's own
+    pool = ProcessPoolExecutor(max_workers=1, max_tasks_per_child=1, mp_context=mp.get_context("spawn"))
+    with pool:
+        rows = run_cases("bench_equilibrium", cases(quick), case_rows, Path(out) / "bench_equilibrium.csv",
+                         executor=pool, extra_columns=EXTRA)
+    _plot(rows, Path(out) / "bench_equilibrium.png")
     return 0
 
 
@@ -81,8 +86,8 @@ def _plot(rows: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6, 4))
     groups: dict[tuple, list] = {}
     for r in rows:
-        if r["wall_time_s"]:
-            groups.setdefault((r["case"], r["discretisation"]), []).append(
+        if r["wall_time_s"] and r.get("n_nodes"):
+            groups.setdefault((r["scene"], r["discretisation"]), []).append(
                 (int(r["n_nodes"]), float(r["wall_time_s"])))
     for (case, disc), pts in sorted(groups.items()):
         pts.sort()

@@ -24,10 +24,8 @@ import sys
 import time
 from pathlib import Path
 
-COLUMNS = ["study", "group", "case", "scene", "parameter", "outcome", "status", "energy",
-           "reference_energy", "relative_energy_error", "kkt_residual", "volume_residual",
-           "area_residual", "iterations", "wall_time_s", "second_order", "second_order_min_eigenvalue",
-           "topology"]
+EXTRA = ["group", "parameter", "outcome", "reference_energy", "relative_energy_error", "kkt_residual",
+         "second_order", "second_order_min_eigenvalue", "topology"]
 
 
 def _cases(quick: bool, mesh_dir: Path) -> list[dict]:
@@ -36,7 +34,7 @@ def _cases(quick: bool, mesh_dir: Path) -> list[dict]:
     out: list[dict] = []
 
     def add(group, case, parameter, scene=base[0], overrides=(), reference=None):
-        out.append({"group": group, "case": case, "parameter": parameter, "scene": scene,
+        out.append({"group": group, "case": f"{group}: {case}", "method": "exact", "parameter": parameter, "scene": scene,
                     "overrides": [*(base[1] if scene == base[0] else []), *overrides],
                     "reference": reference})
 
@@ -83,7 +81,7 @@ def run_case(case: dict) -> dict:
     from vesicle_opt.discretization import discretize
     from vesicle_opt.errors import InputError
     from vesicle_opt.nlp import constraint_data
-    row = {k: case[k] for k in ("group", "case", "scene", "parameter")}
+    row = {k: case[k] for k in ("group", "scene", "parameter", "method")}
     t0 = time.perf_counter()
     try:
         extra = []
@@ -110,21 +108,20 @@ def run_case(case: dict) -> dict:
     return row
 
 
+def case_rows(case: dict) -> list[dict]:
+    return [run_case(case)]
+
+
 def main(out: Path, quick: bool = False) -> int:
     import skfem
-    from vesicle_opt.table import CsvTable
+    from vesicle_opt.study_runner import run_cases
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     mesh_path = out / "disk.vtk"
     if not mesh_path.exists():
         skfem.MeshTri.init_circle(5).scaled(3.0).save(str(mesh_path))
-    table = CsvTable(out / "stress.csv", COLUMNS, key=("group", "case"))
-    todo = [c for c in _cases(quick, out) if not table.done(c)]
-    for i, case in enumerate(todo, 1):
-        row = {"study": "stress", **run_case(case)}
-        table.append(row)
-        print(f"[{i}/{len(todo)}] {row['group']}: {row['case']} -> {row['outcome']}", flush=True)
-    _plot(table.rows(), out / "stress.png")
+    rows = run_cases("stress", _cases(quick, out), case_rows, out / "stress.csv", extra_columns=EXTRA)
+    _plot(rows, out / "stress.png")
     return 0
 
 
@@ -135,12 +132,12 @@ def _plot(rows: list[dict], path: Path) -> None:
     colours = {"converged": "tab:green", "failed": "tab:red", "refused": "tab:grey"}
     fig, ax = plt.subplots(figsize=(8, 0.3 * len(rows) + 1))
     for i, r in enumerate(rows):
-        kind = r["outcome"].split(":")[0]
+        kind = (r["outcome"] or r["status"]).split(":")[0]
         t = float(r["wall_time_s"] or 0)
         ax.barh(i, max(t, 1e-3), color=colours.get(kind, "k"))
-        label = r["outcome"][:40] + (f" ({r['second_order']})" if r["second_order"] else "")
+        label = (r["outcome"] or r["status"])[:40] + (f" ({r['second_order']})" if r["second_order"] else "")
         ax.text(max(t, 1e-3), i, " " + label, va="center", fontsize=7)
-    ax.set_yticks(range(len(rows)), [f"{r['group']}: {r['case']}" for r in rows], fontsize=7)
+    ax.set_yticks(range(len(rows)), [r["case"] for r in rows], fontsize=7)
     ax.set_xscale("log")
     ax.set_xlabel("wall time [s] (green: converged, red: failed, grey: refused)")
     fig.tight_layout()
