@@ -15,7 +15,8 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 EXTRA = ["dim", "discretisation", "n_nodes", "derivative_time_s", "derivative_fraction",
-         "hessian_nnz_per_row", "peak_memory_mb", "converged"]
+         "hessian_nnz_per_row", "peak_memory_mb", "converged", "second_order", "second_order_time_s",
+         "second_order_peak_memory_mb"]
 
 
 def cases(quick: bool) -> list[dict]:
@@ -45,20 +46,30 @@ def run_case(case: dict) -> dict:
         r = bare_solve(case["n"])
         row = {**case, "n_nodes": case["n"] ** 2, "iterations": r["iterations"],
                "wall_time_s": r["wall_time_s"], "energy": r["energy"], "status": r["status"],
-               "converged": r["status"] == "Solve_Succeeded"}
+               "converged": r["status"] == "Solve_Succeeded",
+               "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     else:
-        from vesicle_opt import scene, solve
+        import time
+        from vesicle_opt import scene, second_order, solve
         from vesicle_opt.cli import resolve_scene
+        from vesicle_opt.nlp import build_nlp
         kind = {"fd": ["mesh.kind='fd'"], "fem-lumped": ["mesh.kind='fem-p1'", "mesh.mass='lumped'"],
                 "fem-consistent": ["mesh.kind='fem-p1'", "mesh.mass='consistent'"]}[case["discretisation"]]
-        sc = scene.load(resolve_scene(case.get("scene", case["case"])), [f"mesh.n={case['n']}", *kind])
-        r = solve.solve(sc)
+        sc = scene.load(resolve_scene(case.get("scene", case["case"])),
+                        [f"mesh.n={case['n']}", *kind, "solver.second_order=false"])
+        nlp = build_nlp(sc)
+        r = solve.solve(nlp)
         row = {**case, "n_nodes": r.n_nodes, "iterations": r.iterations, "wall_time_s": r.wall_time_s,
                "derivative_time_s": r.derivative_time_s,
                "derivative_fraction": r.derivative_time_s / r.wall_time_s,
                "hessian_nnz_per_row": r.hessian_nnz_per_row, "energy": r.energy, "status": r.status,
                "converged": r.converged}
-    row["peak_memory_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        row["peak_memory_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        if r.converged:  # the second-order check, timed on its own (one sparse LU, SuperLU)
+            t0 = time.perf_counter()
+            row["second_order"] = second_order.check(nlp, r).verdict
+            row["second_order_time_s"] = time.perf_counter() - t0
+            row["second_order_peak_memory_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     row["method"] = "exact"
     return row
 
