@@ -1,0 +1,213 @@
+"""The matrix-free Newton-Krylov backend (``solver.backend = 'newton-krylov'``).
+
+Methods (``solver.method``):
+
+* ``exact``: an augmented Lagrangian around ``newton.newton_minimize``. After each inner solve the
+  multipliers take a Newton step on the dual function, lam <- lam - W^{-1} c with
+  W = G^T H_rho^{-1} G (G = [dA, dB], two extra CG solves), which is the Newton-KKT step in the
+  multipliers (and lam - rho c, the classical update, when rho is large); rho grows 10x when |c|
+  falls by less than 4x. Stops when the constraints hold to tol (|A-alpha| <= tol |Omega|,
+  |B-beta| <= tol beta, as the IPOPT backend) and the relative dual KKT residual <= tol.
+* ``penalty``: the same inner solver with lam = 0, rho = (M, M) fixed: the paper's E_{M,h} (11) with
+  rigidity on E only. The multipliers are the penalty's, lam = -M c (exact at its stationary point).
+* ``continuation``: penalty solves at M/1000, M/100, M/10, M, each warm-started from the last.
+
+Reported multipliers of ``exact`` are the least-squares ones of the final phi in the dual metric
+(independent of the iteration), with rigidity * grad E_h = lam_A grad A + lam_B grad B. The result
+records both the dual-norm KKT residual (``extra['kkt_dual']``, the stopping test) and the L2 one
+from ``kkt.kkt_residual`` (``kkt_residual``), which has a round-off floor ~ eps_mach k_max^4;
+``converged`` requires the dual test, the constraints, and the L2 residual below
+``KKT_FACTOR * tol`` or below ``ROUNDOFF_FACTOR`` times its measured floor (``extra``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from . import functionals as F
+from .discretization import discretize
+from .errors import InputError
+from .feasibility import check_feasible
+from .kkt import kkt_residual
+from .matfree import LumpedOperators, PhaseField
+from .newton import Counters, Objective, hessian_solve, newton_minimize
+from .precond import FourierPreconditioner, SparsePreconditioner
+from .result import Result
+from .spectral import FourierGrid, fourier_grid
+
+KKT_FACTOR = 100.0  # as the IPOPT backend (solve.KKT_FACTOR): L2 vs scaled-test ratio allowance
+ROUNDOFF_FACTOR = 10.0  # the L2 residual may sit at 10x its round-off floor (see _l2_floor)
+RHO_HAT = 10.0  # initial rho_i = RHO_HAT / (G_i^T P^{-1} G_i): the penalty dominates the model
+MAX_OUTER = 30
+W_TOL = 1e-4  # CG tolerance of the two solves H^{-1} dA, H^{-1} dB of the dual Newton step: its error
+# only slows the (otherwise quadratic) multiplier convergence by a factor ~1e-4 per outer iteration
+
+
+def prepare(scene, disc=None):
+    """(disc, PhaseField, preconditioner, translations) for a scene; FD grids go to FFT."""
+    disc = disc or discretize(scene)
+    if disc.kind == "fd" and getattr(disc, "fourier", None) is None:
+        disc = fourier_grid(disc.box, disc.grid_shape, "fd")  # equal to the sparse FD to round-off
+    ops = LumpedOperators(disc)
+    pf = PhaseField(ops, scene.model.epsilon, scene.model.C)
+    fourier = getattr(disc, "fourier", None)
+    if fourier is not None:
+        prec = FourierPreconditioner(fourier, disc.weights[0], scene.model.epsilon)
+    else:
+        prec = SparsePreconditioner(disc.K, disc.weights, scene.model.epsilon)
+    periodic = scene.domain.boundary == "periodic" and disc.grid_shape is not None
+    deriv = fourier if fourier is not None else (FourierGrid(disc.box, disc.grid_shape) if periodic else None)
+
+    def translations(phi):
+        if deriv is None:
+            return None
+        return np.column_stack(deriv.derivatives(phi))
+
+    return disc, pf, prec, translations
+
+
+def _least_squares_multipliers(prec, rig, dE, dA, dB) -> np.ndarray:
+    """argmin_lam |rig dE - lam_A dA - lam_B dB|_* in the dual metric of the model P0."""
+    pinv = prec.inverse(1.0)
+    G = [dA, dB]
+    PG = [pinv(v) for v in G]
+    N = np.array([[G[i] @ PG[j] for j in range(2)] for i in range(2)])
+    rhs = np.array([rig * (dE @ PG[i]) for i in range(2)])
+    return np.linalg.solve(N, rhs)
+
+
+def _dual_kkt(prec, rig, dE, dA, dB, lam) -> float:
+    dn = prec.dual_norm
+    res = rig * dE - lam[0] * dA - lam[1] * dB
+    scale = rig * dn(dE) + abs(lam[0]) * dn(dA) + abs(lam[1]) * dn(dB)
+    return dn(res) / max(scale, np.finfo(float).tiny)
+
+
+def _l2_floor(disc, rig, dE, eps) -> float:
+    """Round-off floor of the relative L2 KKT residual: eps_mach * |symbol|_max^2 * eps scale of dE.
+
+    dE contains eps Delta_h^T (m eps Delta_h phi)/eps; round-off in phi (eps_mach) is amplified by
+    the largest |symbol|^2, so |delta dE|_L2 ~ eps_mach eps sigma_max^2 |Omega|^{1/2}.
+    """
+    fourier = getattr(disc, "fourier", None)
+    if fourier is None:
+        return 0.0
+    smax = float(np.max(-fourier.symbol))
+    dn = math.sqrt(max(dE @ (dE / disc.weights), np.finfo(float).tiny))
+    return np.finfo(float).eps * eps * smax**2 * math.sqrt(disc.volume) / dn
+
+
+def _exact(obj: Objective, pt0_phi, tol, max_iter, volume, beta, log):
+    prec, rig = obj.prec, obj.rig
+    pt = obj.point(pt0_phi)
+    obj.lam = _least_squares_multipliers(prec, rig, pt.dE, pt.dA, pt.dB)
+    pinv = prec.inverse(rig)
+    obj.rho = np.array([RHO_HAT / float(g @ pinv(g)) for g in (pt.dA, pt.dB)])
+    cscale = np.array([volume, abs(beta)])
+    prev_c = np.inf
+    status = "max_iter"
+    for outer in range(1, MAX_OUTER + 1):
+        crel = float(np.max(np.abs(pt.c) / cscale))
+        inner_tol = max(0.1 * tol, min(1e-3, crel))
+        budget = max_iter - obj.cnt.newton
+        pt, inner = newton_minimize(obj, pt.phi, inner_tol, budget)
+        crel = float(np.max(np.abs(pt.c) / cscale))
+        lam_ls = _least_squares_multipliers(prec, rig, pt.dE, pt.dA, pt.dB)
+        dual = _dual_kkt(prec, rig, pt.dE, pt.dA, pt.dB, lam_ls)
+        log.append({"outer": outer, "inner": inner, "newton": obj.cnt.newton, "c_rel": crel,
+                    "dual": dual, "rho": obj.rho.tolist(), "lam": lam_ls.tolist()})
+        if inner not in ("converged", "max_iter"):
+            status = f"inner_{inner}"
+            break
+        if crel <= tol and dual <= tol:
+            status = "converged"
+            break
+        if obj.cnt.newton >= max_iter:
+            break
+        # Newton step on the dual: lam <- lam - W^{-1} c, W = G^T H_rho^{-1} G
+        sols = [hessian_solve(obj, pt, g, W_TOL) for g in (pt.dA, pt.dB)]
+        if all(s.status == "converged" for s in sols):
+            W = np.array([[pt.dA @ sols[j].x, pt.dB @ sols[j].x] for j in range(2)])
+            W = 0.5 * (W + W.T)
+            try:
+                obj.lam = obj.lam - np.linalg.solve(W, pt.c)
+            except np.linalg.LinAlgError:
+                obj.lam = obj.lam - obj.rho * pt.c
+        else:
+            obj.lam = obj.lam - obj.rho * pt.c
+        if crel > 0.25 * prev_c:
+            obj.rho = obj.rho * 10.0
+        prev_c = crel
+    return pt, status, lam_ls, dual
+
+
+def _penalty(obj: Objective, phi, tol, max_iter, Ms):
+    status, pt = "max_iter", None
+    for M in Ms:
+        obj.lam, obj.rho = np.zeros(2), np.array([M, M], float)
+        pt, status = newton_minimize(obj, phi, tol, max_iter - obj.cnt.newton)
+        phi = pt.phi
+        if status != "converged":
+            break
+    return pt, status
+
+
+def solve(scene, disc=None, phi0=None, throw: bool = False) -> Result:
+    """Solve a scene with the Newton-Krylov backend; the same Result as ``solve.solve``."""
+    from .nlp import constraint_data  # the core's (alpha, beta), target shapes evaluated on this mesh
+    from .shapes import phase_field
+    t_start = time.perf_counter()
+    disc, pf, prec, translations = prepare(scene, disc)
+    alpha, beta = constraint_data(scene, disc)
+    check_feasible(alpha, beta, scene, disc)
+    rig, eps, tol = scene.model.rigidity, scene.model.epsilon, scene.solver.tol
+    method, M = scene.solver.method, scene.solver.M
+    phi = phase_field(scene.initial, disc.nodes, disc.box, eps) if phi0 is None else np.array(phi0, float)
+    cnt = Counters()
+    obj = Objective(pf, prec, translations, rig, alpha, beta, np.zeros(2), np.zeros(2), cnt)
+    log: list = []
+    t0 = time.perf_counter()
+    if method == "exact":
+        pt, status, lam, dual = _exact(obj, phi, tol, scene.solver.max_iter, disc.volume, beta, log)
+    elif method in ("penalty", "continuation"):
+        Ms = [M] if method == "penalty" else [M / 1000, M / 100, M / 10, M]
+        pt, status = _penalty(obj, phi, tol, scene.solver.max_iter, Ms)
+        lam = -M * pt.c  # rig dE + M c . dc = 0 at the penalty's stationary point
+        dual = pt.rel
+    else:
+        raise InputError("solver.method", f"{method!r}: allowed exact, penalty, continuation")
+    wall = time.perf_counter() - t0
+    phi = pt.phi
+    vals = F.evaluate(disc, phi, eps, scene.model.C)  # independent re-evaluation (functionals.py)
+    res_A, res_B = vals["A"] - alpha, vals["B"] - beta
+    kkt = kkt_residual(disc, phi, eps, scene.model.C, rig, float(lam[0]), float(lam[1]))
+    floor = _l2_floor(disc, rig, pt.dE, eps)
+    finite = bool(np.all(np.isfinite(phi)))
+    success = status == "converged" and finite
+    feasible = abs(res_A) <= tol * disc.volume and abs(res_B) <= tol * abs(beta)
+    l2_ok = kkt <= max(KKT_FACTOR * tol, ROUNDOFF_FACTOR * floor)
+    converged = success and l2_ok and (feasible or method != "exact")
+    penalized = None
+    if method != "exact":
+        penalized = rig * vals["E"] + M / 2 * (res_A**2 + res_B**2)
+    hist = dict(cnt.history)
+    hist["outer"] = log
+    result = Result(
+        phi=phi, w=None, energy=rig * vals["E"], volume_residual=res_A, area_residual=res_B,
+        lambda_volume=float(lam[0]), lambda_area=float(lam[1]), kkt_residual=kkt,
+        status=status, success=success, converged=converged, iterations=cnt.newton,
+        wall_time_s=wall, derivative_time_s=cnt.deriv_time, other_time_s=wall - cnt.deriv_time,
+        n_nodes=disc.n_nodes, hessian_nnz_per_row=float("nan"), method=method,
+        M=None if method == "exact" else M, penalized_energy=penalized, history=hist,
+        extra={"alpha": alpha, "beta": beta, "epsilon": eps, "h": disc.h, "backend": "newton-krylov",
+               "mesh_kind": disc.kind, "kkt_dual": float(dual), "kkt_l2_floor": floor,
+               "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
+               "outer_iterations": len(log), "setup_time_s": t0 - t_start})
+    if throw and not converged:
+        from .errors import SolverError
+        raise SolverError(f"not converged: status {status}, kkt_dual {dual:.3g}, kkt_residual {kkt:.3g}, "
+                          f"A-alpha {res_A:.3g}, B-beta {res_B:.3g}", result)
+    return result
