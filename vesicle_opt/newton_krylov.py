@@ -155,14 +155,15 @@ def _penalty(obj: Objective, phi, tol, max_iter, Ms):
     return pt, status
 
 
-def solve(scene, disc=None, phi0=None, throw: bool = False) -> Result:
+def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True) -> Result:
     """Solve a scene with the Newton-Krylov backend; the same Result as ``solve.solve``."""
     from .nlp import constraint_data  # the core's (alpha, beta), target shapes evaluated on this mesh
     from .shapes import phase_field
     t_start = time.perf_counter()
     disc, pf, prec, translations = prepare(scene, disc)
     alpha, beta = constraint_data(scene, disc)
-    check_feasible(alpha, beta, scene, disc)
+    if check:
+        check_feasible(alpha, beta, scene, disc)
     rig, eps, tol = scene.model.rigidity, scene.model.epsilon, scene.solver.tol
     method, M = scene.solver.method, scene.solver.M
     phi = phase_field(scene.initial, disc.nodes, disc.box, eps) if phi0 is None else np.array(phi0, float)

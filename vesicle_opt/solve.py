@@ -64,7 +64,16 @@ def _hessian_nnz_per_row(solver, n: int) -> float:
 
 def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=None,
           options: IpoptOptions | None = None, throw: bool = False) -> Result:
-    """Minimise rigidity * E_h subject to A = alpha, B = beta exactly; see the module docstring."""
+    """Minimise rigidity * E_h subject to A = alpha, B = beta exactly; see the module docstring.
+
+    A Scene whose ``solver.backend`` resolves to newton-krylov (``backend.choose_backend``) goes to
+    ``newton_krylov.solve`` and returns the same Result (IPOPT-only arguments are then ignored).
+    """
+    if isinstance(problem, Scene):  # backend dispatch (issue 6)
+        from .backend import choose_backend
+        if choose_backend(problem) == "newton-krylov":
+            from . import newton_krylov
+            return newton_krylov.solve(problem, throw=throw)
     nlp = problem if isinstance(problem, NLP) else build_nlp(problem)
     scene, disc = nlp.scene, nlp.disc
     options = options or IpoptOptions(tol=scene.solver.tol, max_iter=scene.solver.max_iter)
