@@ -42,6 +42,8 @@ KKT_FACTOR = 100.0  # as the IPOPT backend (solve.KKT_FACTOR): L2 vs scaled-test
 ROUNDOFF_FACTOR = 10.0  # the L2 residual may sit at 10x its round-off floor (see _l2_floor)
 RHO_HAT = 10.0  # initial rho_i = RHO_HAT / (G_i^T P^{-1} G_i): the penalty dominates the model
 MAX_OUTER = 30
+COARSE_MIN_N = 16  # nested iteration: coarsest grid side
+COARSE_TOL = 1e-5  # coarse levels only make a start; their error is far below the fine step's reach
 W_TOL = 1e-4  # CG tolerance of the two solves H^{-1} dA, H^{-1} dB of the dual Newton step: its error
 # only slows the (otherwise quadratic) multiplier convergence by a factor ~1e-4 per outer iteration
 
@@ -155,31 +157,90 @@ def _penalty(obj: Objective, phi, tol, max_iter, Ms):
     return pt, status
 
 
-def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True) -> Result:
-    """Solve a scene with the Newton-Krylov backend; the same Result as ``solve.solve``."""
+def coarse_levels(disc, epsilon: float) -> list[tuple[int, ...]]:
+    """Grid shapes of the nested-iteration start, coarse to fine, excluding disc's own.
+
+    Halve n while every side stays even and >= COARSE_MIN_N and the coarse spacing still resolves
+    the interface (h <= eps); only on Fourier grids (spectral or FD), where the Fourier interpolant
+    carries a coarse solution to the fine grid.
+    """
+    if getattr(disc, "fourier", None) is None:
+        return []
+    shapes, n = [], tuple(disc.grid_shape)
+    lengths = disc.fourier.lengths
+    while all(k % 2 == 0 and k // 2 >= COARSE_MIN_N for k in n) and max(lengths / (np.array(n) // 2)) <= epsilon:
+        n = tuple(k // 2 for k in n)
+        shapes.append(n)
+    return shapes[::-1]
+
+
+def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
+    """The trigonometric interpolant of a periodic grid field on another grid (same box)."""
+    from scipy.signal import resample as fourier_resample
+    v = phi.reshape(shape_from)
+    for axis, n in enumerate(shape_to):
+        v = fourier_resample(v, n, axis=axis)
+    return np.ascontiguousarray(v).ravel()
+
+
+def _run_level(scene, disc, phi, cnt, log, tol, max_iter, check):
     from .nlp import constraint_data  # the core's (alpha, beta), target shapes evaluated on this mesh
-    from .shapes import phase_field
-    t_start = time.perf_counter()
     disc, pf, prec, translations = prepare(scene, disc)
     alpha, beta = constraint_data(scene, disc)
     if check:
         check_feasible(alpha, beta, scene, disc)
-    rig, eps, tol = scene.model.rigidity, scene.model.epsilon, scene.solver.tol
     method, M = scene.solver.method, scene.solver.M
-    phi = phase_field(scene.initial, disc.nodes, disc.box, eps) if phi0 is None else np.array(phi0, float)
-    cnt = Counters()
-    obj = Objective(pf, prec, translations, rig, alpha, beta, np.zeros(2), np.zeros(2), cnt)
-    log: list = []
-    t0 = time.perf_counter()
+    obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt)
     if method == "exact":
-        pt, status, lam, dual = _exact(obj, phi, tol, scene.solver.max_iter, disc.volume, beta, log)
+        pt, status, lam, dual = _exact(obj, phi, tol, max_iter, disc.volume, beta, log)
     elif method in ("penalty", "continuation"):
         Ms = [M] if method == "penalty" else [M / 1000, M / 100, M / 10, M]
-        pt, status = _penalty(obj, phi, tol, scene.solver.max_iter, Ms)
+        pt, status = _penalty(obj, phi, tol, max_iter, Ms)
         lam = -M * pt.c  # rig dE + M c . dc = 0 at the penalty's stationary point
         dual = pt.rel
     else:
         raise InputError("solver.method", f"{method!r}: allowed exact, penalty, continuation")
+    return disc, pt, status, lam, dual, alpha, beta
+
+
+def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True,
+          nested: bool = True) -> Result:
+    """Solve a scene with the Newton-Krylov backend; the same Result as ``solve.solve``.
+
+    ``nested``: on Fourier grids first solve on the ``coarse_levels`` (to COARSE_TOL) from the same
+    initial shape and start each finer level from the Fourier interpolant (nested iteration; the
+    reported wall time and counts include the coarse levels).
+    """
+    from .shapes import phase_field
+    t0 = time.perf_counter()
+    disc = disc or discretize(scene)
+    if disc.kind == "fd" and getattr(disc, "fourier", None) is None:
+        disc = fourier_grid(disc.box, disc.grid_shape, "fd")  # equal to the sparse FD to round-off
+    rig, eps, tol = scene.model.rigidity, scene.model.epsilon, scene.solver.tol
+    method, M = scene.solver.method, scene.solver.M
+    levels = coarse_levels(disc, eps) if (nested and phi0 is None) else []
+    cnt = Counters()
+    log: list = []
+    level_log = []
+    phi = None
+    for shape in levels:
+        cdisc = fourier_grid(disc.box, shape, disc.kind)
+        start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \
+            resample(phi, prev_shape, shape)
+        n0 = cnt.newton
+        _, cpt, cstatus, *_ = _run_level(scene, cdisc, start, cnt, log, max(tol, COARSE_TOL),
+                                         scene.solver.max_iter, check=False)
+        level_log.append({"n": list(shape), "status": cstatus, "newton": cnt.newton - n0})
+        phi, prev_shape = cpt.phi, shape
+    if phi is None:
+        phi = phase_field(scene.initial, disc.nodes, disc.box, eps) if phi0 is None else np.array(phi0, float)
+    else:
+        phi = resample(phi, prev_shape, disc.grid_shape)
+    n0 = cnt.newton
+    disc, pt, status, lam, dual, alpha, beta = _run_level(scene, disc, phi, cnt, log, tol,
+                                                          scene.solver.max_iter, check)
+    level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": status,
+                      "newton": cnt.newton - n0})
     wall = time.perf_counter() - t0
     phi = pt.phi
     vals = F.evaluate(disc, phi, eps, scene.model.C)  # independent re-evaluation (functionals.py)
@@ -196,6 +257,7 @@ def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True) 
         penalized = rig * vals["E"] + M / 2 * (res_A**2 + res_B**2)
     hist = dict(cnt.history)
     hist["outer"] = log
+    hist["levels"] = level_log
     result = Result(
         phi=phi, w=None, energy=rig * vals["E"], volume_residual=res_A, area_residual=res_B,
         lambda_volume=float(lam[0]), lambda_area=float(lam[1]), kkt_residual=kkt,
@@ -206,7 +268,8 @@ def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True) 
         extra={"alpha": alpha, "beta": beta, "epsilon": eps, "h": disc.h, "backend": "newton-krylov",
                "mesh_kind": disc.kind, "kkt_dual": float(dual), "kkt_l2_floor": floor,
                "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
-               "outer_iterations": len(log), "setup_time_s": t0 - t_start})
+               "outer_iterations": len(log), "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
+               "fine_newton_iterations": level_log[-1]["newton"]})
     if throw and not converged:
         from .errors import SolverError
         raise SolverError(f"not converged: status {status}, kkt_dual {dual:.3g}, kkt_residual {kkt:.3g}, "
