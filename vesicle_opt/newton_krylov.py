@@ -36,7 +36,7 @@ from .matfree import LumpedOperators, PhaseField
 from .newton import Counters, Objective, hessian_solve, newton_minimize
 from .precond import FourierPreconditioner, SparsePreconditioner
 from .result import Result
-from .spectral import FourierGrid, fourier_grid
+from .spectral import fourier_grid
 
 KKT_FACTOR = 100.0  # as the IPOPT backend (solve.KKT_FACTOR): L2 vs scaled-test ratio allowance
 ROUNDOFF_FACTOR = 10.0  # the L2 residual may sit at 10x its round-off floor (see _l2_floor)
@@ -60,8 +60,10 @@ def prepare(scene, disc=None):
         prec = FourierPreconditioner(fourier, disc.weights[0], scene.model.epsilon)
     else:
         prec = SparsePreconditioner(disc.K, disc.weights, scene.model.epsilon)
-    periodic = scene.domain.boundary == "periodic" and disc.grid_shape is not None
-    deriv = fourier if fourier is not None else (FourierGrid(disc.box, disc.grid_shape) if periodic else None)
+    # translations are null modes only where the discrete problem is translation invariant (grid
+    # shifts of Fourier grids); a tetrahedral mesh breaks the symmetry, so its gradient has parts
+    # along d_i phi that a projection would freeze (measured: a stall at kkt_dual 3e-6)
+    deriv = fourier
 
     def translations(phi):
         if deriv is None:
