@@ -106,7 +106,19 @@ def _plot(path, rows, fields, ns):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4.5))
+    ax = axes[1]
+    fine = [n for n in ns if n >= 32]
+    for method, key, mk in (("exact", "energy", "o-"), ("penalty", "energy", "s-"),
+                            ("exact", "predicted_penalty_energy", "x:")):
+        label = f"{method} (this code)" if key == "energy" else "exact - |lam|^2/M (Theorem 3.2)"
+        ax.plot(fine, [r[key] - PAPER[r["n"]] for r in rows if r["method"] == method and r["n"] >= 32],
+                mk, label=label)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xlabel("n")
+    ax.set_ylabel("energy - paper's Table 1 value")
+    ax.set_title("difference to the paper (n >= 32)")
+    ax.legend()
     ax = axes[0]
     for method, mk in (("exact", "o-"), ("penalty", "s-")):
         ax.plot(ns, [r["energy"] for r in rows if r["method"] == method], mk, label=f"{method} (this code)")
@@ -118,7 +130,7 @@ def _plot(path, rows, fields, ns):
     n = ns[-1]
     F = fields[(n, "exact")].reshape(n, n, n)
     ext = [-np.pi, np.pi, -np.pi, np.pi]
-    for a, (cut, name) in zip(axes[1:], ((F[:, n // 2, :], "y = 0"), (F[:, :, n // 2], "z = 0"))):
+    for a, (cut, name) in zip(axes[2:], ((F[:, n // 2, :], "y = 0"), (F[:, :, n // 2], "z = 0"))):
         a.imshow(cut.T, origin="lower", extent=ext, cmap="RdBu_r", vmin=-1, vmax=1)
         xs = np.linspace(-np.pi, np.pi, n, endpoint=False)
         a.contour(xs, xs, cut.T, levels=[0.0], colors="k")
