@@ -44,6 +44,7 @@ RHO_HAT = 10.0  # initial rho_i = RHO_HAT / (G_i^T P^{-1} G_i): the penalty domi
 MAX_OUTER = 30
 COARSE_MIN_N = 16  # nested iteration: coarsest grid side
 COARSE_TOL = 1e-5  # coarse levels only make a start; their error is far below the fine step's reach
+W_REFRESH = 0.1  # a reused dual Hessian must cut |c| 10x per outer iteration, else it is recomputed
 W_TOL = 1e-4  # CG tolerance of the two solves H^{-1} dA, H^{-1} dB of the dual Newton step: its error
 # only slows the (otherwise quadratic) multiplier convergence by a factor ~1e-4 per outer iteration
 
@@ -104,12 +105,28 @@ def _l2_floor(disc, rig, dE, eps) -> float:
     return np.finfo(float).eps * eps * smax**2 * math.sqrt(disc.volume) / dn
 
 
-def _exact(obj: Objective, pt0_phi, tol, max_iter, volume, beta, log):
+def _dual_hessian(obj: Objective, pt) -> np.ndarray | None:
+    """W = G^T H_rho^{-1} G (2 x 2) by two CG solves; None when CG meets negative curvature."""
+    sols = [hessian_solve(obj, pt, g, W_TOL) for g in (pt.dA, pt.dB)]
+    if not all(s.status == "converged" for s in sols):
+        return None
+    W = np.array([[pt.dA @ sols[j].x, pt.dB @ sols[j].x] for j in range(2)])
+    return 0.5 * (W + W.T)
+
+
+def _exact(obj: Objective, pt0_phi, tol, max_iter, volume, beta, log, dual_model=None):
+    """Augmented Lagrangian with dual Newton steps. dual_model = (W, rho) of a coarser level: with
+    the same rho, W = dc/dlam is a mesh-independent quantity, so it carries over to discretisation
+    accuracy and the finer level needs no W solves unless its |c| stops falling."""
     prec, rig = obj.prec, obj.rig
     pt = obj.point(pt0_phi)
     obj.lam = _least_squares_multipliers(prec, rig, pt.dE, pt.dA, pt.dB)
-    pinv = prec.inverse(rig)
-    obj.rho = np.array([RHO_HAT / float(g @ pinv(g)) for g in (pt.dA, pt.dB)])
+    W = None
+    if dual_model is not None:
+        W, obj.rho = dual_model
+    else:
+        pinv = prec.inverse(rig)
+        obj.rho = np.array([RHO_HAT / float(g @ pinv(g)) for g in (pt.dA, pt.dB)])
     cscale = np.array([volume, abs(beta)])
     prev_c = np.inf
     status = "max_iter"
@@ -131,21 +148,19 @@ def _exact(obj: Objective, pt0_phi, tol, max_iter, volume, beta, log):
             break
         if obj.cnt.newton >= max_iter:
             break
-        # Newton step on the dual: lam <- lam - W^{-1} c, W = G^T H_rho^{-1} G
-        sols = [hessian_solve(obj, pt, g, W_TOL) for g in (pt.dA, pt.dB)]
-        if all(s.status == "converged" for s in sols):
-            W = np.array([[pt.dA @ sols[j].x, pt.dB @ sols[j].x] for j in range(2)])
-            W = 0.5 * (W + W.T)
-            try:
-                obj.lam = obj.lam - np.linalg.solve(W, pt.c)
-            except np.linalg.LinAlgError:
-                obj.lam = obj.lam - obj.rho * pt.c
-        else:
+        # Newton step on the dual: lam <- lam - W^{-1} c, W = G^T H_rho^{-1} G; a reused W is
+        # refreshed when |c| fell by less than W_REFRESH over the last outer iteration
+        if W is None or crel > W_REFRESH * prev_c:
+            W = _dual_hessian(obj, pt)
+        try:
+            obj.lam = obj.lam - np.linalg.solve(W, pt.c)
+        except (np.linalg.LinAlgError, ValueError):
+            W = None
             obj.lam = obj.lam - obj.rho * pt.c
         if crel > 0.25 * prev_c:
             obj.rho = obj.rho * 10.0
         prev_c = crel
-    return pt, status, lam_ls, dual
+    return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy()))
 
 
 def _penalty(obj: Objective, phi, tol, max_iter, Ms):
@@ -185,7 +200,7 @@ def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
     return np.ascontiguousarray(v).ravel()
 
 
-def _run_level(scene, disc, phi, cnt, log, tol, max_iter, check):
+def _run_level(scene, disc, phi, cnt, log, tol, max_iter, check, W=None):
     from .nlp import constraint_data  # the core's (alpha, beta), target shapes evaluated on this mesh
     disc, pf, prec, translations = prepare(scene, disc)
     alpha, beta = constraint_data(scene, disc)
@@ -194,7 +209,7 @@ def _run_level(scene, disc, phi, cnt, log, tol, max_iter, check):
     method, M = scene.solver.method, scene.solver.M
     obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt)
     if method == "exact":
-        pt, status, lam, dual = _exact(obj, phi, tol, max_iter, disc.volume, beta, log)
+        pt, status, lam, dual, W = _exact(obj, phi, tol, max_iter, disc.volume, beta, log, W)
     elif method in ("penalty", "continuation"):
         Ms = [M] if method == "penalty" else [M / 1000, M / 100, M / 10, M]
         pt, status = _penalty(obj, phi, tol, max_iter, Ms)
@@ -202,7 +217,7 @@ def _run_level(scene, disc, phi, cnt, log, tol, max_iter, check):
         dual = pt.rel
     else:
         raise InputError("solver.method", f"{method!r}: allowed exact, penalty, continuation")
-    return disc, pt, status, lam, dual, alpha, beta
+    return disc, pt, status, lam, dual, alpha, beta, W
 
 
 def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True,
@@ -224,14 +239,14 @@ def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True,
     cnt = Counters()
     log: list = []
     level_log = []
-    phi = None
+    phi = W = None
     for shape in levels:
         cdisc = fourier_grid(disc.box, shape, disc.kind)
         start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \
             resample(phi, prev_shape, shape)
         n0 = cnt.newton
-        _, cpt, cstatus, *_ = _run_level(scene, cdisc, start, cnt, log, max(tol, COARSE_TOL),
-                                         scene.solver.max_iter, check=False)
+        _, cpt, cstatus, *_, W = _run_level(scene, cdisc, start, cnt, log, max(tol, COARSE_TOL),
+                                            scene.solver.max_iter, check=False, W=W)
         level_log.append({"n": list(shape), "status": cstatus, "newton": cnt.newton - n0})
         phi, prev_shape = cpt.phi, shape
     if phi is None:
@@ -239,8 +254,8 @@ def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True,
     else:
         phi = resample(phi, prev_shape, disc.grid_shape)
     n0 = cnt.newton
-    disc, pt, status, lam, dual, alpha, beta = _run_level(scene, disc, phi, cnt, log, tol,
-                                                          scene.solver.max_iter, check)
+    disc, pt, status, lam, dual, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol,
+                                                             scene.solver.max_iter, check, W)
     level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": status,
                       "newton": cnt.newton - n0})
     wall = time.perf_counter() - t0
