@@ -26,6 +26,7 @@ from .krylov import SubspacePreconditioner, projected_pcg
 ARMIJO = 1e-4  # sufficient-decrease constant (the usual textbook value)
 ETA_MAX = 0.01
 STEP_CAP = 1.0  # no Newton step changes a nodal value by more than 1 (phi lives in [-1, 1])
+STALL = 1e-13  # an accepted step this small relative to |phi| changes phi only at round-off level
 ROUNDOFF_REL = 1e-6  # below this relative stationarity f's decrease is under round-off: accept a full
 # step when it reduces the dual gradient norm instead of testing Armijo
 
@@ -149,6 +150,8 @@ def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, 
         h["step"].append(t if accepted is not None else 0.0)
         if accepted is None:
             return pt, "line_search_failed"
+        if t * float(np.max(np.abs(p))) <= STALL * max(1.0, float(np.max(np.abs(pt.phi)))):
+            return accepted, "stalled"  # steps below round-off of phi: no further progress possible
         pt = accepted
     return pt, "converged" if pt.rel <= tol else "max_iter"
 
