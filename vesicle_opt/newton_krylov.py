@@ -247,20 +247,21 @@ def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True,
         cdisc = fourier_grid(disc.box, shape, disc.kind)
         start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \
             resample(phi, prev_shape, shape)
-        n0 = cnt.newton
+        n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
         _, cpt, cstatus, *_, W = _run_level(scene, cdisc, start, cnt, log, max(tol, COARSE_TOL),
                                             scene.solver.max_iter, check=False, W=W)
-        level_log.append({"n": list(shape), "status": cstatus, "newton": cnt.newton - n0})
+        level_log.append({"n": list(shape), "status": cstatus, "newton": cnt.newton - n0,
+                          "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
         phi, prev_shape = cpt.phi, shape
     if phi is None:
         phi = phase_field(scene.initial, disc.nodes, disc.box, eps) if phi0 is None else np.array(phi0, float)
     else:
         phi = resample(phi, prev_shape, disc.grid_shape)
-    n0 = cnt.newton
+    n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
     disc, pt, status, lam, dual, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol,
                                                              scene.solver.max_iter, check, W)
     level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": status,
-                      "newton": cnt.newton - n0})
+                      "newton": cnt.newton - n0, "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
     wall = time.perf_counter() - t0
     phi = pt.phi
     vals = F.evaluate(disc, phi, eps, scene.model.C)  # independent re-evaluation (functionals.py)
