@@ -14,10 +14,10 @@ Methods (``solver.method``):
   lower lost the ellipse-2d shape at M/1000 = 1: E 6.2 against 2.75).
 
 Translations d_i phi are projected out of every step on Fourier grids (exact null modes of the
-spectral problem up to aliasing). On coarse FD grids (h ~ eps) the lattice breaks the symmetry: there
-the symmetric start stays at a symmetric KKT point (as IPOPT does), while a shifted torus can be lower
-(measured on the P1 tensor mesh, whose lumped operator equals FD: 330.02 vs 330.53 at 16^3,
-406.57 vs 407.21 at 24^3). Neither backend certifies a minimiser.
+spectral problem up to aliasing). On coarse grids (h ~ eps) several KKT points are close: from the
+symmetric torus start both backends end at the axisymmetric one, while the pyamg-preconditioned run
+on the P1 tensor mesh (whose lumped operator equals FD) ended at a lower, slightly non-axisymmetric
+one (330.02 vs 330.53 at 16^3, 406.57 vs 407.21 at 24^3). Neither backend certifies a minimiser.
 
 Reported multipliers of ``exact`` are the least-squares ones of the final phi in the dual metric
 (independent of the iteration), with rigidity * grad E_h = lam_A grad A + lam_B grad B. The result
