@@ -17,7 +17,7 @@ with g' = (1 - 3 phi^2)/eps - 2 C phi and g'' = -6 phi/eps - 2 C. On Fourier gri
 one FFT pair, so an evaluation costs one pair and a Hessian-vector product two. These are
 independent of ``functionals.py`` (whose hand-derived gradients a test compares with these).
 The penalised energy (11) with the paper's convention (rigidity on E only, M on the constraints)
-and the augmented Lagrangian are assembled from these pieces in ``newton_krylov``.
+and the augmented Lagrangian are assembled from these pieces in ``newton``.
 """
 
 from __future__ import annotations

@@ -6,8 +6,8 @@ Methods (``solver.method``):
   multipliers take a Newton step on the dual function, lam <- lam - W^{-1} c with
   W = G^T H_rho^{-1} G (G = [dA, dB], two extra CG solves), which is the Newton-KKT step in the
   multipliers (and lam - rho c, the classical update, when rho is large); rho grows 10x when |c|
-  falls by less than 4x. Stops when the constraints hold to tol (|A-alpha| <= tol |Omega|,
-  |B-beta| <= tol beta, as the IPOPT backend) and the relative dual KKT residual <= tol.
+  falls by less than 4x. Stops when the constraints hold to 0.1 tol (|A-alpha| <= tol |Omega|,
+  |B-beta| <= tol beta is the IPOPT backend's test) and the relative dual KKT residual <= tol.
 * ``penalty``: the same inner solver with lam = 0, rho = (M, M) fixed: the paper's E_{M,h} (11) with
   rigidity on E only. The multipliers are the penalty's, lam = -M c (exact at its stationary point).
 * ``continuation``: penalty solves at M/100, M/10, M, each warm-started from the last (starting
@@ -17,7 +17,11 @@ Translations d_i phi are projected out of every step on Fourier grids (exact nul
 spectral problem up to aliasing). On coarse grids (h ~ eps) several KKT points are close: from the
 symmetric torus start both backends end at the axisymmetric one, while the pyamg-preconditioned run
 on the P1 tensor mesh (whose lumped operator equals FD) ended at a lower, slightly non-axisymmetric
-one (330.02 vs 330.53 at 16^3, 406.57 vs 407.21 at 24^3). Neither backend certifies a minimiser.
+one (330.02 vs 330.53 at 16^3, 406.57 vs 407.21 at 24^3). Neither backend certifies a minimiser;
+``second_order.reduced_hessian_eigenvalues`` checks one on Fourier grids.
+
+Nested iteration (``solve(nested=True)``, the default on Fourier grids): coarser grids first, each
+level started from the trigonometric interpolant of the last; see ``coarse_levels``.
 
 Reported multipliers of ``exact`` are the least-squares ones of the final phi in the dual metric
 (independent of the iteration), with rigidity * grad E_h = lam_A grad A + lam_B grad B. The result
