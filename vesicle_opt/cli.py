@@ -41,9 +41,17 @@ def cmd_solve(args) -> int:
     from .solve import solve
     from .nlp import build_nlp
     sc = scene.load(resolve_scene(args.scene), args.set)
-    nlp = build_nlp(sc)
-    result = solve(nlp)
-    summary = output.write_result(Path(args.out), sc, nlp.disc, result)
+    from .backend import choose_backend
+    if choose_backend(sc) == "newton-krylov":  # matrix-free backend (issue 6)
+        from .discretization import discretize
+        from .solve import solve_newton_krylov
+        disc = discretize(sc)
+        result = solve_newton_krylov(sc, disc)
+    else:
+        nlp = build_nlp(sc)
+        disc = nlp.disc
+        result = solve(nlp)
+    summary = output.write_result(Path(args.out), sc, disc, result)
     print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
     if result.converged and summary.get("second_order") == "saddle":

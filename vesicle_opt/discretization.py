@@ -105,6 +105,9 @@ def discretize(scene) -> Discretization:
     if scene.mesh.kind == "fd":
         from .fd import grid
         return grid(scene.domain.box, scene.mesh.n)
+    if scene.mesh.kind == "spectral":
+        from .spectral import grid as spectral_grid
+        return spectral_grid(scene.domain.box, scene.mesh.n)
     from .fem import p1
     return p1(scene.domain.box, scene.mesh.n, periodic=scene.domain.boundary == "periodic",
               mass=scene.mesh.mass, quadrature=scene.mesh.quadrature, mesh_file=scene.mesh.file)

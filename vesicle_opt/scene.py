@@ -53,7 +53,7 @@ class Domain:
 
 @dataclass(frozen=True)
 class Mesh:
-    kind: str  # "fem-p1" | "fd"
+    kind: str  # "fem-p1" | "fd" | "spectral"
     n: tuple[int, ...]  # cells per side
     mass: str  # "lumped" | "consistent"
     quadrature: str  # "nodal" | "gauss"
@@ -85,7 +85,7 @@ class Solver:
     M: float
     tol: float
     max_iter: int
-    backend: str = "ipopt"
+    backend: str = "ipopt"  # "ipopt" | "newton-krylov" | "auto" (see vesicle_opt.backend)
     second_order: bool = True  # run the second-order check after a converged solve
     # penalty continuation / augmented Lagrangian (see vesicle_opt.continuation)
     M0: float = 10.0
@@ -118,7 +118,7 @@ M_LIMIT = 1e12  # largest penalty constant accepted (double precision: M |A - al
 SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "domain.box": ("box", _REQ, "list of [lo, hi] pairs with lo < hi, 2 or 3 of them"),
     "domain.boundary": ("str", "periodic", ("periodic", "natural")),
-    "mesh.kind": ("str", "fem-p1", ("fem-p1", "fd")),
+    "mesh.kind": ("str", "fem-p1", ("fem-p1", "fd", "spectral")),
     "mesh.n": ("ints", _REQ, "integer >= 4, or one per dimension"),
     "mesh.mass": ("str", "lumped", ("lumped", "consistent")),
     "mesh.quadrature": ("str", "nodal", ("nodal", "gauss")),
@@ -134,7 +134,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
     "solver.tol": ("float", 1e-8, "> 0"),
     "solver.max_iter": ("int", 500, ">= 1"),
-    "solver.backend": ("str", "ipopt", ("ipopt",)),
+    "solver.backend": ("str", "ipopt", ("ipopt", "newton-krylov", "auto")),
     "solver.second_order": ("bool", True, "true or false"),
     "solver.M0": ("float", 10.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
     "solver.M_factor": ("float", 10.0, "> 1"),
@@ -321,6 +321,11 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
         raise InputError("domain.boundary", "mesh.kind 'fd' supports only 'periodic'")
     if val["mesh.kind"] == "fd" and val["mesh.mass"] == "consistent":
         raise InputError("mesh.mass", "mesh.kind 'fd' is lumped by construction; use 'lumped'")
+    if val["mesh.kind"] == "spectral":  # Fourier pseudo-spectral grids (issue 6)
+        if domain.boundary != "periodic":
+            raise InputError("domain.boundary", "mesh.kind 'spectral' supports only 'periodic'")
+        if val["mesh.mass"] == "consistent":
+            raise InputError("mesh.mass", "mesh.kind 'spectral' is lumped by construction; use 'lumped'")
     if val["mesh.quadrature"] == "gauss" and val["mesh.kind"] != "fem-p1":
         raise InputError("mesh.quadrature", "'gauss' needs mesh.kind = 'fem-p1'; use 'nodal'")
     if val["mesh.file"] is not None and val["mesh.kind"] != "fem-p1":

@@ -78,9 +78,42 @@ def with_topology(disc, result: Result) -> Result:
                          wraps=None if topo.wraps is None else list(topo.wraps))
 
 
+def solve_newton_krylov(scene: Scene, disc=None, throw: bool = False) -> Result:
+    """The matrix-free backend (``newton_krylov.py``) with the same reports as the IPOPT path:
+    topology, and for exact constraints the second-order check on the Fourier grid
+    (``second_order_fourier``; translations and rotations, the continuum's symmetries, excluded —
+    rotations are soft but resolved only to LOBPCG's residual): "minimum" when the least eigenvalue
+    exceeds 10x its residual, "saddle" when it is below -10x, else "not checked" (undecided)."""
+    import warnings
+    from . import newton_krylov
+    from .discretization import discretize
+    disc = disc or discretize(scene)
+    result = with_topology(disc, newton_krylov.solve(scene, disc, throw=throw))
+    verdict, least = "not checked", None
+    if result.converged and scene.solver.second_order and scene.solver.method == "exact":
+        from .second_order_fourier import reduced_hessian_eigenvalues
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # lobpcg warns when unwanted eigenvalues lag behind
+            vals, res = reduced_hessian_eigenvalues(scene, result, k=3, rotations=True)
+        least = float(vals[0])
+        if vals[0] > 10 * res[0]:
+            verdict = "minimum"
+        elif vals[0] < -10 * res[0]:
+            verdict = "saddle"
+    return replace_extra(result, second_order=verdict, second_order_min_eigenvalue=least)
+
+
 def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=None,
           options: IpoptOptions | None = None, throw: bool = False) -> Result:
-    """Minimise rigidity * E_h subject to A = alpha, B = beta exactly; see the module docstring."""
+    """Minimise rigidity * E_h subject to A = alpha, B = beta exactly; see the module docstring.
+
+    A Scene whose ``solver.backend`` resolves to newton-krylov (``backend.choose_backend``) goes to
+    ``newton_krylov.solve`` and returns the same Result (IPOPT-only arguments are then ignored).
+    """
+    if isinstance(problem, Scene):  # backend dispatch (issue 6)
+        from .backend import choose_backend
+        if choose_backend(problem) == "newton-krylov":
+            return solve_newton_krylov(problem, throw=throw)
     nlp = problem if isinstance(problem, NLP) else build_nlp(problem)
     from .penalty import PenaltyNLP
     if isinstance(nlp, PenaltyNLP):  # penalty (11), continuation, augmented Lagrangian

@@ -1,0 +1,25 @@
+"""The topology check of the Table-1 study tells a torus from a sphere and from two blobs."""
+
+import numpy as np
+
+from studies.table1 import torus_check
+
+
+def _grid(n=32):
+    x = -np.pi + 2 * np.pi / n * np.arange(n)
+    return np.meshgrid(x, x, x, indexing="ij")
+
+
+def test_torus_check_accepts_a_torus_and_rejects_others():
+    X, Y, Z = _grid()
+    rho = np.hypot(X, Y)
+    torus = np.tanh(0.6 - np.hypot(rho - 1.5, Z))
+    sphere = np.tanh(1.5 - np.sqrt(X**2 + Y**2 + Z**2))
+    blobs = np.tanh(0.6 - np.minimum(np.sqrt((X - 1.5) ** 2 + Y**2 + Z**2), np.sqrt((X + 1.5) ** 2 + Y**2 + Z**2)))
+    assert torus_check(torus.ravel(), X.shape) == {"components": 1, "axis_negative": True, "torus_ok": True}
+    assert not torus_check(sphere.ravel(), X.shape)["torus_ok"]
+    b = torus_check(blobs.ravel(), X.shape)
+    assert b["components"] == 2 and not b["torus_ok"]
+    # a blob cut by the periodic boundary is still one component
+    wrapped = np.tanh(0.6 - np.sqrt((np.abs(X) - np.pi) ** 2 + Y**2 + Z**2))
+    assert torus_check(wrapped.ravel(), X.shape)["components"] == 1
