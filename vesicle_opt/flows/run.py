@@ -109,7 +109,7 @@ def flow(scene, out: Path, *, restart: bool = False, progress: bool = False, fra
         rows = _rows_upto(hist, start_step)
         t_start = float(np.load(ckpt)["t"])
     else:
-        rows, t_start = [], 0.0
+        rows, t_start, start_step = [], 0.0, 0
     fh = open(hist, "w", newline="")
     writer = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
     writer.writeheader()
@@ -144,6 +144,7 @@ def flow(scene, out: Path, *, restart: bool = False, progress: bool = False, fra
     summary = {"scene": scene.name, "scheme": fl.scheme, "law": scheme.law, "status": outcome.status,
                "message": outcome.message, "steps": outcome.step, "t": outcome.t,
                "rejections": outcome.rejections, "wall_time_s": outcome.wall_time_s,
+               "resumed_from_step": start_step,
                "n_nodes": md.disc.n_nodes, "gamma": md.gamma, "M": md.M, "alpha": md.alpha, "beta": md.beta,
                **{k: float(v) for k, v in obs.items()}}
     np.savez_compressed(out / "phi.npz", phi=phi, nodes=md.disc.nodes, t=outcome.t)
