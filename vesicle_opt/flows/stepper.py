@@ -13,6 +13,7 @@ never looks inside. Rules:
   ``hard_iters``, capped by ``dt_max``;
 * **steady state**: ||phi_t|| = ||phi^{n+1} - phi^n|| / k below ``steady_tol`` times its value at the
   first step of the run stops the run with status ``"steady"``;
+* ``stop(row)``, if given, ends the run with status ``"stopped"`` when it returns True;
 * **checkpoints**: every ``checkpoint_every`` accepted steps (and at the end) the state is written
   atomically to ``checkpoint.npz``; ``resume=True`` restarts from it bit-for-bit (the schemes are
   stateless given phi^n, the previous field and k).
@@ -53,7 +54,7 @@ class RunOutcome:
     phi: np.ndarray
     t: float
     step: int
-    status: str  # "t_end" | "steady" | "max_steps" | "failed"
+    status: str  # "t_end" | "steady" | "max_steps" | "stopped" | "failed"
     message: str
     rejections: int
     wall_time_s: float
@@ -73,7 +74,7 @@ def load_checkpoint(path: Path) -> dict:
 
 def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | None = None,
         resume: bool = False, on_accept: Callable[[int, float, np.ndarray, dict], None] | None = None,
-        ) -> RunOutcome:
+        stop: Callable[[dict], bool] | None = None) -> RunOutcome:
     """Advance ``phi0`` from t = 0 (or the checkpoint) to ``opts.t_end``; see the module docstring."""
     phi, phi_prev, t, step, k_try, rate0, rejections, wall0 = phi0.copy(), None, 0.0, 0, opts.dt, math.nan, 0, 0.0
     if resume and checkpoint is not None and checkpoint.exists():
@@ -139,6 +140,9 @@ def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | No
             last_print = time.perf_counter()
             print(f"\r  step {step}  t = {t:.4g}/{opts.t_end:.4g}  dt = {k:.3g}  E = {row['energy']:.8g}  "
                   f"law = {out.law_residual:.1e}  rejected = {rejections}", end="", file=sys.stderr, flush=True)
+        if stop is not None and stop(row):
+            status, message = "stopped", "the caller's stop criterion was met"
+            break
         if opts.steady_tol > 0 and out.rate <= opts.steady_tol * rate0:
             status, message = "steady", f"||phi_t|| fell to {out.rate / rate0:.3g} of its first value"
             break
