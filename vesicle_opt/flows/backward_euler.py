@@ -85,3 +85,12 @@ class BackwardEulerScheme:
         return StepOutcome(phi, True, iters, "converged" if ok else f"{LAW} violated: {law:.3g}",
                            law_residual=law, law_ok=ok, rate=float(np.sqrt(dd)) / k,
                            extra={"equality_law_defect": eq})
+
+    def minimise(self, phi_start: np.ndarray) -> tuple[np.ndarray, bool, str]:
+        """The k -> infinity limit of the step: a local minimiser of E_M from phi_start (IPOPT)."""
+        md = self.model
+        x0 = np.concatenate([phi_start, [md.A(phi_start), md.B(phi_start)]])
+        sol = self.solver(x0=x0, p=np.concatenate([phi_start, [0.0]]), lbg=0.0, ubg=0.0)
+        stats = self.solver.stats()
+        phi = np.asarray(sol["x"]).ravel()[:phi_start.size]
+        return phi, bool(stats["success"]) and bool(np.all(np.isfinite(phi))), stats["return_status"]
