@@ -5,7 +5,12 @@ flow then runs with adaptive k from the scene's initial shape (projected onto th
 (17)) and records, against its wall time, the relative energy error |E - E*|/E* (E = kappa E_h,
 never the penalty terms) and the lumped-L^2 distance ||phi - phi*||. The flows stop at a relative
 energy error <= 1e-6 *and* ||phi - phi*|| <= 1e-3 (an energy crossing alone is not convergence),
-at a steady state, or at a wall-time cap.
+at a steady state, or at a wall-time cap; the first time the energy alone is within 1e-6 (which a
+flow passing E* on its way elsewhere also meets) is reported separately.
+Finding (ellipse-2d): the NLP's KKT point is a saddle of the discrete problem (the centred ellipse;
+the grid breaks translation invariance): all flows plateau near it and then drift to a lower state
+(32^2: E 4% lower and asymmetric; 64^2: 2.4e-5 lower). The study re-solves the NLP from the lowest
+flow end state to confirm the lower constrained critical point.
 (18) and (23) minimise E_M, whose minimiser misses the constraints by O(1/M) and whose E differs from
 E* by about lambda^2/M: they may stall above 1e-6 (the floor is reported).
 Writes ``flow_vs_nlp.csv`` (one row per flow step), ``flow_vs_nlp_summary.csv`` and a PNG.
@@ -43,9 +48,10 @@ def main(out: Path, quick: bool = False) -> int:
     rows, summary = [], [{"method": "nlp-exact", "wall_time_s": res.wall_time_s, "time_to_target_s": res.wall_time_s,
                           "final_energy": E_star, "best_energy_rel_error": 0.0, "final_phi_distance": 0.0,
                           "status": res.status, "steps": res.iterations}]
+    ends = {}
     for scheme in ("lagrange", "penalty", "backward-euler"):
         sc, md, sch, phi0 = setup("ellipse-2d", base + [f'flow.scheme="{scheme}"'])
-        hit = {"t": None}
+        hit = {"t": None, "t_energy": None}
         best = [np.inf]
         t0 = time.perf_counter()
 
@@ -56,6 +62,8 @@ def main(out: Path, quick: bool = False) -> int:
             rows.append({"method": scheme, "step": step, "t": t, "dt": row["dt"], "wall_time_s": row["wall_time_s"],
                          "energy": row["energy"], "energy_rel_error": eE, "phi_distance": dphi,
                          "volume_residual": row["volume_residual"], "area_residual": row["area_residual"]})
+            if hit["t_energy"] is None and eE <= TARGET:
+                hit["t_energy"] = row["wall_time_s"]
             if hit["t"] is None and eE <= TARGET and dphi <= PHI_TOL:
                 hit["t"] = row["wall_time_s"]
 
@@ -66,12 +74,26 @@ def main(out: Path, quick: bool = False) -> int:
                                            dt_max=sc.flow.dt_max, steady_tol=sc.flow.steady_tol), on_accept=on_accept,
                 stop=stop)
         last = [r for r in rows if r["method"] == scheme][-1]
+        ends[scheme] = o.phi
         summary.append({"method": scheme, "wall_time_s": o.wall_time_s, "time_to_target_s": hit["t"],
+                        "time_to_energy_only_target_s": hit["t_energy"],
                         "final_energy": last["energy"], "best_energy_rel_error": best[0],
                         "final_phi_distance": last["phi_distance"], "status": o.status, "steps": o.step})
         print(f"{scheme:15s}: {o.status}, {o.step} steps, t = {o.t:.4g}, wall {o.wall_time_s:.1f}s, "
-              f"time to target {hit['t']}, best rel. energy error {best[0]:.2e}, "
+              f"time to target {hit['t']} (energy alone: {hit['t_energy']}), best rel. energy error {best[0]:.2e}, "
               f"final ||phi - phi*|| {last['phi_distance']:.2e}, final E {last['energy']:.10g}", flush=True)
+    # Is the NLP's KKT point a minimum? Re-solve the NLP from the lowest flow end state: a lower
+    # converged E there means the first NLP answer was a saddle or a higher local minimum.
+    low = min((s for s in summary[1:]), key=lambda s: s["final_energy"])
+    phi_low = ends[low["method"]]
+    res2 = solve(sc, x0=phi_low)
+    summary.append({"method": f"nlp-exact from {low['method']} end state", "wall_time_s": res2.wall_time_s,
+                    "time_to_target_s": None, "final_energy": res2.energy,
+                    "best_energy_rel_error": abs(res2.energy - E_star) / E_star,
+                    "final_phi_distance": float(np.sqrt(md.norm2(res2.phi - phi_star))),
+                    "status": res2.status, "steps": res2.iterations})
+    print(f"NLP from the {low['method']} end state: {res2.status}, converged={res2.converged}, "
+          f"E = {res2.energy:.10g} ({(res2.energy - E_star) / E_star:+.3e} relative to E*)", flush=True)
     write_csv(out / "flow_vs_nlp.csv", rows)
     write_csv(out / "flow_vs_nlp_summary.csv", summary)
     _plot(out / "flow_vs_nlp.png", rows, res.wall_time_s)
