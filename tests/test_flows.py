@@ -219,3 +219,39 @@ def test_cli_flow_bad_input(tmp_path, capsys, argv, key):
     rc = cli.main(["flow", "ellipse-2d", "--out", str(tmp_path), "--quiet", *argv])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and key in err and len(err.splitlines()) == 1
+
+
+def test_sign_of_f_term_as_printed_breaks_law_22():
+    """f = eps Delta phi - (phi^2-1)phi/eps is -dB/dphi; with the paper's printed '+ M (B - beta) f' in
+    (18) the law (22) fails by O(1), with the sign used here it holds to round-off."""
+    sc = _scene()
+    md = build_model(sc)
+    phi = initial_field(sc, md)
+
+    class PrintedSign(FlowModel):
+        def f2(self, a, b):
+            return -FlowModel.f2(self, a, b)
+
+        def df2(self, a, b):
+            return -FlowModel.df2(self, a, b)  # f1 (the true -grad B in the B row) stays as it is
+
+    printed = PrintedSign(md.disc, md.epsilon, md.C, md.rigidity, md.alpha, md.beta, md.M, md.gamma)
+    from vesicle_opt.flows.penalty import PenaltyScheme
+    ours = PenaltyScheme(md, law_tol=LAW_TOL).step(phi, 1e-4, phi)
+    theirs = PenaltyScheme(printed, law_tol=LAW_TOL).step(phi, 1e-4, phi)
+    assert ours.law_ok and abs(ours.law_residual) <= LAW_TOL
+    assert theirs.converged and abs(theirs.law_residual) > 1e-3  # measured 8.6e-2: not round-off
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("study", ["time_step_convergence", "energy_decay"])
+def test_study_quick_runs(tmp_path, study):
+    import importlib
+    mod = importlib.import_module(f"studies.{study}")
+    assert mod.main(tmp_path, quick=True) == 0
+    assert list(tmp_path.glob("*.csv")) and list(tmp_path.glob("*.png"))
+    if study == "time_step_convergence":
+        with open(tmp_path / "time_step_orders.csv") as fh:
+            for r in csv.DictReader(fh):
+                # same +-0.15 as test_observed_order_in_k (measured 2.03 / 2.04 / 0.99 in L2)
+                assert abs(float(r["order_l2"]) - float(r["expected"])) <= 0.15, r
