@@ -26,9 +26,7 @@ def main(out: Path, quick: bool = False) -> int:
     out.mkdir(parents=True, exist_ok=True)
     n, T, k = (24, 0.5, 2e-3) if quick else (48, 2.0, 1e-3)
     base = [f"mesh.n={n}", "solver.M=1e4", 'flow.scheme="penalty"', "flow.steady_tol=0"]
-    sc, md, sch, phi0 = setup("ellipse-2d", base)
-    from vesicle_opt.flows.projection import project
-    phi0 = project(md, phi0, md.alpha, md.beta)
+    sc, md, sch, phi0 = setup("ellipse-2d", base)  # flow.initial = "projected" (the default)
     from vesicle_opt.flows.backward_euler import BackwardEulerScheme
     T_ss = 20.0
     ss = run(sch, phi0, StepperOptions(dt=1e-4, t_end=T_ss, max_steps=20000, adaptive=True, dt_max=0.5))

@@ -1,8 +1,8 @@
 """Flows as a route to equilibria: wall time of each flow to reach the NLP equilibrium energy.
 
 The exact-constraint NLP (``vesicle_opt.solve``) gives E* and phi* on the ``ellipse-2d`` scene; each
-flow then runs with adaptive k from the scene's initial shape (projected onto the constraint set for
-(17)) and records, against its wall time, the relative energy error |E - E*|/E* (E = kappa E_h,
+flow then runs with adaptive k from the scene's initial shape projected onto the constraint set
+(``flow.initial = "projected"``, the default) and records, against its wall time, the relative energy error |E - E*|/E* (E = kappa E_h,
 never the penalty terms) and the lumped-L^2 distance ||phi - phi*||. The flows stop at a relative
 energy error <= 1e-6 *and* ||phi - phi*|| <= 1e-3 (an energy crossing alone is not convergence),
 at a steady state, or at a wall-time cap; the first time the energy alone is within 1e-6 (which a

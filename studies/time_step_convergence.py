@@ -1,7 +1,7 @@
 """Time-step convergence of the flows (Theorems 4.2-4.4): fixed T, k, k/2, k/4, ...
 
-2D ``ellipse-2d`` scene (FD, M = 100 so the penalty stiffness does not hide the time error), the
-same initial shape for (18) and (23), its projection onto the constraint set for (17). Errors at T
+2D ``ellipse-2d`` scene (FD, M = 100 so the penalty stiffness does not hide the time error), all
+three schemes from the scene's initial shape projected onto the constraint set (``flow.initial``). Errors at T
 against a fine-k reference, in the lumped L^2 norm and in the energy (kappa E_h):
 * (18) and (23) discretise the same flow (14): both are compared with one reference, (18) at
   k_ref = k_min / 4 (its error there is ~1/16 of the finest (18) error, and ~1e-3 of (23)'s);

@@ -155,7 +155,7 @@ def test_observed_order_in_k(scheme, order):
 
 def test_rejection_on_oversized_step():
     """k = 1 is far beyond what Newton converges for from the raw initial shape: rejected, halved, no NaN."""
-    sc = _scene("solver.M=1e4")
+    sc = _scene("solver.M=1e4", 'flow.initial="shape"')
     md = build_model(sc)
     sch = make_scheme(sc, md)
     rows = []

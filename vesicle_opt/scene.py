@@ -100,6 +100,7 @@ class Flow:
     law_tol: float = 1e-9  # reject a step whose relative energy-law residual exceeds this
     frames: int = 10  # snapshots + PNG frames at t_end * j / frames
     checkpoint_every: int = 50
+    initial: str = "projected"  # "projected" onto A = alpha, B = beta | "shape" (not for lagrange)
 
 
 @dataclass(frozen=True)
@@ -156,6 +157,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "flow.law_tol": ("float", 1e-9, "> 0"),
     "flow.frames": ("int", 10, ">= 1"),
     "flow.checkpoint_every": ("int", 50, ">= 1"),
+    "flow.initial": ("str", "projected", ("projected", "shape")),
 }
 _POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "solver.M", "solver.tol",
              "flow.gamma", "flow.dt", "flow.t_end", "flow.dt_min", "flow.dt_max", "flow.law_tol"}
@@ -337,6 +339,8 @@ def _flow(val: dict) -> Flow:
     """The ``flow.*`` keys, with the checks the generic loop cannot express."""
     if val["flow.steady_tol"] < 0:
         raise InputError("flow.steady_tol", f"must be >= 0, got {val['flow.steady_tol']!r}")
+    if val["flow.initial"] == "shape" and val["flow.scheme"] == "lagrange":
+        raise InputError("flow.initial", "'lagrange' (17) preserves A and B, so it starts 'projected'")
     if val["flow.dt_min"] > val["flow.dt_max"]:
         raise InputError("flow.dt_min", f"must be <= flow.dt_max = {val['flow.dt_max']!r}")
     return Flow(**{f.name: val[f"flow.{f.name}"] for f in dataclasses.fields(Flow)})

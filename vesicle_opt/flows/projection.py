@@ -4,11 +4,11 @@
    solving sum_i m_i clip(phi_0,i + c, -1, 1) = alpha. The left side is continuous, piecewise linear
    and non-decreasing in c, so bisection (brentq) brackets it and a final linear solve on the active
    set of unclipped nodes makes A(phi_A) = alpha to round-off. Bounds -1 <= phi <= 1 hold.
-2. Area, by Newton on two scalars: phi(mu) = phi_A + mu_1 + mu_2 f(phi_A), the minimal-L^2 correction
-   along span{1, f} (f = -grad B, the directions of the multipliers of (13)/(17)), solving
-   A(phi(mu)) = alpha, B(phi(mu)) = beta to 1e-14 relative with a 2x2 Jacobian and backtracking.
-   Step 2 keeps the shape's geometry (it moves the interface along its normal where f is large);
-   it may leave |phi| slightly above 1, which the flow corrects.
+2. Area, by Gauss-Newton with minimal-L^2 steps: phi <- phi + mu_1 + mu_2 f(phi), the correction
+   along span{1, f(phi)} (f = -grad B, the directions of the multipliers of (13)/(17)) with
+   (mu_1, mu_2) from the 2x2 linearisation of A(phi) = alpha, B(phi) = beta, backtracking on the
+   residual, f re-evaluated at every iterate; stops at 1e-14 relative. It moves the interface along
+   its normal where f is large; it may leave |phi| slightly above 1, which the flow corrects.
 Returns the projected field; raises ``SolverError`` if step 2 does not converge (e.g. beta far
 from B(phi_0)), never a field off the constraint set.
 """
@@ -46,35 +46,33 @@ def project_volume(md: FlowModel, phi0: np.ndarray, alpha: float) -> np.ndarray:
 
 
 def project(md: FlowModel, phi0: np.ndarray, alpha: float, beta: float, rtol: float = 1e-14,
-            max_iter: int = 50) -> np.ndarray:
+            max_iter: int = 200) -> np.ndarray:
     """Map phi0 onto A = alpha, B = beta (see the module docstring)."""
-    phiA = project_volume(md, phi0, alpha)
-    one, fA = np.ones_like(phiA), md.f1(phiA)
+    phi = project_volume(md, phi0, alpha)
+    one = np.ones_like(phi)
 
-    def field(mu):
-        return phiA + mu[0] * one + mu[1] * fA
+    def G(p):
+        return np.array([(md.A(p) - alpha) / abs(alpha), (md.B(p) - beta) / beta])
 
-    def G(mu):
-        phi = field(mu)
-        return np.array([(md.A(phi) - alpha) / abs(alpha), (md.B(phi) - beta) / beta])
-
-    mu = np.zeros(2)
-    r = G(mu)
+    r = G(phi)
     for _ in range(max_iter):
         if np.max(np.abs(r)) <= rtol:
-            return field(mu)
-        gB = -md.f1(field(mu))  # lumped-L^2 gradient of B
-        Jm = np.array([[md.inner(one, one) / abs(alpha), md.inner(one, fA) / abs(alpha)],
-                       [md.inner(gB, one) / beta, md.inner(gB, fA) / beta]])
-        step = np.linalg.solve(Jm, -r)
+            return phi
+        f = md.f1(phi)  # -grad B (lumped L^2)
+        Jm = np.array([[md.inner(one, one) / abs(alpha), md.inner(one, f) / abs(alpha)],
+                       [-md.inner(f, one) / beta, -md.inner(f, f) / beta]])
+        mu = np.linalg.solve(Jm, -r)
         s = 1.0
-        while s > 1e-4:
-            trial = G(mu + s * step)
-            if np.max(np.abs(trial)) < np.max(np.abs(r)):
+        while True:
+            trial_phi = phi + s * (mu[0] * one + mu[1] * f)
+            trial = G(trial_phi)
+            if np.max(np.abs(trial)) < np.max(np.abs(r)) or s < 1e-6:
                 break
             s /= 2
-        mu, r = mu + s * step, trial
+        if np.max(np.abs(trial)) >= np.max(np.abs(r)):
+            break  # no decrease along the Gauss-Newton direction
+        phi, r = trial_phi, trial
     if np.max(np.abs(r)) <= rtol:
-        return field(mu)
+        return phi
     raise SolverError(f"projection onto A = {alpha:.6g}, B = {beta:.6g} did not converge "
                       f"(relative residuals {r[0]:.2e}, {r[1]:.2e}); start closer to the target")

@@ -44,9 +44,10 @@ def build_model(scene, disc: Discretization | None = None) -> FlowModel:
 
 
 def initial_field(scene, md: FlowModel) -> np.ndarray:
-    """The scene's initial shape; for (17) projected onto A = alpha, B = beta (``projection``)."""
+    """The scene's initial shape, projected onto A = alpha, B = beta (``projection``) unless
+    ``flow.initial = "shape"`` (penalty and backward Euler only; (17) must start on the set)."""
     phi0 = phase_field(scene.initial, md.disc.nodes, md.disc.box, scene.model.epsilon)
-    if scene.flow.scheme == "lagrange":
+    if scene.flow.initial == "projected" or scene.flow.scheme == "lagrange":
         phi0 = project(md, phi0, md.alpha, md.beta)
     return phi0
 
