@@ -12,7 +12,10 @@ never looks inside. Rules:
   when the solve took <= ``easy_iters`` iterations, shrinks by ``shrink`` when it took more than
   ``hard_iters``, capped by ``dt_max``;
 * **steady state**: ||phi_t|| = ||phi^{n+1} - phi^n|| / k below ``steady_tol`` times its value at the
-  first step of the run stops the run with status ``"steady"``;
+  first step of the run stops the run with status ``"steady"``. Note: (17) and (18) are symmetric
+  (midpoint-like) and not L-stable: at k far above the stiff time scale (~ h^4 / (gamma kappa eps))
+  stiff modes flip sign each step and decay slowly, so ||phi_t|| may stall while the energy still
+  decreases monotonically; cap ``dt_max`` or use (23), which damps them, to reach the criterion;
 * ``stop(row)``, if given, ends the run with status ``"stopped"`` when it returns True;
 * **checkpoints**: every ``checkpoint_every`` accepted steps (and at the end) the state is written
   atomically to ``checkpoint.npz``; ``resume=True`` restarts from it bit-for-bit (the schemes are
