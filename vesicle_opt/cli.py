@@ -83,6 +83,45 @@ def cmd_study(args) -> int:
     return int(status or 0)
 
 
+def cmd_flow(args) -> int:
+    from . import scene
+    from .flows.run import flow
+    overrides = list(args.set)
+    for key, value in (("flow.scheme", args.scheme), ("flow.dt", args.dt), ("flow.steps", args.steps),
+                       ("flow.t_end", args.t_end)):
+        if value is not None:
+            overrides.append(f"{key}={value!r}" if isinstance(value, str) else f"{key}={value}")
+    if args.adaptive:
+        overrides.append('flow.stepping="adaptive"')
+    sc = scene.load(resolve_scene(args.scene), overrides)
+    run = flow(sc, Path(args.out), restart=args.restart, progress=not args.quiet)
+    s = run.summary
+    print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "
+          f"energy = {s['energy']:.10g}, rejections = {s['rejections']}, wall = {s['wall_time_s']:.2f}s "
+          f"-> {args.out}/history.csv")
+    if s["status"] == "failed":
+        print(f"vesicle-opt: flow failed: {s['message']}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _flow_parser(sub) -> None:
+    f = sub.add_parser("flow", help="run a gradient flow (17), (18) or (23) of a scene")
+    f.add_argument("scene", help="scene TOML file or bundled scene name")
+    f.add_argument("--scheme", choices=("penalty", "lagrange", "backward-euler"),
+                   help="time scheme (default: the scene's flow.scheme)")
+    f.add_argument("--dt", type=float, help="time step k (initial k with --adaptive)")
+    f.add_argument("--steps", type=int, help="at most this many accepted steps")
+    f.add_argument("--t-end", type=float, help="final time T")
+    f.add_argument("--adaptive", action="store_true", help="adaptive k with rejection")
+    f.add_argument("--out", default="out", help="output directory (default: out)")
+    f.add_argument("--restart", action="store_true", help="ignore a checkpoint in --out")
+    f.add_argument("--quiet", action="store_true", help="no progress line")
+    f.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key (dotted, value parsed as TOML); repeatable")
+    f.set_defaults(func=cmd_flow)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="vesicle-opt", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="verb", required=True, parser_class=_Parser)
@@ -97,6 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--out", default="out", help="output directory (default: out)")
     st.add_argument("--quick", action="store_true", help="small, fast variant")
     st.set_defaults(func=cmd_study)
+    _flow_parser(sub)
     return p
 
 

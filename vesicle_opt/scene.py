@@ -95,6 +95,25 @@ class Solver:
 
 
 @dataclass(frozen=True)
+class Flow:
+    """Gradient-flow settings (``vesicle_opt.flows``); the penalty constant is ``solver.M``."""
+
+    scheme: str = "penalty"  # "penalty" (18) | "lagrange" (17) | "backward-euler" (23)
+    gamma: float = 1.0  # time relaxation gamma of (13)/(14)
+    dt: float = 1e-3
+    t_end: float = 1.0
+    steps: int = 100000  # at most this many accepted steps
+    stepping: str = "constant"  # "constant" | "adaptive"
+    dt_min: float = 1e-12
+    dt_max: float = 1.0
+    steady_tol: float = 1e-6  # stop when ||phi_t|| < steady_tol * its first value; 0 = never
+    law_tol: float = 1e-9  # reject a step whose relative energy-law residual exceeds this
+    frames: int = 10  # snapshots + PNG frames at t_end * j / frames
+    checkpoint_every: int = 50
+    initial: str = "projected"  # "projected" onto A = alpha, B = beta | "shape" (not for lagrange)
+
+
+@dataclass(frozen=True)
 class Scene:
     name: str
     domain: Domain
@@ -103,6 +122,7 @@ class Scene:
     constraints: Constraints
     initial: Shape
     solver: Solver
+    flow: Flow = Flow()
 
     @property
     def dim(self) -> int:
@@ -140,9 +160,24 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.M_factor": ("float", 10.0, "> 1"),
     "solver.M_max": ("float", 1e8, f"M0 <= M_max <= {M_LIMIT:g}"),
     "solver.max_outer": ("int", 20, ">= 1"),
+    # gradient flows (vesicle_opt.flows)
+    "flow.scheme": ("str", "penalty", ("penalty", "lagrange", "backward-euler")),
+    "flow.gamma": ("float", 1.0, "> 0"),
+    "flow.dt": ("float", 1e-3, "> 0"),
+    "flow.t_end": ("float", 1.0, "> 0"),
+    "flow.steps": ("int", 100000, ">= 1"),
+    "flow.stepping": ("str", "constant", ("constant", "adaptive")),
+    "flow.dt_min": ("float", 1e-12, "> 0"),
+    "flow.dt_max": ("float", 1.0, "> 0"),
+    "flow.steady_tol": ("float", 1e-6, ">= 0 (0: never stop early)"),
+    "flow.law_tol": ("float", 1e-9, "> 0"),
+    "flow.frames": ("int", 10, ">= 1"),
+    "flow.checkpoint_every": ("int", 50, ">= 1"),
+    "flow.initial": ("str", "projected", ("projected", "shape")),
 }
 _POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "solver.M", "solver.tol",
-             "solver.M0", "solver.M_max"}
+             "solver.M0", "solver.M_max",
+             "flow.gamma", "flow.dt", "flow.t_end", "flow.dt_min", "flow.dt_max", "flow.law_tol"}
 
 
 def _check_penalty(val: dict) -> None:
@@ -349,7 +384,18 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
                     val["solver.backend"], second_order=val["solver.second_order"], M0=val["solver.M0"],
                     M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
                     max_outer=val["solver.max_outer"])
-    return Scene(name, domain, mesh, model, constraints, initial, solver)
+    return Scene(name, domain, mesh, model, constraints, initial, solver, _flow(val))
+
+
+def _flow(val: dict) -> Flow:
+    """The ``flow.*`` keys, with the checks the generic loop cannot express."""
+    if val["flow.steady_tol"] < 0:
+        raise InputError("flow.steady_tol", f"must be >= 0, got {val['flow.steady_tol']!r}")
+    if val["flow.initial"] == "shape" and val["flow.scheme"] == "lagrange":
+        raise InputError("flow.initial", "'lagrange' (17) preserves A and B, so it starts 'projected'")
+    if val["flow.dt_min"] > val["flow.dt_max"]:
+        raise InputError("flow.dt_min", f"must be <= flow.dt_max = {val['flow.dt_max']!r}")
+    return Flow(**{f.name: val[f"flow.{f.name}"] for f in dataclasses.fields(Flow)})
 
 
 def load(path: str | Path, overrides: list[str] | None = None) -> Scene:

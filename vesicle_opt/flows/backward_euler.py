@@ -1,0 +1,96 @@
+"""Scheme (23): backward Euler as the minimising movement of Proposition 4.1, solved by IPOPT.
+
+Each step minimises the modified energy
+
+    Phi(phi) = E_M(phi) + 1/(2 gamma k) ||phi - phi^n||^2,
+    E_M = kappa E_h + M/2 (A - alpha)^2 + M/2 (B - beta)^2,
+
+whose Euler-Lagrange equation is (23) (with the sign of the f term as in ``discrete``). The NLP is
+built once per run from the core's functionals (``functionals.energy``, ``volume_functional``,
+``area_functional`` through ``CasadiOps``), with phi^n and 1/(gamma k) as CasADi parameters, and
+scaled like the core's NLP: objective / (kappa E_ref m_bar), E_ref the sharp-interface circle/
+sphere energy of area beta, m_bar = |Omega|/N (so the gradient entries are O(1)).
+The penalty terms would make the Hessian dense (rank-one M grad A grad A^T), so the NLP is lifted:
+unknowns (phi, a, b), objective kappa E_h + M/2 (a - alpha)^2 + M/2 (b - beta)^2 + 1/(2 gamma k)||.||^2,
+equality constraints (A(phi) - a)/|Omega| = 0, (B(phi) - b)/beta = 0 (same minimisers, sparse Hessian).
+IPOPT starts from the feasible point (phi^n, A^n, B^n), where Phi = E_M(phi^n); a minimiser found from
+there satisfies Phi(phi^{n+1}) <= Phi(phi^n), which is (24):
+    E_M(phi^{n+1}) - E_M(phi^n) + 1/(2 gamma k) ||phi^{n+1} - phi^n||^2 <= 0.
+(24) is checked after every step (relative to |E_M^n|, allowing ``law_tol`` of round-off); the
+equality law (22) does not hold for (23) (its defect is O(k), reported in the extra column).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from .. import functionals as Fn
+from .base import StepOutcome, observe
+from .discrete import FlowModel
+
+LAW = "(24)"
+
+
+class BackwardEulerScheme:
+    name = "backward-euler"
+    law = LAW
+
+    def __init__(self, model: FlowModel, law_tol: float, tol: float = 1e-10, max_iter: int = 200):
+        self.model, self.law_tol = model, law_tol
+        md = model
+        disc = md.disc
+        n = disc.n_nodes
+        ops = Fn.CasadiOps(disc)
+        x = ca.MX.sym("x", n + 2)
+        phi, a, b = x[:n], x[n], x[n + 1]
+        p = ca.MX.sym("p", n + 1)  # (phi^n, 1/(gamma k))
+        phi_n, c = p[:n], p[n]
+        lap = ca.mtimes(ca.DM(disc.laplacian.tocsc()), phi)
+        E = md.rigidity * Fn.energy(ops, phi, lap, md.epsilon, md.C)
+        A = Fn.volume_functional(ops, phi)
+        B = Fn.area_functional(ops, phi, md.epsilon)
+        d = phi - phi_n
+        obj = E + md.M / 2 * ((a - md.alpha) ** 2 + (b - md.beta) ** 2) + c / 2 * ca.dot(ops.weights, d * d)
+        g = ca.vertcat((A - a) / disc.volume, (B - b) / md.beta)
+        self.f_scale = md.rigidity * Fn.sharp_energy_sphere(md.beta, disc.dim) * disc.volume / n
+        opts = {"ipopt.tol": tol, "ipopt.max_iter": max_iter, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                "print_time": False, "ipopt.linear_solver": "mumps", "ipopt.constr_viol_tol": tol}
+        self.solver = ca.nlpsol("minimising_movement", "ipopt", {"x": x, "p": p, "f": obj / self.f_scale, "g": g},
+                                opts)
+
+    def energy(self, phi):
+        return self.model.E_M(phi)
+
+    def observe(self, phi):
+        return observe(self.model, phi)
+
+    def step(self, phi_n: np.ndarray, k: float, guess: np.ndarray) -> StepOutcome:
+        """``guess`` is ignored: Proposition 4.1's argument (and (24)) starts the descent at phi^n."""
+        md = self.model
+        c = 1.0 / (md.gamma * k)
+        x0 = np.concatenate([phi_n, [md.A(phi_n), md.B(phi_n)]])
+        sol = self.solver(x0=x0, p=np.concatenate([phi_n, [c]]), lbg=0.0, ubg=0.0)
+        stats = self.solver.stats()
+        phi = np.asarray(sol["x"]).ravel()[:phi_n.size]
+        iters = int(stats.get("iter_count", 0))
+        if not (stats["success"] and np.all(np.isfinite(phi))):
+            return StepOutcome(phi, False, iters, f"ipopt: {stats['return_status']}")
+        d = phi - phi_n
+        dd = md.norm2(d)
+        E0, E1 = self.energy(phi_n), self.energy(phi)
+        law = (E1 - E0 + dd / (2 * md.gamma * k)) / abs(E0)
+        ok = bool(np.isfinite(law) and law <= self.law_tol)
+        eq = (E1 - E0 + dd / (md.gamma * k)) / abs(E0)  # the defect of the equality law for (23)
+        return StepOutcome(phi, True, iters, "converged" if ok else f"{LAW} violated: {law:.3g}",
+                           law_residual=law, law_ok=ok, rate=float(np.sqrt(dd)) / k,
+                           extra={"equality_law_defect": eq})
+
+    def minimise(self, phi_start: np.ndarray) -> tuple[np.ndarray, bool, str]:
+        """The k -> infinity limit of the step: a local minimiser of E_M from phi_start (IPOPT)."""
+        md = self.model
+        x0 = np.concatenate([phi_start, [md.A(phi_start), md.B(phi_start)]])
+        sol = self.solver(x0=x0, p=np.concatenate([phi_start, [0.0]]), lbg=0.0, ubg=0.0)
+        stats = self.solver.stats()
+        phi = np.asarray(sol["x"]).ravel()[:phi_start.size]
+        return phi, bool(stats["success"]) and bool(np.all(np.isfinite(phi))), stats["return_status"]

@@ -1,0 +1,152 @@
+"""Spatially discrete f, g of Section 4.1 and their Jacobians, built so the energy laws are exact.
+
+Setting: a lumped discretisation (FD grid, or P1 with ``mesh.mass = "lumped"``) with nodal
+quadrature. Then Delta_h = L = -diag(m)^{-1} K (Definition 2.2), the L^2 inner product is
+<u, v> = sum_i m_i u_i v_i, and with F(phi) = f_c(phi) = eps L phi - p(phi), p(x) = (x^2-1)(x+C eps)/eps
+(the paper's (12), (25)):
+
+    E_h(phi) = 1/(2 eps) <F, F>,    A(phi) = <1, phi>,
+    B(phi) = eps/2 phi^T K phi + 1/(4 eps) <(phi^2-1)^2, 1>.
+
+Symmetric two-argument functions (Section 4.1, Delta -> L):
+
+    f(phi, eta) = eps/2 L(phi + eta) - 1/(4 eps) (phi^2 + eta^2 - 2)(phi + eta)
+    g(phi, eta) = 1/2 L S - 1/(2 eps^2) (phi^2 + phi eta + eta^2 - 1 + C eps (phi + eta)) S,
+                  S = F(phi) + F(eta).
+
+Derivation of the exact discrete chain rules (used by every scheme, checked by the tests):
+* (phi^2-eta^2)(phi^2+eta^2-2) = (phi^2-1)^2 - (eta^2-1)^2 nodewise, and
+  -<phi-eta, L(phi+eta)> = (phi-eta)^T K (phi+eta) = phi^T K phi - eta^T K eta (K symmetric), so
+      B(phi) - B(eta) = -<phi - eta, f(phi, eta)>.
+* F(phi) - F(eta) = eps L d - Q d with d = phi - eta and Q = (p(phi) - p(eta))/d, the exact
+  difference quotient (1/eps)(phi^2 + phi eta + eta^2 + C eps (phi+eta) - 1); and
+  <S, L d> = <L S, d> because diag(m) L = -K is symmetric, so
+      E_h(phi) - E_h(eta) = 1/(2 eps) <S, F(phi) - F(eta)> = <phi - eta, g(phi, eta)>.
+Both hold with no error term, so the schemes' energy laws hold to round-off.
+
+Sign convention (differs from the paper as printed): f = eps Delta phi - (phi^2-1)phi/eps is
+*minus* the variation of B, so the gradient of the penalised energy is
+g + M (A - alpha) - M (B - beta) f; the paper's (14), (18), (23) print "+ M (B - beta) f", with which
+the laws (16), (22), (24) fail. We use the sign that makes (22) hold (see issue notes in the README).
+The rigidity kappa multiplies E_h: the flows use E = kappa E_h, E_M = E + M/2 (A-alpha)^2 + M/2 (B-beta)^2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..discretization import Discretization
+from ..errors import InputError
+
+
+def require_lumped(disc: Discretization) -> None:
+    """The discrete laws above need Delta_h = -M_L^{-1} K and nodal quadrature."""
+    if disc.consistent:
+        raise InputError("mesh.mass", "the gradient flows support 'lumped' only (FD or P1 lumped)")
+    if disc.gauss:
+        raise InputError("mesh.quadrature", "the gradient flows support 'nodal' only")
+
+
+@dataclass(frozen=True, eq=False)
+class FlowModel:
+    """The discrete model of a flow: discretisation, eps, C, rigidity kappa, alpha, beta, M, gamma."""
+
+    disc: Discretization
+    epsilon: float
+    C: float
+    rigidity: float
+    alpha: float
+    beta: float
+    M: float
+    gamma: float
+
+    def __post_init__(self):
+        require_lumped(self.disc)
+
+    # --- basic operators --------------------------------------------------------------------
+    @property
+    def m(self) -> np.ndarray:
+        return self.disc.weights
+
+    @property
+    def L(self) -> sp.csr_matrix:
+        return self.disc.laplacian
+
+    def inner(self, u: np.ndarray, v: np.ndarray) -> float:
+        return float(np.dot(self.m * u, v))
+
+    def norm2(self, u: np.ndarray) -> float:
+        """||u||^2 = <u, u> (lumped L^2)."""
+        return self.inner(u, u)
+
+    def p(self, x):
+        return (x * x - 1) * (x + self.C * self.epsilon) / self.epsilon
+
+    def dp(self, x):
+        return (3 * x * x + 2 * self.C * self.epsilon * x - 1) / self.epsilon
+
+    def F(self, phi: np.ndarray) -> np.ndarray:
+        """f_c(phi) = eps L phi - p(phi), the paper's (12)."""
+        return self.epsilon * (self.L @ phi) - self.p(phi)
+
+    # --- functionals --------------------------------------------------------------------------
+    def E(self, phi: np.ndarray) -> float:
+        """kappa E_h(phi), (6) with nodal quadrature."""
+        return self.rigidity * self.norm2(self.F(phi)) / (2 * self.epsilon)
+
+    def A(self, phi: np.ndarray) -> float:
+        return float(self.m @ phi)
+
+    def B(self, phi: np.ndarray) -> float:
+        eps = self.epsilon
+        return eps / 2 * float(phi @ (self.disc.K @ phi)) + float(self.m @ (phi * phi - 1) ** 2) / (4 * eps)
+
+    def penalty(self, phi: np.ndarray) -> float:
+        return self.M / 2 * ((self.A(phi) - self.alpha) ** 2 + (self.B(phi) - self.beta) ** 2)
+
+    def E_M(self, phi: np.ndarray) -> float:
+        return self.E(phi) + self.penalty(phi)
+
+    # --- symmetric f, g and their Jacobians in the first argument ---------------------------
+    def f2(self, phi: np.ndarray, eta: np.ndarray) -> np.ndarray:
+        eps = self.epsilon
+        s = phi + eta
+        return eps / 2 * (self.L @ s) - (phi * phi + eta * eta - 2) * s / (4 * eps)
+
+    def df2(self, phi: np.ndarray, eta: np.ndarray) -> sp.csr_matrix:
+        eps = self.epsilon
+        diag = (2 * phi * (phi + eta) + phi * phi + eta * eta - 2) / (4 * eps)
+        return sp.csr_matrix(eps / 2 * self.L - sp.diags(diag))
+
+    def _Q(self, phi, eta):
+        ce = self.C * self.epsilon
+        return (phi * phi + phi * eta + eta * eta - 1 + ce * (phi + eta)) / self.epsilon
+
+    def g2(self, phi: np.ndarray, eta: np.ndarray, F_eta: np.ndarray | None = None) -> np.ndarray:
+        """kappa g(phi, eta): kappa E_h(phi) - kappa E_h(eta) = <phi - eta, kappa g(phi, eta)>."""
+        S = self.F(phi) + (self.F(eta) if F_eta is None else F_eta)
+        return self.rigidity * (0.5 * (self.L @ S) - self._Q(phi, eta) * S / (2 * self.epsilon))
+
+    def dg2(self, phi: np.ndarray, eta: np.ndarray, F_eta: np.ndarray | None = None) -> sp.csr_matrix:
+        eps = self.epsilon
+        S = self.F(phi) + (self.F(eta) if F_eta is None else F_eta)
+        dS = sp.csr_matrix(eps * self.L - sp.diags(self.dp(phi)))
+        Q = self._Q(phi, eta)
+        dQ = (2 * phi + eta + self.C * eps) / eps
+        J = 0.5 * (self.L @ dS) - (sp.diags(Q / (2 * eps)) @ dS) - sp.diags(S * dQ / (2 * eps))
+        return sp.csr_matrix(self.rigidity * J)
+
+    # --- one-argument gradients (lumped-L^2 gradients, i.e. variational derivatives) ---------
+    def g1(self, phi: np.ndarray) -> np.ndarray:
+        return self.g2(phi, phi)
+
+    def f1(self, phi: np.ndarray) -> np.ndarray:
+        return self.f2(phi, phi)
+
+    def grad_E_M(self, phi: np.ndarray) -> np.ndarray:
+        """The lumped-L^2 gradient g + M (A - alpha) - M (B - beta) f of E_M."""
+        return (self.g1(phi) + self.M * (self.A(phi) - self.alpha)
+                - self.M * (self.B(phi) - self.beta) * self.f1(phi))
