@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from studies._common import EXTRA, column, load, nlp_for, plt, row, savefig, select
+from studies._common import EXTRA, column, nlp_for, plt, row, savefig, select
 from vesicle_opt.continuation import continuation, schedule
 from vesicle_opt.metrics import observed_order
 from vesicle_opt.solve import IpoptOptions, solve

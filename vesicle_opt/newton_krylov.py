@@ -252,7 +252,7 @@ def solve(scene, disc=None, phi0=None, throw: bool = False, check: bool = True,
     cnt = Counters()
     log: list = []
     level_log = []
-    phi = W = None
+    phi = W = prev_shape = None
     for shape in levels:
         cdisc = fourier_grid(disc.box, shape, disc.kind)
         start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from dataclasses import dataclass
 
 import casadi as ca
@@ -151,18 +150,11 @@ def solve_stage(nlp: PenaltyNLP, solver, p: np.ndarray, *, x0=None, lam_x0=None,
     The lifted rows need a constraint tolerance far below tol (continuation.PENALTY_OPTIONS): a gap
     |B - b| shifts the estimate by M |B - b|, which this test then (rightly) reports.
     """
-    from .solve import KKT_FACTOR, _hessian_nnz_per_row, _times
+    from .solve import KKT_FACTOR, _hessian_nnz_per_row, _times, run_ipopt
     scene, disc = nlp.scene, nlp.disc
     x0 = nlp.x0 if x0 is None else np.asarray(x0, float)
-    args = {"x0": x0, "p": p, "lbx": nlp.lbx, "ubx": nlp.ubx, "lbg": nlp.lbg, "ubg": nlp.ubg,
-            "lam_g0": nlp.initial_lam_g(x0, p) if lam_g0 is None else lam_g0}
-    if lam_x0 is not None:
-        args["lam_x0"] = lam_x0
-    t0 = time.perf_counter()
-    sol = solver(**args)
-    wall = time.perf_counter() - t0
-    stats = solver.stats()
-    x = np.asarray(sol["x"]).ravel()
+    sol, stats, wall, x = run_ipopt(solver, nlp, x0, p=p, lam_x0=lam_x0,
+                                    lam_g0=nlp.initial_lam_g(x0, p) if lam_g0 is None else lam_g0)
     phi, w = nlp.split(x)
     eps, C, rig = scene.model.epsilon, scene.model.C, scene.model.rigidity
     finite = bool(np.all(np.isfinite(x)))

@@ -62,6 +62,18 @@ def _hessian_nnz_per_row(solver, n: int) -> float:
     return nnz / n
 
 
+def run_ipopt(solver, nlp, x0, p=None, lam_x0=None, lam_g0=None):
+    """One IPOPT call with the NLP's bounds: (sol, stats, wall seconds, x as a flat array)."""
+    args = {"x0": x0, "lbx": nlp.lbx, "ubx": nlp.ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+    for key, value in (("p", p), ("lam_x0", lam_x0), ("lam_g0", lam_g0)):
+        if value is not None:
+            args[key] = value
+    t0 = time.perf_counter()
+    sol = solver(**args)
+    wall = time.perf_counter() - t0
+    return sol, solver.stats(), wall, np.asarray(sol["x"]).ravel()
+
+
 def replace_extra(result: Result, **items) -> Result:
     from dataclasses import replace
     return replace(result, extra={**result.extra, **items})
@@ -125,17 +137,8 @@ def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=Non
     scene, disc = nlp.scene, nlp.disc
     options = options or IpoptOptions(tol=scene.solver.tol, max_iter=scene.solver.max_iter)
     solver = solver or make_solver(nlp, options)
-    args = {"x0": nlp.x0 if x0 is None else x0, "lbx": nlp.lbx, "ubx": nlp.ubx,
-            "lbg": nlp.lbg, "ubg": nlp.ubg}
-    if lam_x0 is not None:
-        args["lam_x0"] = lam_x0
-    if lam_g0 is not None:
-        args["lam_g0"] = lam_g0
-    t0 = time.perf_counter()
-    sol = solver(**args)
-    wall = time.perf_counter() - t0
-    stats = solver.stats()
-    x = np.asarray(sol["x"]).ravel()
+    sol, stats, wall, x = run_ipopt(solver, nlp, nlp.x0 if x0 is None else x0,
+                                    lam_x0=lam_x0, lam_g0=lam_g0)
     phi, w = nlp.split(x)
     lam_A, lam_B = nlp.multipliers(np.asarray(sol["lam_g"]))
     eps, C, rig = scene.model.epsilon, scene.model.C, scene.model.rigidity
