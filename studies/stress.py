@@ -12,7 +12,10 @@ Groups:
   boundary; 3D: a torus start for a sphere target, a sphere start for the torus data);
 * ``symmetry``: a circle start for the ellipse target (a saddle) and a large flat disk in a
   periodic box (a slab joined to its periodic image);
-* ``domain``: a non-square box, an anisotropic grid, an unstructured mesh read from a file.
+* ``domain``: a non-square box, an anisotropic grid, an unstructured mesh read from a file;
+* ``penalty``: the penalty form (11) at M = 1e2 ... 1e12 (conditioning of the penalised problem);
+* ``flow``: three steps of scheme (18) with k from the paper's 3e-8 up to 10, far beyond what the
+  Newton solve can take: the stepper must reject and halve k, never produce NaN.
 
     vesicle-opt study stress --out DIR [--quick]
 """
@@ -25,7 +28,7 @@ import time
 from pathlib import Path
 
 EXTRA = ["group", "parameter", "outcome", "reference_energy", "relative_energy_error", "kkt_residual",
-         "second_order", "second_order_min_eigenvalue", "topology"]
+         "second_order", "second_order_min_eigenvalue", "topology", "rejections", "max_law_residual"]
 
 
 def _cases(quick: bool, mesh_dir: Path) -> list[dict]:
@@ -59,6 +62,11 @@ def _cases(quick: bool, mesh_dir: Path) -> list[dict]:
     add("domain", "unstructured mesh file", 0, overrides=[
         "mesh.kind='fem-p1'", "domain.boundary='natural'", f"mesh.file='{mesh_dir / 'disk.vtk'}'",
         "model.epsilon=0.25", "constraints.target.semi_axes=[1.6, 0.9]", "initial.semi_axes=[1.5, 1.0]"])
+    for M in ([1e2, 1e8, 1e12] if quick else [1e2, 1e4, 1e6, 1e8, 1e10, 1e12]):
+        add("penalty", f"M={M:g}", M, overrides=["solver.method='penalty'", f"solver.M={M!r}"])
+    for k in ([3e-8, 1e-1, 10.0] if quick else [3e-8, 1e-5, 1e-3, 1e-1, 10.0]):
+        add("flow", f"scheme (18), k={k:g}", k, overrides=["mesh.n=32", "flow.scheme='penalty'", f"flow.dt={k!r}"])
+        out[-1]["method"] = "flow (18)"
     if not quick:
         add("initial", "torus start, sphere target", 0, scene="sphere-3d",
             overrides=["mesh.kind='fd'", "initial.shape='torus'", "initial.radii=[1.0, 0.45]"])
@@ -76,6 +84,28 @@ def _scene(case: dict, extra=()):
     return scene.load(resolve_scene(case["scene"]), [*overrides, *extra])
 
 
+def run_flow_case(case: dict) -> dict:
+    """Three steps of the flow with constant k and rejection (halving) down to the default dt_min."""
+    import numpy as np
+    from vesicle_opt.flows.run import build_model, initial_field, make_scheme
+    from vesicle_opt.flows.stepper import StepperOptions, run
+    sc = _scene(case)
+    md = build_model(sc)
+    scheme = make_scheme(sc, md)
+    laws: list[float] = []
+    k = sc.flow.dt
+    outcome = run(scheme, initial_field(sc, md), StepperOptions(dt=k, t_end=1e6 * k, max_steps=3),
+                  on_accept=lambda step, t, phi, row: laws.append(abs(float(row["energy_law_residual"]))))
+    obs = scheme.observe(outcome.phi)
+    finite = bool(np.all(np.isfinite(outcome.phi)))
+    ok = outcome.status in ("t_end", "max_steps", "steady") and finite
+    return {"status": outcome.status, "energy": obs["energy"], "volume_residual": obs.get("volume_residual"),
+            "area_residual": obs.get("area_residual"), "iterations": outcome.step,
+            "wall_time_s": outcome.wall_time_s, "rejections": outcome.rejections,
+            "max_law_residual": max(laws) if laws else None,
+            "outcome": "converged" if ok else f"failed: {outcome.status}: {outcome.message}"[:200]}
+
+
 def run_case(case: dict) -> dict:
     from vesicle_opt import feasibility, solve
     from vesicle_opt.discretization import discretize
@@ -83,6 +113,8 @@ def run_case(case: dict) -> dict:
     from vesicle_opt.nlp import constraint_data
     row = {k: case[k] for k in ("group", "scene", "parameter", "method")}
     t0 = time.perf_counter()
+    if case["group"] == "flow":
+        return {**row, **run_flow_case(case)}
     try:
         extra = []
         factor = [o for o in case["overrides"] if o.startswith("@beta_factor=")]
@@ -99,7 +131,9 @@ def run_case(case: dict) -> dict:
                iterations=res.iterations, wall_time_s=res.wall_time_s,
                second_order=res.extra.get("second_order"), topology=res.extra.get("topology"),
                second_order_min_eigenvalue=res.extra.get("second_order_min_eigenvalue"),
-               outcome="converged" if res.converged else f"failed: {res.status}")
+               outcome="converged" if res.converged else
+               f"failed: {res.status}, recomputed residuals above tolerance (kkt {res.kkt_residual:.2g})"
+               if res.success else f"failed: {res.status}")
     if case["reference"] and res.converged:
         ref = solve.solve(_scene(case, case["reference"]))
         if ref.converged:

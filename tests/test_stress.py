@@ -42,3 +42,15 @@ def test_quick_study_writes_one_row_per_case_and_resumes(tmp_path):
     assert all(r["outcome"].split(":")[0] in ("converged", "failed", "refused") for r in rows)
     assert stress.main(tmp_path, quick=True) == 0  # resume: nothing is run or written twice
     assert len(list(csv.DictReader((tmp_path / "stress.csv").open()))) == len(rows)
+
+
+def test_extreme_penalty_is_not_called_converged_on_ipopt_say_so(quick_cases):
+    """M = 1e12: IPOPT reports success, the recomputed stationarity test does not: failed."""
+    row = stress.run_case(_case(quick_cases, "M=1e+12"))
+    assert row["status"] == "Solve_Succeeded" and row["outcome"].startswith("failed: Solve_Succeeded")
+
+
+def test_oversized_flow_step_is_rejected_never_nan(quick_cases):
+    row = stress.run_case(_case(quick_cases, "scheme (18), k=10"))
+    assert row["outcome"] == "converged" and row["rejections"] > 0
+    assert math.isfinite(row["energy"]) and row["max_law_residual"] < 1e-9  # flow.law_tol
