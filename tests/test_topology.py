@@ -43,3 +43,11 @@ def test_unstructured_mesh_counts_components():
     phi = 0.5 - np.minimum(np.hypot(d.nodes[:, 0] - 1, d.nodes[:, 1]), np.hypot(d.nodes[:, 0] + 1, d.nodes[:, 1]))
     t = topology.analyse(d, phi)
     assert t.components == 2 and t.euler_characteristic is None
+
+
+def test_hollow_ball_is_genus_zero_with_a_cavity():
+    """chi = 2 for a ball with an enclosed pocket: genus 0, one cavity (not 'genus -1')."""
+    d, phi = _grid(BOX3, 24, lambda x: 0.4 - np.abs(np.linalg.norm(x, axis=1) - 1.2))
+    t = topology.analyse(d, phi)
+    assert (t.components, t.euler_characteristic, t.cavities) == (1, 2, 1)
+    assert t.describe(3) == "sphere-like (genus 0), enclosing 1 cavity"

@@ -86,7 +86,7 @@ def with_topology(disc, result: Result) -> Result:
     from .topology import analyse
     topo = analyse(disc, result.phi)
     return replace_extra(result, topology=topo.describe(disc.dim), components=topo.components,
-                         euler_characteristic=topo.euler_characteristic,
+                         euler_characteristic=topo.euler_characteristic, cavities=topo.cavities,
                          wraps=None if topo.wraps is None else list(topo.wraps))
 
 

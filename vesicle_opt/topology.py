@@ -6,6 +6,9 @@ closed cells (pixels/voxels) of the nodes with phi > 0, with the box's periodici
 * ``components``: connected components (cells touching at a corner connect, as closed cells do);
 * ``euler_characteristic`` chi of that cell complex: a ball or disk has 1, a solid torus 0, a
   slab or band across a periodic box 0, a 2D annulus 0 (chi = V - E + F - C counted with rolls);
+* ``cavities``: components of the outside {phi <= 0} beyond the first — pockets of outside fluid
+  enclosed by the vesicle (a stomatocyte); for one connected body chi = 1 - genus + cavities
+  (3D; in 2D the holes are the cavities and chi = 1 - holes), which separates the two;
 * ``wraps``: the axes along which a component joins its own periodic image (doubling the box
   along that axis leaves it one component instead of two) — a "vesicle" that is really a slab
   or a tube across the box, not a closed membrane.
@@ -29,6 +32,7 @@ class Topology:
     components: int
     euler_characteristic: int | None
     wraps: tuple[int, ...] | None
+    cavities: int | None = None
 
     def describe(self, dim: int) -> str:
         if self.wraps:
@@ -37,10 +41,13 @@ class Topology:
             return f"{self.components} components"
         if self.euler_characteristic is None:
             return "one component"
-        if dim == 3:
-            genus = 1 - self.euler_characteristic
-            return "sphere-like (genus 0)" if genus == 0 else f"genus {genus} (torus-like)" if genus == 1 else f"genus {genus}"
-        return "disk-like" if self.euler_characteristic == 1 else f"with {1 - self.euler_characteristic} hole(s)"
+        if dim == 2:
+            return "disk-like" if self.euler_characteristic == 1 else f"with {1 - self.euler_characteristic} hole(s)"
+        genus = 1 + self.cavities - self.euler_characteristic
+        text = {0: "sphere-like (genus 0)", 1: "genus 1 (torus-like)"}.get(genus, f"genus {genus}")
+        if self.cavities:
+            text += f", enclosing {self.cavities} cavit{'y' if self.cavities == 1 else 'ies'}"
+        return text
 
 
 def _label_periodic(X: np.ndarray, periodic: bool) -> int:
@@ -96,7 +103,8 @@ def analyse(disc, phi: np.ndarray) -> Topology:
         n = _label_periodic(X, periodic=True)
         wraps = tuple(a for a in range(X.ndim)
                       if _label_periodic(np.concatenate([X, X], axis=a), periodic=True) < 2 * n)
-        return Topology(n, euler_characteristic(X), wraps)
+        cavities = max(_label_periodic(~X, periodic=True) - 1, 0)
+        return Topology(n, euler_characteristic(X), wraps, cavities)
     t = disc.mesh.t
     rows, cols = [], []
     for i in range(t.shape[0]):
