@@ -18,9 +18,9 @@ the solver's own CPU time (``solve_cpu_s``, newton-krylov only) shows what an id
 
 from __future__ import annotations
 
-import csv
 import multiprocessing as mp
 import statistics
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 
@@ -58,31 +58,41 @@ def cases(quick: bool) -> list[tuple[str, int, str]]:
     return out
 
 
+EXTRA = ["kind", "backend", "n_nodes", "converged", "kkt_residual", "kkt_dual", "newton", "cg",
+         "levels", "solve_wall_s", "solve_cpu_s", "total_wall_s", "peak_rss_mb", "repeats",
+         "total_wall_median_s", "total_wall_min_s"]
+
+
+def case_rows(case: dict) -> list[dict]:
+    """``repeats`` fresh-process runs of one (kind, n, backend); one row with the median."""
+    ctx = mp.get_context("spawn")
+    runs = []
+    for _ in range(case["repeats"]):  # a fresh process per run: its peak memory is its own
+        with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+            runs.append(pool.submit(_case, case["kind"], case["n"], case["backend"]).result())
+    row = dict(runs[-1])
+    walls = [r["total_wall_s"] for r in runs]
+    row.update({"scene": "torus-table1-3d", "method": "exact", "iterations": row["newton"],
+                "wall_time_s": statistics.median(walls), "repeats": case["repeats"],
+                "total_wall_median_s": statistics.median(walls), "total_wall_min_s": min(walls),
+                "peak_rss_mb": max(r["peak_rss_mb"] for r in runs)})
+    print(f"bench_3d: {row['kind']:8s} n={row['n']:3d} {row['backend']:13s} E={row['energy']:.6f} "
+          f"conv={row['converged']} newton={row['newton']} cg={row['cg']} "
+          f"wall(median of {case['repeats']})={row['total_wall_median_s']:.2f}s rss={row['peak_rss_mb']:.0f}MB",
+          flush=True)
+    return [row]
+
+
 def main(out: Path, quick: bool = False, repeats: int | None = None) -> int:
+    """Rows are appended per case as it finishes (study_runner); a re-run skips finished cases."""
+    from vesicle_opt.study_runner import run_cases
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     repeats = repeats or (1 if quick else 3)
-    ctx = mp.get_context("spawn")
-    rows = []
-    for kind, n, backend in cases(quick):
-        reps = 1 if backend == "ipopt" or kind == "fem-p1" else repeats
-        runs = []
-        for _ in range(reps):
-            with ctx.Pool(1, maxtasksperchild=1) as pool:
-                runs.append(pool.apply(_case, (kind, n, backend)))
-        row = dict(runs[-1])
-        walls = [r["total_wall_s"] for r in runs]
-        row.update({"repeats": reps, "total_wall_median_s": statistics.median(walls),
-                    "total_wall_min_s": min(walls), "peak_rss_mb": max(r["peak_rss_mb"] for r in runs)})
-        rows.append(row)
-        print(f"bench_3d: {kind:8s} n={n:3d} {backend:13s} E={row['energy']:.6f} conv={row['converged']} "
-              f"newton={row['newton']} cg={row['cg']} wall(median of {reps})={row['total_wall_median_s']:.2f}s "
-              f"rss={row['peak_rss_mb']:.0f}MB", flush=True)
-    keys = list(dict.fromkeys(k for r in rows for k in r))
-    with open(out / "bench_3d.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
+    todo = [{"case": f"{kind} {n} {backend}", "kind": kind, "n": n, "backend": backend,
+             "repeats": 1 if backend == "ipopt" or kind == "fem-p1" else repeats}
+            for kind, n, backend in cases(quick)]
+    run_cases("bench_3d", todo, case_rows, out / "bench_3d.csv", workers=1, extra_columns=EXTRA)
     return 0
 
 

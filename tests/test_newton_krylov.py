@@ -180,3 +180,13 @@ def test_continuation_ends_at_the_penalty_solution():
     cont = nk.solve(_scene("ellipse-2d", *base, "solver.method='continuation'"))
     assert pen.converged and cont.converged and cont.method == "continuation"
     assert abs(cont.energy / pen.energy - 1) <= ENERGY_REL  # the same minimiser of E_{M,h}
+
+
+def test_entry_point_reports_on_fem_meshes_too():
+    """solve() dispatching a P1 scene to newton-krylov: topology reported, the Fourier-only
+    second-order check skipped (not checked), never an error."""
+    sc = _scene("ellipse-2d", "mesh.kind='fem-p1'", "domain.boundary='natural'", "mesh.n=32",
+                "solver.backend='newton-krylov'")
+    res = solve(sc)
+    assert res.converged and res.extra["second_order"] == "not checked"
+    assert res.extra["topology"] == "one component"

@@ -1,6 +1,8 @@
-"""The topology check of the Table-1 study tells a torus from a sphere and from two blobs."""
+"""The topology check of the Table-1 study tells a torus from a sphere and from two blobs; the
+quick modes of the large-3D studies append their rows and resume."""
 
 import numpy as np
+import pytest
 
 from studies.table1 import torus_check
 
@@ -23,3 +25,16 @@ def test_torus_check_accepts_a_torus_and_rejects_others():
     # a blob cut by the periodic boundary is still one component
     wrapped = np.tanh(0.6 - np.sqrt((np.abs(X) - np.pi) ** 2 + Y**2 + Z**2))
     assert torus_check(wrapped.ravel(), X.shape)["components"] == 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["table1", "bench_3d"])
+def test_quick_3d_study_appends_and_resumes(tmp_path, name):
+    import csv
+    import importlib
+    module = importlib.import_module(f"studies.{name}")
+    module.main(tmp_path, quick=True)
+    rows = list(csv.DictReader((tmp_path / f"{name}.csv").open()))
+    assert rows and all(r["status"] in ("converged", "Solve_Succeeded") for r in rows)
+    module.main(tmp_path, quick=True)  # resume: every case is finished, nothing runs twice
+    assert len(list(csv.DictReader((tmp_path / f"{name}.csv").open()))) == len(rows)

@@ -102,7 +102,8 @@ def solve_newton_krylov(scene: Scene, disc=None, throw: bool = False) -> Result:
     disc = disc or discretize(scene)
     result = with_topology(disc, newton_krylov.solve(scene, disc, throw=throw))
     verdict, least = "not checked", None
-    if result.converged and scene.solver.second_order and scene.solver.method == "exact":
+    fourier_grid = scene.mesh.kind in ("spectral", "fd")  # the check's operators are FFT-based
+    if result.converged and scene.solver.second_order and scene.solver.method == "exact" and fourier_grid:
         from .second_order_fourier import reduced_hessian_eigenvalues
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # lobpcg warns when unwanted eigenvalues lag behind
