@@ -26,13 +26,13 @@ import casadi as ca
 import numpy as np
 
 from .. import functionals as Fn
-from .base import StepOutcome, observe
+from .base import Scheme, StepOutcome
 from .discrete import FlowModel
 
 LAW = "(24)"
 
 
-class BackwardEulerScheme:
+class BackwardEulerScheme(Scheme):
     name = "backward-euler"
     law = LAW
 
@@ -58,12 +58,6 @@ class BackwardEulerScheme:
                 "print_time": False, "ipopt.linear_solver": "mumps", "ipopt.constr_viol_tol": tol}
         self.solver = ca.nlpsol("minimising_movement", "ipopt", {"x": x, "p": p, "f": obj / self.f_scale, "g": g},
                                 opts)
-
-    def energy(self, phi):
-        return self.model.E_M(phi)
-
-    def observe(self, phi):
-        return observe(self.model, phi)
 
     def step(self, phi_n: np.ndarray, k: float, guess: np.ndarray) -> StepOutcome:
         """``guess`` is ignored: Proposition 4.1's argument (and (24)) starts the descent at phi^n."""

@@ -37,6 +37,21 @@ def observe(model: FlowModel, phi: np.ndarray) -> dict:
             "volume_residual": dA, "area_residual": dB}
 
 
+class Scheme:
+    """What the stepper asks of a scheme besides ``step``: the energy its law decreases
+    (E_M for the penalty schemes (18), (23); E for (17), set ``penalised = False``) and the
+    observed history columns."""
+
+    penalised = True
+    model: FlowModel
+
+    def energy(self, phi):
+        return self.model.E_M(phi) if self.penalised else self.model.E(phi)
+
+    def observe(self, phi):
+        return observe(self.model, phi)
+
+
 def equality_law(model: FlowModel, energy, phi_n, phi, k) -> tuple[float, float]:
     """(relative residual of E(phi) - E(phi_n) + ||phi - phi_n||^2/(gamma k), ||phi - phi_n||/k)."""
     d = phi - phi_n

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .base import StepOutcome, equality_law, observe
+from .base import Scheme, StepOutcome, equality_law
 from .discrete import FlowModel
 from .newton import newton
 
@@ -34,18 +34,13 @@ def continuous_multipliers(md: FlowModel, phi: np.ndarray) -> np.ndarray:
     return np.linalg.solve(G, [md.inner(one, g), md.inner(f, g)])
 
 
-class LagrangeScheme:
+class LagrangeScheme(Scheme):
     name = "lagrange"
     law = LAW
+    penalised = False  # Lemma 4.2's law is for E itself: A and B are preserved exactly
 
     def __init__(self, model: FlowModel, law_tol: float, xtol: float = 1e-12, max_iter: int = 25):
         self.model, self.law_tol, self.xtol, self.max_iter = model, law_tol, xtol, max_iter
-
-    def energy(self, phi):
-        return self.model.E(phi)
-
-    def observe(self, phi):
-        return observe(self.model, phi)
 
     def step(self, phi_n: np.ndarray, k: float, guess: np.ndarray) -> StepOutcome:
         md = self.model

@@ -17,25 +17,19 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .base import StepOutcome, equality_law, observe
+from .base import Scheme, StepOutcome, equality_law
 from .discrete import FlowModel
 from .newton import newton
 
 LAW = "(22)"
 
 
-class PenaltyScheme:
+class PenaltyScheme(Scheme):
     name = "penalty"
     law = LAW
 
     def __init__(self, model: FlowModel, law_tol: float, xtol: float = 1e-12, max_iter: int = 25):
         self.model, self.law_tol, self.xtol, self.max_iter = model, law_tol, xtol, max_iter
-
-    def energy(self, phi):
-        return self.model.E_M(phi)
-
-    def observe(self, phi):
-        return observe(self.model, phi)
 
     def step(self, phi_n: np.ndarray, k: float, guess: np.ndarray) -> StepOutcome:
         md = self.model
