@@ -18,9 +18,7 @@ the solver's own CPU time (``solve_cpu_s``, newton-krylov only) shows what an id
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import statistics
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 
@@ -65,11 +63,9 @@ EXTRA = ["kind", "backend", "n_nodes", "converged", "kkt_residual", "kkt_dual", 
 
 def case_rows(case: dict) -> list[dict]:
     """``repeats`` fresh-process runs of one (kind, n, backend); one row with the median."""
-    ctx = mp.get_context("spawn")
-    runs = []
-    for _ in range(case["repeats"]):  # a fresh process per run: its peak memory is its own
-        with ProcessPoolExecutor(1, mp_context=ctx) as pool:
-            runs.append(pool.submit(_case, case["kind"], case["n"], case["backend"]).result())
+    from vesicle_opt.study_runner import in_fresh_process
+    runs = [in_fresh_process(_case, case["kind"], case["n"], case["backend"])
+            for _ in range(case["repeats"])]
     row = dict(runs[-1])
     walls = [r["total_wall_s"] for r in runs]
     row.update({"scene": "torus-table1-3d", "method": "exact", "iterations": row["newton"],

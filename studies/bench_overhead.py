@@ -8,10 +8,8 @@ toolkit no slower than the bare model, derivative evaluation <= 25% of the solve
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import statistics
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 EXTRA = ["repeat", "derivative_fraction", "median_wall_time_s", "ratio_to_bare"]
@@ -35,12 +33,9 @@ def _one(case: dict) -> dict:
 
 def case_rows(case: dict) -> list[dict]:
     """Interleave bare and toolkit solves, each in its own fresh process."""
-    ctx = mp.get_context("spawn")
-    rows = []
-    for rep in range(case["repeats"]):
-        for method in ("bare", "toolkit"):
-            with ProcessPoolExecutor(1, mp_context=ctx) as pool:
-                rows.append(pool.submit(_one, {"method": method, "n": case["n"], "repeat": rep}).result())
+    from vesicle_opt.study_runner import in_fresh_process
+    rows = [in_fresh_process(_one, {"method": method, "n": case["n"], "repeat": rep})
+            for rep in range(case["repeats"]) for method in ("bare", "toolkit")]
     med = {m: statistics.median(r["wall_time_s"] for r in rows if r["method"] == m) for m in ("bare", "toolkit")}
     for r in rows:
         r["median_wall_time_s"] = med[r["method"]]

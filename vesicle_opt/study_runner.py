@@ -145,6 +145,13 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
     return log.rows()
 
 
+def in_fresh_process(fn: Callable, *args):
+    """``fn(*args)`` in a new spawned process, so that its peak memory (ru_maxrss) is its own."""
+    import multiprocessing as mp
+    with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
+        return pool.submit(fn, *args).result()
+
+
 def _timed(fn, case):
     t0 = time.perf_counter()
     rows = fn(case)
