@@ -26,6 +26,7 @@ class StepOutcome:
     law_residual: float = float("nan")
     law_ok: bool = False
     rate: float = float("nan")  # ||phi^{n+1} - phi^n|| / k, the discrete ||phi_t||
+    linear_iterations: int = 0  # GMRES iterations of the step (matrix-free grids; 0 for direct solves)
     extra: dict = field(default_factory=dict)
 
 

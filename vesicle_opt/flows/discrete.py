@@ -66,6 +66,12 @@ class FlowModel:
     def __post_init__(self):
         require_lumped(self.disc)
 
+    @property
+    def matrix_free(self) -> bool:
+        """True on Fourier grids (``spectral``): Delta_h is applied by FFT and never assembled, so
+        the schemes' Jacobians are products (``jacobian_apply``) solved by GMRES."""
+        return getattr(self.disc, "fourier", None) is not None
+
     # --- basic operators --------------------------------------------------------------------
     @property
     def m(self) -> np.ndarray:
@@ -138,6 +144,37 @@ class FlowModel:
         dQ = (2 * phi + eta + self.C * eps) / eps
         J = 0.5 * (self.L @ dS) - (sp.diags(Q / (2 * eps)) @ dS) - sp.diags(S * dQ / (2 * eps))
         return sp.csr_matrix(self.rigidity * J)
+
+    # --- the same Jacobians as products, for matrix-free grids ---------------------------------
+    def jacobian_apply(self, phi: np.ndarray, eta: np.ndarray, a: float, b: float,
+                       F_eta: np.ndarray | None = None):
+        """v -> (I + a dg2(phi, eta) + b df2(phi, eta)) v with two Delta_h applications (the
+        Jacobian block of schemes (17) and (18); ``dg2``/``df2`` above are its matrices)."""
+        eps = self.epsilon
+        S = self.F(phi) + (self.F(eta) if F_eta is None else F_eta)
+        dp, Q = self.dp(phi), self._Q(phi, eta)
+        S_dQ = S * (2 * phi + eta + self.C * eps) / eps
+        d_f = (2 * phi * (phi + eta) + phi * phi + eta * eta - 2) / (4 * eps)
+        kap, L = self.rigidity, self.L
+
+        def apply(v):
+            Lv = L @ v
+            dSv = eps * Lv - dp * v
+            dg = kap * (0.5 * (L @ dSv) - Q / (2 * eps) * dSv - S_dQ / (2 * eps) * v)
+            return v + a * dg + b * (eps / 2 * Lv - d_f * v)
+        return apply
+
+    def jacobian_model_inverse(self, a: float, b: float):
+        """r -> P^{-1} r, P the constant-coefficient (bulk phi = eta = +-1, c0 = 0) model of
+        I + a dg2 + b df2 on a Fourier grid: with q = -eps sigma + 2/eps (sigma <= 0 the symbol of
+        Delta_h), dg2 ~ kappa q^2/(2 eps) and df2 ~ -q/2, so p = 1 + a kappa q^2/(2 eps) - b q/2,
+        floored at 1 + 0.1 a kappa q^2/(2 eps) (b, a multiplier times k, may have either sign)."""
+        fg = self.disc.fourier
+        q = -self.epsilon * fg.symbol + 2 / self.epsilon
+        bend = a * self.rigidity * q * q / (2 * self.epsilon)
+        p = np.maximum(1 + bend - b * q / 2, 1 + 0.1 * bend)
+        inv = 1.0 / p
+        return lambda r: fg.apply_symbol(r, inv)
 
     # --- one-argument gradients (lumped-L^2 gradients, i.e. variational derivatives) ---------
     def g1(self, phi: np.ndarray) -> np.ndarray:

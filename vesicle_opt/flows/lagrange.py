@@ -9,7 +9,8 @@ The paper's second and third equations of (17) are <1, gamma kappa g - lambda_1 
 of ``discrete``) to A(phi) = A(phi^n) and B(phi) = B(phi^n). We impose them in that form:
     R_phi = phi - phi^n + k (gamma kappa g - lambda_1 - lambda_2 f),
     R_1 = A(phi) - A(phi^n),   R_2 = B(phi) - B(phi^n),
-Newton on (phi, lambda_1, lambda_2) (sparse bordered Jacobian). Lemma 4.2 then gives
+Newton on (phi, lambda_1, lambda_2) (sparse bordered Jacobian; on Fourier grids products and
+GMRES). Lemma 4.2 then gives
 E(phi) - E(phi^n) + ||phi - phi^n||^2/(gamma k) = 0 to round-off (E = kappa E_h, no penalty).
 Initial multipliers: the L^2 projection of gamma kappa g(phi^n) onto span{1, f(phi^n)} (the
 continuous-time multipliers), so the step is stateless and resumes exactly from a checkpoint.
@@ -22,7 +23,7 @@ import scipy.sparse as sp
 
 from .base import Scheme, StepOutcome, equality_law
 from .discrete import FlowModel
-from .newton import newton
+from .newton import KrylovBordered, newton
 
 LAW = "Lemma 4.2"
 
@@ -56,10 +57,14 @@ class LagrangeScheme(Scheme):
 
         def J(x):
             phi, l2 = x[:n], x[n + 1]
-            Jpp = sp.identity(n) + k * (md.gamma * md.dg2(phi, phi_n, Fn) - l2 * md.df2(phi, phi_n))
             gradB = -md.m * md.f1(phi)
             U = np.column_stack([-k * ones, -k * md.f2(phi, phi_n)])
-            return Jpp, U, np.column_stack([md.m, gradB]), np.zeros((2, 2))
+            V = np.column_stack([md.m, gradB])
+            if md.matrix_free:
+                return KrylovBordered(md.jacobian_apply(phi, phi_n, k * md.gamma, -k * l2, Fn), U, V,
+                                      np.zeros((2, 2)), md.jacobian_model_inverse(k * md.gamma, -k * l2))
+            Jpp = sp.identity(n) + k * (md.gamma * md.dg2(phi, phi_n, Fn) - l2 * md.df2(phi, phi_n))
+            return Jpp, U, V, np.zeros((2, 2))
 
         lam0 = continuous_multipliers(md, phi_n)
         res = newton(R, J, np.concatenate([guess, lam0]), xtol=self.xtol, max_iter=self.max_iter,
@@ -67,8 +72,9 @@ class LagrangeScheme(Scheme):
         phi = res.x[:n]
         extra = {"lambda_1": float(res.x[n]), "lambda_2": float(res.x[n + 1])}
         if not res.converged:
-            return StepOutcome(phi, False, res.iterations, res.message, extra=extra)
+            return StepOutcome(phi, False, res.iterations, res.message,
+                               linear_iterations=res.linear_iterations, extra=extra)
         law, rate = equality_law(md, self.energy, phi_n, phi, k)
         ok = bool(np.isfinite(law) and abs(law) <= self.law_tol)
         return StepOutcome(phi, True, res.iterations, res.message if ok else f"energy law {LAW} violated: {law:.3g}",
-                           law_residual=law, law_ok=ok, rate=rate, extra=extra)
+                           law_residual=law, law_ok=ok, rate=rate, linear_iterations=res.linear_iterations, extra=extra)

@@ -6,6 +6,7 @@
 (f, g and the sign of the f term: see ``discrete``). Taking <., phi - phi^n> and the exact discrete
 chain rules gives (22): E_M(phi) - E_M(phi^n) + ||phi - phi^n||^2/(gamma k) = 0, to round-off.
 
+On Fourier grids (``FlowModel.matrix_free``) the same Jacobian goes to GMRES as products.
 Newton on the bordered unknowns x = (phi, a, b) with a = A(phi), b = B(phi), so the Jacobian
 stays sparse (the rank-one terms of the penalty become two extra rows/columns):
     R_phi = phi - phi^n + gamma k { kappa g + M/2 (a + A^n - 2 alpha) - M/2 (b + B^n - 2 beta) f },
@@ -19,7 +20,7 @@ import scipy.sparse as sp
 
 from .base import Scheme, StepOutcome, equality_law
 from .discrete import FlowModel
-from .newton import newton
+from .newton import KrylovBordered, newton
 
 LAW = "(22)"
 
@@ -50,18 +51,22 @@ class PenaltyScheme(Scheme):
 
         def J(x):
             phi, a, b = split(x)
-            Jpp = sp.identity(n) + gk * (md.dg2(phi, phi_n, Fn)
-                                         - md.M / 2 * (b + Bn - 2 * md.beta) * md.df2(phi, phi_n))
+            cf = -gk * md.M / 2 * (b + Bn - 2 * md.beta)
             U = np.column_stack([gk * md.M / 2 * ones, -gk * md.M / 2 * md.f2(phi, phi_n)])
             gradB = -md.m * md.f1(phi)  # Euclidean gradient of B
-            return Jpp, U, np.column_stack([-md.m, -gradB]), np.identity(2)
+            V = np.column_stack([-md.m, -gradB])
+            if md.matrix_free:
+                return KrylovBordered(md.jacobian_apply(phi, phi_n, gk, cf, Fn), U, V, np.identity(2),
+                                      md.jacobian_model_inverse(gk, cf))
+            Jpp = sp.identity(n) + gk * md.dg2(phi, phi_n, Fn) + cf * md.df2(phi, phi_n)
+            return Jpp, U, V, np.identity(2)
 
         x0 = np.concatenate([guess, [md.A(guess), md.B(guess)]])
         res = newton(R, J, x0, xtol=self.xtol, max_iter=self.max_iter, watch=slice(0, n))
         phi = res.x[:n]
         if not res.converged:
-            return StepOutcome(phi, False, res.iterations, res.message)
+            return StepOutcome(phi, False, res.iterations, res.message, linear_iterations=res.linear_iterations)
         law, rate = equality_law(md, self.energy, phi_n, phi, k)
         ok = bool(np.isfinite(law) and abs(law) <= self.law_tol)
         return StepOutcome(phi, True, res.iterations, res.message if ok else f"energy law {LAW} violated: {law:.3g}",
-                           law_residual=law, law_ok=ok, rate=rate)
+                           law_residual=law, law_ok=ok, rate=rate, linear_iterations=res.linear_iterations)

@@ -32,7 +32,7 @@ from .stepper import RunOutcome, StepperOptions, run
 
 SCHEMES = {"penalty": PenaltyScheme, "lagrange": LagrangeScheme, "backward-euler": BackwardEulerScheme}
 COLUMNS = ["step", "t", "dt", "energy", "penalized_energy", "volume_residual", "area_residual",
-           "energy_law_residual", "newton_iterations", "wall_time_s", "rejections", "phi_t_norm"]
+           "energy_law_residual", "newton_iterations", "krylov_iterations", "wall_time_s", "rejections", "phi_t_norm"]
 EXTRA = {"penalty": [], "lagrange": ["lambda_1", "lambda_2"], "backward-euler": ["equality_law_defect"]}
 
 
@@ -158,8 +158,12 @@ def flow(scene, out: Path, *, restart: bool = False, progress: bool = False, fra
 
 def check_supported(scene) -> None:
     """Refuse what the flows do not support, before any work (one-line InputError)."""
-    if scene.mesh.kind not in ("fd", "fem-p1"):
-        raise InputError("mesh.kind", f"the gradient flows support 'fd' and 'fem-p1', got {scene.mesh.kind!r}")
+    if scene.mesh.kind not in ("fd", "fem-p1", "spectral"):
+        raise InputError("mesh.kind", f"the gradient flows support 'fd', 'fem-p1' and 'spectral', "
+                                      f"got {scene.mesh.kind!r}")
+    if scene.mesh.kind == "spectral" and scene.flow.scheme == "backward-euler":
+        raise InputError("flow.scheme", "'backward-euler' (23) goes through IPOPT, which needs assembled "
+                                        "matrices: use 'penalty' or 'lagrange' on spectral grids")
     if scene.mesh.mass != "lumped":
         raise InputError("mesh.mass", "the gradient flows support 'lumped' only (exact discrete energy laws)")
     if scene.mesh.quadrature != "nodal":

@@ -126,7 +126,8 @@ def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | No
         if not math.isfinite(rate0):
             rate0 = out.rate
         row = {"step": step, "t": t, "dt": k, **scheme.observe(phi), "energy_law_residual": out.law_residual,
-               "newton_iterations": out.iterations, "wall_time_s": wall(), "rejections": rejections,
+               "newton_iterations": out.iterations, "krylov_iterations": out.linear_iterations,
+               "wall_time_s": wall(), "rejections": rejections,
                "phi_t_norm": out.rate, **out.extra}
         if on_accept is not None:
             on_accept(step, t, phi, row)
