@@ -38,3 +38,21 @@ def test_quick_3d_study_appends_and_resumes(tmp_path, name):
     assert rows and all(r["status"] in ("converged", "Solve_Succeeded") for r in rows)
     module.main(tmp_path, quick=True)  # resume: every case is finished, nothing runs twice
     assert len(list(csv.DictReader((tmp_path / f"{name}.csv").open()))) == len(rows)
+
+
+@pytest.mark.slow
+def test_torus_section5_quick_pinches_a_disk_into_a_torus(tmp_path):
+    """16^3: the flat disk (chi 1) becomes a torus (chi 0) without wrapping round the box, every step's
+    law (22) verified, and the equilibrium solve from the flow's end converges to that torus."""
+    import csv
+
+    from studies import torus_section5 as T
+    assert T.main(tmp_path, quick=True) == 0
+    rows = list(csv.DictReader((tmp_path / "torus_section5.csv").open()))
+    frames = [r for r in rows if r["row"] == "frame"]
+    final = next(r for r in rows if r["row"] == "final")
+    assert frames[0]["euler_characteristic"] == "1" and frames[-1]["euler_characteristic"] == "0"
+    assert final["path"].endswith("chi 0, wraps none") and final["torus_ok"] == "True"
+    assert float(final["max_law_residual"]) <= 1e-11  # as test_flows.LAW_TOL (measured 7e-14)
+    assert T.main(tmp_path, quick=True) == 0  # resume: nothing runs twice
+    assert len(list(csv.DictReader((tmp_path / "torus_section5.csv").open()))) == len(rows)
