@@ -14,14 +14,17 @@ eps = 0.255254, rigidity 10, c0 = 0, penalty M = 1e4, Fourier-spectral grids n^3
 2. **Equilibrium.** the penalised problem (11) at the same M is solved by Newton-Krylov from the
    flow's last field (``newton_krylov.solve(phi0=...)``): the Table 1 column. The same problem is
    also solved from the scene's torus start; equal energies mean the flow reached the same minimiser.
-3. **Topology of every frame** (``flow.frames`` snapshots): components of {phi > 0}, Euler
+3. **Start sensitivity** (16^3, reported, not part of the verdict): the wider disk ``WIDE_DISK``
+   ends as a tube joined to its periodic image (wraps x, lower energy than the torus): not a
+   vesicle, and the topology columns say so.
+4. **Topology of every frame** (``flow.frames`` snapshots): components of {phi > 0}, Euler
    characteristic (2 for a disk/sphere, 0 for a torus), periodic wraps (a slab joined to its
    images wraps two directions) and ``table1.torus_check``; ``path`` lists the distinct states.
 
 Rows (one CSV, appended per grid through ``study_runner``; a killed flow resumes from its
 checkpoint in ``flow-<n>/``): ``row = "frame"`` per snapshot (t, energy, topology) and one
 ``row = "final"`` per grid (flow and equilibrium energies beside the paper's Table 1).
-``main(out, quick)``: quick = 16^3 only; full = 16^3, 32^3, 48^3, 64^3. Writes
+``main(out, quick)``: quick = 16^3 only; full = 16^3, 32^3, 48^3, 64^3 and the wide disk. Writes
 ``torus_section5.csv`` and ``torus_section5.png`` (Figure 1: cut views of the frames on the finest
 grid; Figure 2: the final shapes on every grid). Returns 0 when every flow reached T_END with every
 step's law verified, ended a single torus, and every equilibrium solve converged to that torus.
@@ -36,12 +39,13 @@ import numpy as np
 from studies.table1 import M_PAPER, PAPER, torus_check
 
 DISK = [2.5, 2.3, 0.94]
+WIDE_DISK = [2.6, 2.2, 0.95]  # 0.44 from the box face: its tanh tail meets its periodic image (16^3 only)
 DT0 = 1e-5  # the first steps resolve the fast relaxation of the tanh profile
 DT_MAX = 1e-2  # ~ the stiff time scale h^4 / (gamma kappa eps) at 16^3; larger k only flips stiff modes
 T_END = 0.4  # pinch-off is over by t ~ 0.35 at 16^3 and ~ 0.2 at 32^3 (measured)
 FRAMES = 20
 
-EXTRA = ["row", "t", "frame", "penalized_energy", "components", "euler_characteristic", "wraps",
+EXTRA = ["row", "start", "t", "frame", "penalized_energy", "components", "euler_characteristic", "wraps",
          "torus_ok", "paper_energy", "rel_diff_paper", "flow_energy", "flow_penalized_energy",
          "flow_steps", "flow_rejections", "flow_status", "max_law_residual", "flow_wall_s",
          "newton_iterations", "krylov_iterations", "equilibrium_energy", "equilibrium_penalized",
@@ -49,7 +53,7 @@ EXTRA = ["row", "t", "frame", "penalized_energy", "components", "euler_character
          "torus_start_energy", "flow_vs_torus_start", "path"]
 
 
-def _scene(n: int, t_end: float):
+def _scene(n: int, t_end: float, disk=DISK):
     from vesicle_opt import scene
     from vesicle_opt.cli import resolve_scene
     sets = ["mesh.kind='spectral'", f"mesh.n={n}", "solver.backend='newton-krylov'", "solver.method='penalty'",
@@ -57,7 +61,8 @@ def _scene(n: int, t_end: float):
             f"flow.dt={DT0}", f"flow.dt_max={DT_MAX}", f"flow.t_end={t_end}", f"flow.frames={FRAMES}",
             "flow.steady_tol=0", "flow.steps=100000"]
     base = scene.load(resolve_scene("torus-table1-3d"), sets)
-    disk = scene.load(resolve_scene("torus-table1-3d"), sets + [f"initial={{shape='ellipsoid', semi_axes={DISK}}}"])
+    start = f"initial={{shape='ellipsoid', semi_axes={list(disk)}}}"
+    disk = scene.load(resolve_scene("torus-table1-3d"), sets + [start])
     return disk, base
 
 
@@ -74,7 +79,7 @@ def case_rows(case: dict) -> list[dict]:
     from vesicle_opt import newton_krylov
     from vesicle_opt.flows.run import build_model, flow
     n, out = case["n"], Path(case["dir"])
-    disk_scene, torus_scene = _scene(n, case["t_end"])
+    disk_scene, torus_scene = _scene(n, case["t_end"], case["disk"])
     fr = flow(disk_scene, out, frames=True)
     md = build_model(disk_scene, None)
     with open(out / "history.csv", newline="") as fh:
@@ -84,7 +89,7 @@ def case_rows(case: dict) -> list[dict]:
         with np.load(snap) as z:
             phi, t = z["phi"], float(z["t"])
         topo = _topology(md.disc, phi, n)
-        rows.append({"scene": "torus-table1-3d", "n": n, "method": "flow (18)", "row": "frame",
+        rows.append({"scene": "torus-table1-3d", "n": n, "method": "flow (18)", "row": "frame", "start": case["start"],
                      "frame": int(snap.stem.split("_")[1]), "t": t, "energy": md.E(phi),
                      "penalized_energy": md.E_M(phi), **topo})
         state = f"{topo['components']} comp, chi {topo['euler_characteristic']}, wraps {topo['wraps']}"
@@ -96,7 +101,8 @@ def case_rows(case: dict) -> list[dict]:
     topo = _topology(md.disc, eq.phi, n)
     s = fr.summary
     rows.append({
-        "scene": "torus-table1-3d", "n": n, "method": "flow (18) + newton-krylov", "row": "final", "t": s["t"],
+        "scene": "torus-table1-3d", "n": n, "method": "flow (18) + newton-krylov", "row": "final",
+        "start": case["start"], "t": s["t"],
         "M": M_PAPER, "energy": eq.energy, "paper_energy": PAPER[n], "rel_diff_paper": eq.energy / PAPER[n] - 1,
         "flow_energy": s["energy"], "flow_penalized_energy": s["penalized_energy"], "flow_steps": s["steps"],
         "flow_rejections": s["rejections"], "flow_status": s["status"],
@@ -118,11 +124,15 @@ def main(out: Path, quick: bool = False) -> int:
     from vesicle_opt.study_runner import run_cases
     out = Path(out)
     ns = (16,) if quick else (16, 32, 48, 64)
-    cases = [{"case": f"n={n}", "n": n, "dir": str(out / f"flow-{n}"), "t_end": T_END} for n in ns]
+    cases = [{"case": f"n={n}", "n": n, "dir": str(out / f"flow-{n}"), "t_end": T_END, "disk": DISK,
+              "start": "disk"} for n in ns]
+    if not quick:
+        cases.append({"case": "n=16 wide", "n": 16, "dir": str(out / "flow-16-wide"), "t_end": T_END,
+                      "disk": WIDE_DISK, "start": "wide disk"})
     raw = run_cases("torus_section5", cases, case_rows, out / "torus_section5.csv", workers=1,
                     extra_columns=EXTRA)
-    finals = [r for r in raw if r.get("row") == "final"]
-    frames = [r for r in raw if r.get("row") == "frame"]
+    finals = [r for r in raw if r.get("row") == "final" and r.get("start") == "disk"]
+    frames = [r for r in raw if r.get("row") == "frame" and r.get("start") == "disk"]
     _plot(out / "torus_section5.png", out, ns, frames, finals)
     ok = len(finals) == len(ns) and all(
         r["flow_status"] == "t_end" and r["torus_ok"] == "True" and r["equilibrium_converged"] == "True"

@@ -49,8 +49,8 @@ def test_torus_section5_quick_pinches_a_disk_into_a_torus(tmp_path):
     from studies import torus_section5 as T
     assert T.main(tmp_path, quick=True) == 0
     rows = list(csv.DictReader((tmp_path / "torus_section5.csv").open()))
-    frames = [r for r in rows if r["row"] == "frame"]
-    final = next(r for r in rows if r["row"] == "final")
+    frames = [r for r in rows if r["row"] == "frame" and r["start"] == "disk"]
+    final = next(r for r in rows if r["row"] == "final" and r["start"] == "disk")
     assert frames[0]["euler_characteristic"] == "1" and frames[-1]["euler_characteristic"] == "0"
     assert final["path"].endswith("chi 0, wraps none") and final["torus_ok"] == "True"
     assert float(final["max_law_residual"]) <= 1e-11  # as test_flows.LAW_TOL (measured 7e-14)
