@@ -1,5 +1,5 @@
 """Every bad input of the issue list through the CLI: exit 2, one line naming the key, no
-traceback, and nothing already in the output directory lost."""
+traceback, and nothing already in the output directory lost; in 2D and in 3D."""
 
 import pytest
 
@@ -8,11 +8,34 @@ from vesicle_opt import cli
 from _scenes import PROBLEMS
 
 SOLVE = ["solve", str(PROBLEMS / "ellipse-2d.toml"), "--set", "mesh.n=16"]
+SPHERE = ["solve", str(PROBLEMS / "sphere-3d.toml")]
+TORUS = ["solve", str(PROBLEMS / "torus-table1-3d.toml")]
+NATURAL = ["--set", "mesh.kind='fem-p1'", "--set", "domain.boundary='natural'"]
 
 
 def _corrupt(tmp_path, name, content=b"\x00garbage"):
     path = tmp_path / name
     path.write_bytes(content)
+    return str(path)
+
+
+def _disk_mesh(tmp_path):
+    """A valid 2D triangle mesh file (for a 3D scene: the wrong dimension)."""
+    import contextlib
+    import io
+
+    import skfem
+    path = tmp_path / "disk.vtk"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        skfem.MeshTri.init_circle(2).save(str(path))  # meshio notes that VTK stores 3D points
+    return str(path)
+
+
+def _wrong_size_phi(tmp_path):
+    """A readable phi.npz from another mesh (10 values)."""
+    import numpy as np
+    path = tmp_path / "phi.npz"
+    np.savez(path, phi=np.zeros(10))
     return str(path)
 
 
@@ -45,6 +68,32 @@ CASES = [
     ("unknown method", lambda t: SOLVE + ["--set", "solver.method='newton'"], "solver.method"),
     ("unknown scheme", lambda t: ["flow", str(PROBLEMS / "ellipse-2d.toml"), "--scheme", "rk4"], "scheme"),
     ("unknown --set key", lambda t: SOLVE + ["--set", "solver.nothing=1"], "solver.nothing"),
+    # 3D scenes (sphere-3d, torus-table1-3d), refused before any solve
+    ("3D box with 4 pairs", lambda t: SPHERE + ["--set", "domain.box=[[-2,2],[-2,2],[-2,2],[-2,2]]"], "domain.box"),
+    ("3D box pair of 3", lambda t: SPHERE + ["--set", "domain.box=[[-2,2],[-2,2],[-2,2,3]]"], "domain.box"),
+    ("3D inverted box", lambda t: SPHERE + ["--set", "domain.box=[[-2,2],[2,-2],[-2,2]]"], "domain.box"),
+    ("3D degenerate box", lambda t: TORUS + ["--set", "domain.box=[[-3,3],[-3,3],[1,1]]"], "domain.box"),
+    ("3D n < 4", lambda t: SPHERE + ["--set", "mesh.n=[16,16,3]"], "mesh.n"),
+    ("3D n of 2 sides", lambda t: SPHERE + ["--set", "mesh.n=[16,16]"], "mesh.n"),
+    ("3D alpha outside", lambda t: TORUS + ["--set", "constraints.alpha=-300.0"], "constraints.alpha"),
+    ("3D infeasible by (9)", lambda t: TORUS + ["--set", "constraints.beta=10.0"], "constraints.beta"),
+    ("3D infeasible by (9), sphere", lambda t: SPHERE + ["--set", "constraints.alpha=-50.0",
+                                                        "--set", "constraints.beta=1.0"], "constraints.beta"),
+    ("3D spectral, natural boundary", lambda t: SPHERE + ["--set", "mesh.kind='spectral'",
+                                                         "--set", "domain.boundary='natural'"], "domain.boundary"),
+    ("3D fd, consistent mass", lambda t: TORUS + ["--set", "mesh.mass='consistent'"], "mesh.mass"),
+    ("3D corrupt mesh file", lambda t: SPHERE + NATURAL + ["--set", f"mesh.file='{_corrupt(t, 'm.msh')}'"],
+     "mesh.file"),
+    ("3D scene, 2D mesh file", lambda t: SPHERE + NATURAL + ["--set", f"mesh.file='{_disk_mesh(t)}'"], "mesh.file"),
+    ("3D warm start from another mesh", lambda t: TORUS + ["--set", "initial.shape='file'",
+                                                          "--set", f"initial.file='{_wrong_size_phi(t)}'"],
+     "initial.file"),
+    ("3D shape in 2D", lambda t: SOLVE + ["--set", "initial.shape='torus'", "--set", "initial.radii=[1.0, 0.4]"],
+     "initial.shape"),
+    ("3D semi-axes of 2", lambda t: SPHERE + ["--set", "constraints.target.shape='ellipsoid'",
+                                             "--set", "constraints.target.semi_axes=[1.0, 1.0]"],
+     "constraints.target.semi_axes"),
+    ("3D torus minor > major", lambda t: TORUS + ["--set", "initial.radii=[0.5, 1.0]"], "initial.radii"),
 ]
 
 

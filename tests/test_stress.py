@@ -18,9 +18,22 @@ def quick_cases(tmp_path_factory):
 
 
 def test_infeasible_case_is_refused_before_solving(quick_cases):
-    row = stress.run_case(_case(quick_cases, "beta=beta_min(1-0.001)"))
+    row = stress.run_case(_case(quick_cases, "beta=beta_min(1-0.01)"))
     assert row["outcome"].startswith("refused: constraints.beta: infeasible")
     assert "energy" not in row
+
+
+def test_near_limit_cases_state_their_reference(quick_cases):
+    """Placed against the phase-field bound or the sharp one, and the CSV says which. At eps = 0.2
+    the sharp limit (reduced volume 1) lies 4.3% above beta_min: 'beyond' it is feasible here."""
+    refused = stress.run_case(_case(quick_cases, "beta=beta_min(1-0.01)"))
+    assert refused["limit_reference"] == stress.BETA_MIN
+    assert refused["beta_over_beta_min"] == pytest.approx(-0.01, rel=1e-12)  # beta = 0.99 beta_min exactly
+    row = stress.run_case(_case(quick_cases, "sharp reduced volume 1.01"))
+    assert row["limit_reference"] == stress.SHARP
+    # measured +0.038 on 48^2 (eps = 0.2): the O(eps) gap between the two bounds, not round-off
+    assert 0.01 < row["beta_over_beta_min"] < 0.1
+    assert row["outcome"] == "converged" and row["second_order"] == "minimum"
 
 
 def test_constant_start_fails_honestly(quick_cases):
@@ -48,6 +61,7 @@ def test_extreme_penalty_is_not_called_converged_on_ipopt_say_so(quick_cases):
     """M = 1e12: IPOPT reports success, the recomputed stationarity test does not: failed."""
     row = stress.run_case(_case(quick_cases, "M=1e+12"))
     assert row["status"] == "Solve_Succeeded" and row["outcome"].startswith("failed: Solve_Succeeded")
+    assert "round-off floor" in row["outcome"]  # and the reason is said
 
 
 def test_oversized_flow_step_is_rejected_never_nan(quick_cases):

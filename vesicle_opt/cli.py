@@ -62,7 +62,8 @@ def cmd_solve(args) -> int:
         print(f"vesicle-opt: warning: the inside {summary['topology']}: a slab or tube joined to its "
               f"periodic image, not a closed vesicle", file=sys.stderr)
     if not result.converged:
-        print(f"vesicle-opt: not converged: status {summary['status']}, kkt_residual "
+        reason = f" ({summary['reason']})" if summary.get("reason") else ""
+        print(f"vesicle-opt: not converged{reason}: status {summary['status']}, kkt_residual "
               f"{summary['kkt_residual']}, volume_residual {summary['volume_residual']}, "
               f"area_residual {summary['area_residual']}", file=sys.stderr)
         return 1

@@ -30,7 +30,8 @@ from .solve import IpoptOptions, make_solver
 
 WARM_OPTIONS = (("ipopt.warm_start_init_point", "yes"), ("ipopt.warm_start_bound_push", 1e-9),
                 ("ipopt.warm_start_mult_bound_push", 1e-9), ("ipopt.mu_init", 1e-6))
-# The NLP is scaled by design (nlp.py); IPOPT's gradient-based rescaling of f would loosen the
+# The NLP is scaled by design (nlp.py; IpoptOptions sets this for every solve, repeated here as the
+# penalty's own reason): IPOPT's gradient-based rescaling of f would loosen the
 # dual tolerance by the large u-gradient at a warm start with a 10x larger M (measured on 64^2:
 # stationarity 5e-6 instead of 6e-8 at M = 1e6, and cold solves at M >= 1e8 ending off the minimiser).
 # The lifted rows A - a, B - b must hold far below the penalty bias ~1/M, or M (A - alpha) is off
@@ -143,8 +144,10 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
             M = min(M * s.M_factor, s.M_max)
         prev = res
     last = stages[-1]
-    return _finish(last, stages, "augmented", time.perf_counter() - t0,
-                   {"mu_volume": last.extra["mu_volume"], "mu_area": last.extra["mu_area"]},
+    info = {"mu_volume": last.extra["mu_volume"], "mu_area": last.extra["mu_area"]}
+    if last.converged and not feasible:
+        info["reason"] = f"constraint residuals above tol = {tol:g} after {len(stages)} outer steps"
+    return _finish(last, stages, "augmented", time.perf_counter() - t0, info,
                    converged=bool(last.converged and feasible))
 
 

@@ -70,6 +70,9 @@ def p1(box, n, periodic: bool, mass: str = "lumped", quadrature: str = "nodal",
             raise InputError("mesh.file", f"cannot read {mesh_file!r} as a mesh ({why})") from None
         if not isinstance(mesh, (skfem.MeshTri1, skfem.MeshTet1)):
             raise InputError("mesh.file", f"need a triangle or tetrahedron mesh, got {type(mesh).__name__}")
+        if mesh.p.shape[0] != len(box):
+            raise InputError("mesh.file", f"{mesh_file!r} is a {mesh.p.shape[0]}D mesh, the scene is "
+                             f"{len(box)}D (domain.box has {len(box)} pairs)")
         lo, hi = mesh.p.min(axis=1), mesh.p.max(axis=1)
         box = tuple((float(a), float(b)) for a, b in zip(lo, hi))
     else:

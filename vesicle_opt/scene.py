@@ -71,7 +71,7 @@ class Solver:
     # penalty continuation / augmented Lagrangian (see vesicle_opt.continuation)
     M0: float = 10.0
     M_factor: float = 10.0
-    M_max: float = 1e8
+    M_max: float = 1e6  # continuation end; beyond ~1e6 the round-off floor (penalty.py) exceeds tol 1e-8
     max_outer: int = 20
 
 
@@ -139,7 +139,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.second_order": ("bool", True, "true or false"),
     "solver.M0": ("float", 10.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
     "solver.M_factor": ("float", 10.0, "> 1"),
-    "solver.M_max": ("float", 1e8, f"M0 <= M_max <= {M_LIMIT:g}"),
+    "solver.M_max": ("float", 1e6, f"M0 <= M_max <= {M_LIMIT:g}"),
     "solver.max_outer": ("int", 20, ">= 1"),
     # gradient flows (vesicle_opt.flows)
     "flow.scheme": ("str", "penalty", ("penalty", "lagrange", "backward-euler")),

@@ -21,7 +21,8 @@ from .result import Result
 from .scene import Scene
 
 KKT_FACTOR = 100.0  # kkt_residual (relative L2) may exceed IPOPT's scaled max-norm test by this:
-# measured ratios on the scenes were < 10; a larger ratio means the iterate is not a KKT point.
+# measured ratios (nlp.py scaling) 0.2-1.3 on ellipse-2d, ~12 on a sphere; a larger ratio means
+# the iterate is not a KKT point.
 _DERIV_KEYS = ("nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad")
 
 
@@ -36,9 +37,25 @@ class IpoptOptions:
         opts = {"ipopt.tol": self.tol, "ipopt.constr_viol_tol": self.tol,
                 "ipopt.max_iter": self.max_iter, "ipopt.print_level": self.print_level,
                 "ipopt.sb": "yes", "print_time": False, "ipopt.linear_solver": "mumps",
-                "ipopt.mu_strategy": "adaptive"}
+                "ipopt.mu_strategy": "adaptive",
+                "ipopt.nlp_scaling_method": "none"}  # the NLP is scaled by design (nlp.py)
         opts.update(dict(self.extra))
         return opts
+
+
+def failure_reason(status: str, success: bool, kkt: float, tol: float, feasible: bool = True,
+                   floor: float = 0.0) -> str | None:
+    """Why a result is not ``converged`` (None when it is): the first test that failed, in words."""
+    if not success:
+        return f"solver status {status}"
+    if not feasible:
+        return f"constraint residuals above tol = {tol:g} (relative to |Omega| and beta)"
+    if not kkt <= KKT_FACTOR * tol:
+        if floor >= tol:
+            return (f"round-off floor: at this M the stationarity of E_M is known only to ~{floor:.1e} "
+                    f"(>= tol = {tol:g}; kkt_residual {kkt:.2e}); lower solver.M or raise solver.tol")
+        return f"recomputed kkt_residual {kkt:.2e} above {KKT_FACTOR:g} tol = {KKT_FACTOR * tol:g}"
+    return None
 
 
 def make_solver(nlp: NLP, options: IpoptOptions):
@@ -150,6 +167,7 @@ def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=Non
     success = bool(stats["success"]) and finite
     feasible = abs(res_A) <= options.tol * disc.volume and abs(res_B) <= options.tol * abs(nlp.beta)
     converged = success and feasible and kkt <= KKT_FACTOR * options.tol
+    reason = failure_reason(stats["return_status"], success, kkt, options.tol, feasible)
     _, deriv, other = _times(stats)
     it = stats.get("iterations", {})
     history = {k: list(it.get(k, [])) for k in ("obj", "inf_pr", "inf_du", "mu", "alpha_pr")}
@@ -161,7 +179,8 @@ def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=Non
         n_nodes=disc.n_nodes, hessian_nnz_per_row=_hessian_nnz_per_row(solver, x.size),
         history=history, x=x, lam_x=np.asarray(sol["lam_x"]).ravel(),
         lam_g=np.asarray(sol["lam_g"]).ravel(),
-        extra={"alpha": nlp.alpha, "beta": nlp.beta, "epsilon": eps, "h": disc.h})
+        extra={"alpha": nlp.alpha, "beta": nlp.beta, "epsilon": eps, "h": disc.h,
+               **({"reason": reason} if reason else {})})
     result = with_topology(disc, result)
     if converged and scene.solver.second_order:
         from .second_order import check
@@ -171,6 +190,6 @@ def solve(problem: Scene | NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=Non
     else:
         result = replace_extra(result, second_order="not checked")
     if throw and not converged:
-        raise SolverError(f"not converged: status {result.status}, kkt_residual {kkt:.3g}, "
+        raise SolverError(f"not converged ({reason}): status {result.status}, kkt_residual {kkt:.3g}, "
                           f"A-alpha {res_A:.3g}, B-beta {res_B:.3g}", result)
     return result
