@@ -8,8 +8,8 @@ Each step minimises the modified energy
 whose Euler-Lagrange equation is (23) (with the sign of the f term as in ``discrete``). The NLP is
 built once per run from the core's functionals (``functionals.energy``, ``volume_functional``,
 ``area_functional`` through ``CasadiOps``), with phi^n and 1/(gamma k) as CasADi parameters, and
-scaled like the core's NLP: objective / (kappa E_ref m_bar), E_ref the sharp-interface circle/
-sphere energy of area beta, m_bar = |Omega|/N (so the gradient entries are O(1)).
+scaled like the core's NLP (``nlp.py``): objective / (kappa m_bar G_ref), so IPOPT's tol means the
+same relative stationarity as in the equilibrium solves; the same ``solve.IpoptOptions``.
 The penalty terms would make the Hessian dense (rank-one M grad A grad A^T), so the NLP is lifted:
 unknowns (phi, a, b), objective kappa E_h + M/2 (a - alpha)^2 + M/2 (b - beta)^2 + 1/(2 gamma k)||.||^2,
 equality constraints (A(phi) - a)/|Omega| = 0, (B(phi) - b)/beta = 0 (same minimisers, sparse Hessian).
@@ -26,6 +26,8 @@ import casadi as ca
 import numpy as np
 
 from .. import functionals as Fn
+from ..nlp import gradient_scale
+from ..solve import IpoptOptions
 from .base import Scheme, StepOutcome
 from .discrete import FlowModel
 
@@ -53,9 +55,8 @@ class BackwardEulerScheme(Scheme):
         d = phi - phi_n
         obj = E + md.M / 2 * ((a - md.alpha) ** 2 + (b - md.beta) ** 2) + c / 2 * ca.dot(ops.weights, d * d)
         g = ca.vertcat((A - a) / disc.volume, (B - b) / md.beta)
-        self.f_scale = md.rigidity * Fn.sharp_energy_sphere(md.beta, disc.dim) * disc.volume / n
-        opts = {"ipopt.tol": tol, "ipopt.max_iter": max_iter, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                "print_time": False, "ipopt.linear_solver": "mumps", "ipopt.constr_viol_tol": tol}
+        self.f_scale = md.rigidity * disc.volume / n * gradient_scale(disc, md.epsilon, md.alpha, md.beta)
+        opts = IpoptOptions(tol=tol, max_iter=max_iter).as_dict()
         self.solver = ca.nlpsol("minimising_movement", "ipopt", {"x": x, "p": p, "f": obj / self.f_scale, "g": g},
                                 opts)
 
