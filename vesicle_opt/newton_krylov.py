@@ -15,9 +15,10 @@ Methods (``solver.method``):
 
 Translations d_i phi are projected out of every step on Fourier grids (exact null modes of the
 spectral problem up to aliasing). On coarse grids (h ~ eps) several KKT points are close: from the
-symmetric torus start both backends end at the axisymmetric one, while the pyamg-preconditioned run
-on the P1 tensor mesh (whose lumped operator equals FD) ended at a lower, slightly non-axisymmetric
-one (330.02 vs 330.53 at 16^3, 406.57 vs 407.21 at 24^3). Neither backend certifies a minimiser;
+symmetric torus start both backends end at the axisymmetric one; so does the P1 tensor mesh (whose
+lumped operator equals FD) with a preconditioner that keeps the mesh symmetries, while three plain
+pyamg V-cycles, which break them at ~3e-5, led to a lower, slightly non-axisymmetric one (330.02 vs
+330.53 at 16^3, 406.41 vs 407.21 at 24^3; see ``precond``). Neither backend certifies a minimiser;
 ``second_order_fourier.reduced_hessian_eigenvalues`` checks one on Fourier grids.
 
 Nested iteration (``solve(nested=True)``, the default on Fourier grids): coarser grids first, each
