@@ -140,13 +140,23 @@ def main(out: Path, quick: bool = False) -> int:
     return 0 if ok else 1
 
 
+def _figure1_frames(frames: list[dict], count: int = 6) -> list[dict]:
+    """The first frames up to two past the last topology change (the pinch-off), then the last one."""
+    if not frames:
+        return []
+    chi = [r["euler_characteristic"] for r in frames]
+    change = max((i for i in range(1, len(chi)) if chi[i] != chi[i - 1]), default=0)
+    head = frames[:min(change + 3, count - 1, len(frames) - 1)]
+    return head + [frames[-1]]
+
+
 def _plot(path: Path, out: Path, ns, frames, finals) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     n = max(ns)
     shown = [r for r in frames if int(r["n"]) == n]
-    shown = [shown[i] for i in np.unique(np.linspace(0, len(shown) - 1, 6).round().astype(int))] if shown else []
+    shown = _figure1_frames(shown)
     cols = max(len(shown), len(ns), 1)
     fig, axes = plt.subplots(2, cols, figsize=(3.2 * cols, 6.6), squeeze=False)
     ext = [-np.pi, np.pi, -np.pi, np.pi]
