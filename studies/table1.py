@@ -161,13 +161,9 @@ def _plot(path, rows, fields, ns):
     ax.legend()
     n = ns[-1]
     F = fields[(n, "exact")].reshape(n, n, n)
-    ext = [-np.pi, np.pi, -np.pi, np.pi]
+    from vesicle_opt.output import draw_cut
     for a, (cut, name) in zip(axes[2:], ((F[:, n // 2, :], "y = 0"), (F[:, :, n // 2], "z = 0"))):
-        a.imshow(cut.T, origin="lower", extent=ext, cmap="RdBu_r", vmin=-1, vmax=1)
-        xs = np.linspace(-np.pi, np.pi, n, endpoint=False)
-        a.contour(xs, xs, cut.T, levels=[0.0], colors="k")
-        a.set_title(f"exact, {n}^3 spectral: cut {name}")
-        a.set_aspect("equal")
+        draw_cut(a, cut, (-np.pi, -np.pi), (np.pi, np.pi), f"exact, {n}^3 spectral: cut {name}")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -159,14 +159,10 @@ def _plot(path: Path, out: Path, ns, frames, finals) -> None:
     shown = _figure1_frames(shown)
     cols = max(len(shown), len(ns), 1)
     fig, axes = plt.subplots(2, cols, figsize=(3.2 * cols, 6.6), squeeze=False)
-    ext = [-np.pi, np.pi, -np.pi, np.pi]
+    from vesicle_opt.output import draw_cut
 
     def cut(ax, phi, k, title):
-        F = phi.reshape(k, k, k)[:, k // 2, :]
-        ax.imshow(F.T, origin="lower", extent=ext, cmap="RdBu_r", vmin=-1, vmax=1)
-        g = np.linspace(-np.pi, np.pi, k, endpoint=False)
-        ax.contour(g, g, F.T, levels=[0.0], colors="k")
-        ax.set_title(title, fontsize=9)
+        draw_cut(ax, phi.reshape(k, k, k)[:, k // 2, :], (-np.pi, -np.pi), (np.pi, np.pi), title)
         ax.set_xticks([])
         ax.set_yticks([])
     for ax, r in zip(axes[0], shown):

@@ -59,11 +59,7 @@ def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
     if disc.dim == 2:
         fig, ax = plt.subplots(figsize=(5, 5))
         if disc.grid_shape is not None:
-            ext = [box[0][0], box[0][1], box[1][0], box[1][1]]
-            F = _grid_field(disc, phi)
-            ax.imshow(F.T, origin="lower", extent=ext, cmap="RdBu_r", vmin=-1, vmax=1)
-            xs = [np.linspace(a, b, k, endpoint=False) for (a, b), k in zip(box, disc.grid_shape)]
-            ax.contour(xs[0], xs[1], F.T, levels=[0.0], colors="k")
+            draw_cut(ax, _grid_field(disc, phi), (box[0][0], box[1][0]), (box[0][1], box[1][1]))
         else:
             import matplotlib.tri as mtri
             tri = mtri.Triangulation(disc.mesh.p[0], disc.mesh.p[1], disc.mesh.t.T)
@@ -87,6 +83,15 @@ def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "") -> None:
+    """A 2D section of phi (first index along x) on a periodic grid over [lo, hi) with its zero level."""
+    ax.imshow(cut.T, origin="lower", extent=[lo[0], hi[0], lo[1], hi[1]], cmap="RdBu_r", vmin=-1, vmax=1)
+    xs = [np.linspace(a, b, k, endpoint=False) for a, b, k in zip(lo, hi, cut.shape)]
+    ax.contour(xs[0], xs[1], cut.T, levels=[0.0], colors="k")
+    ax.set_title(title, fontsize=9)
+    ax.set_aspect("equal")
 
 
 def _sample_cut(disc, phi, axis: int, n: int = 64) -> np.ndarray:
