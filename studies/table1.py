@@ -10,7 +10,7 @@ paper's penalty form (11) with M = 1e4 (rigidity 10 on E only). Written beside t
   ``predicted_penalized`` = E* - |lam|^2/(2M) for E_M itself;
 * a topology check: {phi > 0} has one connected component (periodic wrap-around) and phi < 0 on the
   whole centre axis x = y = 0, i.e. a solid torus, not a sphere or a disk;
-* for the exact solves, the least eigenvalues of the reduced Hessian (``second_order_fourier``): positive
+* for the exact solves, the least eigenvalues of the reduced Hessian (``second_order_lobpcg``): positive
   with the translations and rotations excluded means a strict local minimum up to the symmetries.
 
 ``main(out, quick)`` writes ``table1.csv`` and ``table1.png``; quick = 16^3 and 32^3 only. Returns 0
@@ -61,13 +61,13 @@ def _solve(n: int, method: str):
 
 
 def _second_order(n: int, r) -> dict:
-    """Smallest eigenvalues of the reduced Hessian (second_order_fourier.py): with the rotations excluded the
+    """Smallest eigenvalues of the reduced Hessian (second_order_lobpcg.py): with the rotations excluded the
     least must be positive (a strict local minimum up to the symmetries); with them, the rotations'."""
     import warnings
 
     from vesicle_opt import scene
     from vesicle_opt.cli import resolve_scene
-    from vesicle_opt.second_order_fourier import reduced_hessian_eigenvalues
+    from vesicle_opt.second_order_lobpcg import reduced_hessian_eigenvalues
     sc = scene.load(resolve_scene("torus-table1-3d"), ["mesh.kind='spectral'", f"mesh.n={n}"])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # lobpcg warns when the unwanted eigenvalues lag behind

@@ -19,7 +19,7 @@ symmetric torus start both backends end at the axisymmetric one; so does the P1 
 lumped operator equals FD) with a preconditioner that keeps the mesh symmetries, while three plain
 pyamg V-cycles, which break them at ~3e-5, led to a lower, slightly non-axisymmetric one (330.02 vs
 330.53 at 16^3, 406.41 vs 407.21 at 24^3; see ``precond``). Neither backend certifies a minimiser;
-``second_order_fourier.reduced_hessian_eigenvalues`` checks one on Fourier grids.
+``second_order_lobpcg.reduced_hessian_eigenvalues`` checks one on Fourier grids.
 
 Nested iteration (``solve(nested=True)``, the default on Fourier grids): coarser grids first, each
 level started from the trigonometric interpolant of the last; see ``coarse_levels``.

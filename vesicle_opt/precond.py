@@ -158,6 +158,7 @@ class SparsePreconditioner:
         self.m = np.asarray(m, float)
         self.eps = float(epsilon)
         S = sp.csr_matrix(self.eps * K + sp.diags(2 / self.eps * self.m))
+        self.S = S
         lo, hi = chebyshev_bounds(K, self.m, self.eps)
         self.steps = chebyshev_steps(lo, hi, CHEB_TOL)
         if kind is None:
@@ -179,6 +180,10 @@ class SparsePreconditioner:
 
     def inverse(self, cE: float, cB: float = 0.0, rho_A: float = 0.0):
         return lambda r: self._p0_inv(r) / cE
+
+    def model(self, cE: float):
+        """v -> cE P0 v = (cE/eps) S M_L^{-1} S v, exactly (sparse products; SPD)."""
+        return lambda v: cE / self.eps * (self.S @ ((self.S @ v) / self.m))
 
     def dual_norm(self, v: np.ndarray) -> float:
         return float(np.sqrt(max(float(v @ self._p0_inv(v)), 0.0)))

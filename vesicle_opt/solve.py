@@ -109,9 +109,9 @@ def with_topology(disc, result: Result) -> Result:
 
 def solve_newton_krylov(scene: Scene, disc=None, throw: bool = False) -> Result:
     """The matrix-free backend (``newton_krylov.py``) with the same reports as the IPOPT path:
-    topology, and for exact constraints the second-order check on the Fourier grid
-    (``second_order_fourier``; translations and rotations, the continuum's symmetries, excluded —
-    rotations are soft but resolved only to LOBPCG's residual): "minimum" when the least eigenvalue
+    topology, and for exact constraints the second-order check (``second_order_lobpcg``; on Fourier
+    grids translations and rotations, the continuum's symmetries, excluded — rotations are soft but
+    resolved only to LOBPCG's residual; on P1 meshes no direction excluded): "minimum" when the least eigenvalue
     exceeds 10x its residual, "saddle" when it is below -10x, else "not checked" (undecided)."""
     import warnings
     from . import newton_krylov
@@ -119,9 +119,8 @@ def solve_newton_krylov(scene: Scene, disc=None, throw: bool = False) -> Result:
     disc = disc or discretize(scene)
     result = with_topology(disc, newton_krylov.solve(scene, disc, throw=throw))
     verdict, least = "not checked", None
-    fourier_grid = scene.mesh.kind in ("spectral", "fd")  # the check's operators are FFT-based
-    if result.converged and scene.solver.second_order and scene.solver.method == "exact" and fourier_grid:
-        from .second_order_fourier import reduced_hessian_eigenvalues
+    if result.converged and scene.solver.second_order and scene.solver.method == "exact":
+        from .second_order_lobpcg import reduced_hessian_eigenvalues
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # lobpcg warns when unwanted eigenvalues lag behind
             vals, res = reduced_hessian_eigenvalues(scene, result, k=3, rotations=True)
