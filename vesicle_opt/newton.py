@@ -9,7 +9,7 @@ mu = lam - rho c, grad f = rig dE - mu_A dA - mu_B dB and
     Hess f = rig H_E - mu_B H_B + rho_A dA dA^T + rho_B dB dB^T        (A is linear: H_A = 0).
 
 Steps come from ``krylov.projected_pcg`` with the Fourier/multigrid model of ``precond`` (cE = rig,
-cB = -mu_B, rho_A), forcing term eta = min(0.5, sqrt(rel)) (Eisenstat-Walker, superlinear), and
+cB = -mu_B, rho_A), forcing term eta = min(ETA_MAX, sqrt(rel)) (Eisenstat-Walker, superlinear), and
 translation modes projected out on periodic boxes. Stationarity is measured in the dual norm of the
 fixed model P0 (``precond.dual_norm``), relative to rig |dE|_* + |mu_A| |dA|_* + |mu_B| |dB|_*.
 """
@@ -24,7 +24,7 @@ import numpy as np
 from .krylov import SubspacePreconditioner, projected_pcg
 
 ARMIJO = 1e-4  # sufficient-decrease constant (the usual textbook value)
-ETA_MAX = 0.01
+ETA_MAX = 0.01  # CG relative tolerance cap of every Newton step (the forcing term above)
 STEP_CAP = 1.0  # no Newton step changes a nodal value by more than 1 (phi lives in [-1, 1])
 STALL = 1e-13  # an accepted step this small relative to |phi| changes phi only at round-off level
 ROUNDOFF_REL = 1e-6  # below this relative stationarity f's decrease is under round-off: accept a full
