@@ -8,7 +8,7 @@ mu = lam - rho c, grad f = rig dE - mu_A dA - mu_B dB and
 
     Hess f = rig H_E - mu_B H_B + rho_A dA dA^T + rho_B dB dB^T        (A is linear: H_A = 0).
 
-Steps come from ``krylov.projected_pcg`` with the Fourier/multigrid model of ``precond`` (cE = rig,
+Steps come from ``krylov.projected_pcg`` with the Fourier/sparse model of ``precond`` (cE = rig,
 cB = -mu_B, rho_A), forcing term eta = min(ETA_MAX, sqrt(rel)) (Eisenstat-Walker, superlinear), and
 translation modes projected out on periodic boxes. Stationarity is measured in the dual norm of the
 fixed model P0 (``precond.dual_norm``), relative to rig |dE|_* + |mu_A| |dA|_* + |mu_B| |dB|_*.
