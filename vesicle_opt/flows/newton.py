@@ -7,7 +7,7 @@ Schur complement D - V^T J0^{-1} U, which keeps dense rows/columns out of the sp
 
 On matrix-free grids the Jacobian comes as a :class:`KrylovBordered` (J0 a product, plus an
 approximate inverse P ~ J0^{-1}); the bordered system is solved by GMRES (restart ``RESTART``,
-relative tolerance ``GMRES_RTOL`` on the true residual) preconditioned by the block-LU inverse from P:
+relative tolerance ``GMRES_RTOL``) preconditioned by the block-LU inverse built from P:
 z = P r, y = S^{-1}(s - V^T z), x = (z - P U y, y) with S = D - V^T P U, which is the exact inverse
 when P = J0^{-1}.
 
