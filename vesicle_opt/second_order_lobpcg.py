@@ -25,8 +25,10 @@ from scipy.sparse.linalg import LinearOperator, lobpcg
 
 
 def reduced_hessian_eigenvalues(scene, result, k: int = 3, rotations: bool = False,
-                                max_iter: int = 150, tol: float = 1e-5, seed: int = 0):
-    """(eigenvalues, residual norms) of H_L on the tangent space (see the module docstring)."""
+                                max_iter: int = 150, tol: float = 1e-5, seed: int = 0,
+                                vectors: bool = False):
+    """(eigenvalues, residual norms) of H_L on the tangent space (see the module docstring), sorted
+    ascending; with ``vectors`` also the eigenvectors (columns, nodal values)."""
     from .newton_krylov import prepare
     disc, pf, prec, translations = prepare(scene)
     fourier = getattr(disc, "fourier", None)
@@ -68,4 +70,6 @@ def reduced_hessian_eigenvalues(scene, result, k: int = 3, rotations: bool = Fal
     res = [float(np.linalg.norm(hv(vecs[:, j]) - vals[j] * pv(vecs[:, j])) /
                  max(np.linalg.norm(pv(vecs[:, j])), np.finfo(float).tiny)) for j in range(k)]
     order = np.argsort(vals)
+    if vectors:
+        return np.asarray(vals)[order], np.asarray(res)[order], np.asarray(vecs)[:, order]
     return np.asarray(vals)[order], np.asarray(res)[order]
