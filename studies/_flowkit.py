@@ -59,12 +59,3 @@ def write_derived_csv(path: Path, rows: list[dict], columns: list[str] | None = 
 def failed(rows: list[dict]) -> list[dict]:
     """The rows ``study_runner`` recorded for cases that raised (status ``error: ...``)."""
     return [r for r in rows if str(r.get("status", "")).startswith("error")]
-
-
-def write_csv(path: Path, rows: list[dict]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    keys = list(dict.fromkeys(k for r in rows for k in r))
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
