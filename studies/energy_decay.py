@@ -23,7 +23,7 @@ from vesicle_opt.flows.stepper import StepperOptions, run
 from ._flowkit import failed, load_npz, save_npz, setup
 
 T_SS = 20.0
-EXTRA = ["row", "k", "step", "t", "penalized_energy", "excess", "energy_law_residual", "rejections",
+EXTRA = ["row", "k", "step", "t", "penalized_energy", "excess", "energy_law_residual",
          "flow_penalized_energy", "polish_distance"]
 
 
