@@ -241,17 +241,3 @@ def test_sign_of_f_term_as_printed_breaks_law_22():
     theirs = PenaltyScheme(printed, law_tol=LAW_TOL).step(phi, 1e-4, phi)
     assert ours.law_ok and abs(ours.law_residual) <= LAW_TOL
     assert theirs.converged and abs(theirs.law_residual) > 1e-3  # measured 8.6e-2: not round-off
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("study", ["time_step_convergence", "energy_decay"])
-def test_study_quick_runs(tmp_path, study):
-    import importlib
-    mod = importlib.import_module(f"studies.{study}")
-    assert mod.main(tmp_path, quick=True) == 0
-    assert list(tmp_path.glob("*.csv")) and list(tmp_path.glob("*.png"))
-    if study == "time_step_convergence":
-        with open(tmp_path / "time_step_orders.csv") as fh:
-            for r in csv.DictReader(fh):
-                # same +-0.15 as test_observed_order_in_k (measured 2.03 / 2.04 / 0.99 in L2)
-                assert abs(float(r["order_l2"]) - float(r["expected"])) <= 0.15, r
