@@ -54,16 +54,17 @@ EXTRA = ["row", "start", "t", "frame", "penalized_energy", "components", "euler_
 
 
 def _scene(n: int, t_end: float, disk=DISK):
+    """The flow's scene (from the disk) and the same problem from the scene's torus start."""
     from vesicle_opt import scene
     from vesicle_opt.cli import resolve_scene
     sets = ["mesh.kind='spectral'", f"mesh.n={n}", "solver.backend='newton-krylov'", "solver.method='penalty'",
             f"solver.M={M_PAPER}", "flow.scheme='penalty'", "flow.initial='shape'", "flow.stepping='adaptive'",
             f"flow.dt={DT0}", f"flow.dt_max={DT_MAX}", f"flow.t_end={t_end}", f"flow.frames={FRAMES}",
             "flow.steady_tol=0", "flow.steps=100000"]
-    base = scene.load(resolve_scene("torus-table1-3d"), sets)
+    torus_start = scene.load(resolve_scene("torus-table1-3d"), sets)
     start = f"initial={{shape='ellipsoid', semi_axes={list(disk)}}}"
-    disk = scene.load(resolve_scene("torus-table1-3d"), sets + [start])
-    return disk, base
+    disk_start = scene.load(resolve_scene("torus-table1-3d"), sets + [start])
+    return disk_start, torus_start
 
 
 def _topology(disc, phi, n) -> dict:
