@@ -128,6 +128,13 @@ def gradient_scale(disc: Discretization, epsilon: float, alpha: float, beta: flo
     return 2 * F.sharp_energy_sphere(beta, disc.dim) / volume * np.sqrt(disc.volume / band)
 
 
+def objective_scale(disc: Discretization, rigidity: float, epsilon: float, alpha: float, beta: float) -> float:
+    """k of the module docstring: the objective rigidity E_h (or any energy in its units) is divided
+    by rigidity * m_bar * G_ref (every NLP of the package: exact, penalty, the minimising movement)."""
+    m_bar = disc.volume / disc.n_nodes
+    return rigidity * m_bar * gradient_scale(disc, epsilon, alpha, beta)
+
+
 def build_nlp(scene: Scene, disc: Discretization | None = None, check: bool = True) -> NLP:
     """Build the exact-constraint NLP (6)-(8) of a scene (``solver.method = 'exact'``); for the
     methods penalty, continuation and augmented, the lifted penalty NLP (11) (``penalty.py``)."""
@@ -152,7 +159,7 @@ def build_nlp(scene: Scene, disc: Discretization | None = None, check: bool = Tr
     E = F.energy(ops, phi, lap, eps, C)
     A = F.volume_functional(ops, phi)
     B = F.area_functional(ops, phi, eps)
-    f_scale = scene.model.rigidity * m_bar * gradient_scale(disc, eps, alpha, beta)
+    f_scale = objective_scale(disc, scene.model.rigidity, eps, alpha, beta)
     g_scale = np.array([disc.volume, beta])
     rows = [(A - alpha) / g_scale[0], (B - beta) / g_scale[1]]
     if disc.consistent:

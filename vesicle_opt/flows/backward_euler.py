@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from .. import functionals as Fn
-from ..nlp import gradient_scale
+from ..nlp import objective_scale
 from ..solve import IpoptOptions
 from .base import Scheme, StepOutcome
 from .discrete import FlowModel
@@ -55,7 +55,7 @@ class BackwardEulerScheme(Scheme):
         d = phi - phi_n
         obj = E + md.M / 2 * ((a - md.alpha) ** 2 + (b - md.beta) ** 2) + c / 2 * ca.dot(ops.weights, d * d)
         g = ca.vertcat((A - a) / disc.volume, (B - b) / md.beta)
-        self.f_scale = md.rigidity * disc.volume / n * gradient_scale(disc, md.epsilon, md.alpha, md.beta)
+        self.f_scale = objective_scale(disc, md.rigidity, md.epsilon, md.alpha, md.beta)
         opts = IpoptOptions(tol=tol, max_iter=max_iter).as_dict()
         self.solver = ca.nlpsol("minimising_movement", "ipopt", {"x": x, "p": p, "f": obj / self.f_scale, "g": g},
                                 opts)
