@@ -78,11 +78,11 @@ def case_rows(case: dict) -> list[dict]:
     import csv
 
     from vesicle_opt import newton_krylov
-    from vesicle_opt.flows.run import build_model, flow
+    from vesicle_opt.flows.run import flow
     n, out = case["n"], Path(case["dir"])
     disk_scene, torus_scene = _scene(n, case["t_end"], case["disk"])
     fr = flow(disk_scene, out, frames=True)
-    md = build_model(disk_scene, None)
+    md = fr.model
     with open(out / "history.csv", newline="") as fh:
         hist = list(csv.DictReader(fh))
     rows, states = [], []
@@ -98,7 +98,7 @@ def case_rows(case: dict) -> list[dict]:
             states.append(state)
     phi_flow = fr.outcome.phi
     eq = newton_krylov.solve(torus_scene, md.disc, phi0=phi_flow)
-    ref = newton_krylov.solve(torus_scene)
+    ref = newton_krylov.solve(torus_scene, md.disc)
     topo = _topology(md.disc, eq.phi, n)
     s = fr.summary
     rows.append({
