@@ -3,6 +3,7 @@
 One module per equation (``penalty`` (18), ``lagrange`` (17), ``backward_euler`` (23)), the exact
 discrete f, g in ``discrete``, a physics-free Newton in ``newton`` and time loop in ``stepper``,
 initial data on the constraint set in ``projection``, and the CLI runner in ``run``.
-Supported discretisations: FD periodic grids and P1 with lumped mass, nodal quadrature (there the
-laws hold to round-off; the consistent mass would need M^{-1} inside f and g).
+Supported discretisations: FD periodic grids, P1 with lumped mass and nodal quadrature (there the
+laws hold to round-off; the consistent mass would need M^{-1} inside f and g), and Fourier-spectral
+grids, where (17) and (18) run matrix-free (Jacobian products and GMRES, ``newton.KrylovBordered``).
 """
