@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.flows.stepper import StepperOptions, run
+from vesicle_opt.output import load_npz, save_npz
 
-from ._flowkit import failed, load_npz, save_npz, setup
+from ._flowkit import report_failures, setup
 
 T_SS = 20.0
 EXTRA = ["row", "k", "step", "t", "penalized_energy", "excess", "energy_law_residual",
@@ -93,9 +94,7 @@ def main(out: Path, quick: bool = False) -> int:
     raw = run_cases("energy_decay", cases, case_rows, out / "energy_decay.csv", workers=1, extra_columns=EXTRA)
     ids = {c["case"] for c in cases}
     mine = [r for r in raw if r["case"] in ids]
-    if failed(mine):
-        for r in failed(mine):
-            print(f"{r['case']}: {r['status']}", flush=True)
+    if report_failures(mine):
         return 1
     E_min = next(float(r["penalized_energy"]) for r in mine if r["row"] == "steady")
     rows = [{**r, **{key: float(r[key]) for key in ("k", "t", "excess")}} for r in mine if r["row"] == "step"]

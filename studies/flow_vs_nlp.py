@@ -26,9 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.flows.stepper import StepperOptions, run
+from vesicle_opt.output import load_npz, save_npz
 from vesicle_opt.solve import solve
 
-from ._flowkit import failed, load_npz, save_npz, setup, write_derived_csv
+from ._flowkit import report_failures, setup, write_derived_csv
 
 TARGET = 1e-6  # relative energy error asked by the study
 PHI_TOL = 1e-3  # and the field itself close to phi* (lumped L^2, |Omega| = 64)
@@ -149,9 +150,7 @@ def main(out: Path, quick: bool = False, n: int | None = None, cap: float | None
         print(f"NLP did not converge: {nlp['status']}")
         return 1
     mine = [r for r in raw if r["case"] in {c["case"] for c in cases}]
-    if failed(mine):
-        for r in failed(mine):
-            print(f"{r['case']}: {r['status']}", flush=True)
+    if report_failures(mine):
         return 1
     flows = [summary[c["case"]] for c in cases[1:]]
     low = min(flows, key=lambda s: float(s["final_energy"]))
@@ -159,8 +158,7 @@ def main(out: Path, quick: bool = False, n: int | None = None, cap: float | None
                   "from": low["method"]})
     raw = run_cases("flow_vs_nlp", cases, case_rows, csv_path, workers=1, extra_columns=EXTRA + ["converged"])
     by_case = {r["case"]: r for r in raw if r.get("row") == "summary" or r.get("status", "").startswith("error")}
-    if failed([by_case[cases[-1]["case"]]]):
-        print(f"{cases[-1]['case']}: {by_case[cases[-1]['case']]['status']}", flush=True)
+    if report_failures([by_case[cases[-1]["case"]]]):
         return 1
     write_derived_csv(out / "flow_vs_nlp_summary.csv", [by_case[c["case"]] for c in cases], SUMMARY)
     steps = [{**r, **{k: float(r[k]) for k in ("wall_time_s", "energy_rel_error", "phi_distance")}}

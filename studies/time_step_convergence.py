@@ -20,8 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.flows.stepper import StepperOptions, run
+from vesicle_opt.output import load_npz, save_npz
 
-from ._flowkit import failed, load_npz, save_npz, setup, write_derived_csv
+from ._flowkit import report_failures, setup, write_derived_csv
 
 SCHEMES = (("penalty", "(14)"), ("lagrange", "(13)"), ("backward-euler", "(14)"))
 REFERENCE = {"(14)": "penalty", "(13)": "lagrange"}  # the scheme whose fine-k run is each flow's reference
@@ -92,9 +93,7 @@ def main(out: Path, quick: bool = False) -> int:
                     workers=1, extra_columns=EXTRA)
     by_case = {r["case"]: r for r in raw}
     mine = [by_case[c["case"]] for c in cases]
-    if failed(mine):
-        for r in failed(mine):
-            print(f"{r['case']}: {r['status']}", flush=True)
+    if report_failures(mine):
         return 1
     rows, orders = [], []
     for scheme, flow_name in SCHEMES:

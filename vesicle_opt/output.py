@@ -7,6 +7,7 @@ non-finite values are refused here rather than written.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import matplotlib
@@ -21,6 +22,25 @@ def write_json(path: Path, data: dict) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
     tmp.replace(path)  # atomic: a kill never leaves half a summary
+
+
+def save_npz(path: Path, **arrays) -> None:
+    """``np.savez`` to a process-private temporary file, then ``os.replace`` onto ``path``: a kill
+    leaves the previous file intact, never half a file (checkpoints, fields shared by study cases)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
+    os.replace(tmp, path)
+
+
+def load_npz(path: Path) -> dict | None:
+    """The arrays of ``path`` (0-d arrays as Python scalars), or None when it does not exist."""
+    if not Path(path).exists():
+        return None
+    with np.load(path) as z:
+        return {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
 
 
 def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:

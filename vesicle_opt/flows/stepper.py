@@ -25,7 +25,6 @@ never looks inside. Rules:
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from dataclasses import dataclass
@@ -33,6 +32,8 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+
+from ..output import load_npz, save_npz
 
 
 @dataclass(frozen=True)
@@ -63,25 +64,13 @@ class RunOutcome:
     wall_time_s: float
 
 
-def _save_checkpoint(path: Path, state: dict) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as fh:
-        np.savez(fh, **state)
-    os.replace(tmp, path)  # atomic: a kill leaves the previous checkpoint intact
-
-
-def load_checkpoint(path: Path) -> dict:
-    with np.load(path) as z:
-        return {k: z[k] for k in z.files}
-
-
 def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | None = None,
         resume: bool = False, on_accept: Callable[[int, float, np.ndarray, dict], None] | None = None,
         stop: Callable[[dict], bool] | None = None) -> RunOutcome:
     """Advance ``phi0`` from t = 0 (or the checkpoint) to ``opts.t_end``; see the module docstring."""
     phi, phi_prev, t, step, k_try, rate0, rejections, wall0 = phi0.copy(), None, 0.0, 0, opts.dt, math.nan, 0, 0.0
     if resume and checkpoint is not None and checkpoint.exists():
-        st = load_checkpoint(checkpoint)
+        st = load_npz(checkpoint)
         phi, t, step = st["phi"], float(st["t"]), int(st["step"])
         phi_prev = st["phi_prev"] if st["phi_prev"].size else None
         k_try, rate0 = float(st["k_try"]), float(st["rate0"])
@@ -97,9 +86,9 @@ def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | No
 
     def save():
         if checkpoint is not None:
-            _save_checkpoint(checkpoint, {
-                "phi": phi, "phi_prev": phi_prev if phi_prev is not None else np.zeros(0), "t": t, "step": step,
-                "k_try": k_try, "k_last": k_last, "rate0": rate0, "rejections": rejections, "wall_time_s": wall()})
+            save_npz(checkpoint, phi=phi, phi_prev=phi_prev if phi_prev is not None else np.zeros(0), t=t,
+                     step=step, k_try=k_try, k_last=k_last, rate0=rate0, rejections=rejections,
+                     wall_time_s=wall())
 
     status, message = "max_steps", f"reached {opts.max_steps} steps"
     while step < opts.max_steps:
