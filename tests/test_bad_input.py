@@ -5,11 +5,11 @@ import pytest
 
 from vesicle_opt import cli
 
-from _scenes import PROBLEMS
 
-SOLVE = ["solve", str(PROBLEMS / "ellipse-2d.toml"), "--set", "mesh.n=16"]
-SPHERE = ["solve", str(PROBLEMS / "sphere-3d.toml")]
-TORUS = ["solve", str(PROBLEMS / "torus-table1-3d.toml")]
+
+SOLVE = ["solve", "ellipse-2d", "--set", "mesh.n=16"]
+SPHERE = ["solve", "sphere-3d"]
+TORUS = ["solve", "torus-table1-3d"]
 NATURAL = ["--set", "mesh.kind='fem-p1'", "--set", "domain.boundary='natural'"]
 
 
@@ -57,7 +57,7 @@ CASES = [
      "constraints.beta"),
     ("M <= 0", lambda t: SOLVE + ["--set", "solver.M=0"], "solver.M"),
     ("tol <= 0", lambda t: SOLVE + ["--set", "solver.tol=-1e-8"], "solver.tol"),
-    ("dt <= 0", lambda t: ["flow", str(PROBLEMS / "ellipse-2d.toml"), "--set", "mesh.n=16", "--dt", "0",
+    ("dt <= 0", lambda t: ["flow", "ellipse-2d", "--set", "mesh.n=16", "--dt", "0",
                            "--out", str(t / "out")], "dt"),
     ("missing mesh file", lambda t: SOLVE + ["--set", "mesh.kind='fem-p1'", "--set", "domain.boundary='natural'",
                                              "--set", f"mesh.file='{t / 'absent.msh'}'"], "mesh.file"),
@@ -66,7 +66,7 @@ CASES = [
     ("corrupt warm start", lambda t: SOLVE + ["--set", "initial.shape='file'",
                                               "--set", f"initial.file='{_corrupt(t, 'phi.npz')}'"], "initial.file"),
     ("unknown method", lambda t: SOLVE + ["--set", "solver.method='newton'"], "solver.method"),
-    ("unknown scheme", lambda t: ["flow", str(PROBLEMS / "ellipse-2d.toml"), "--scheme", "rk4"], "scheme"),
+    ("unknown scheme", lambda t: ["flow", "ellipse-2d", "--scheme", "rk4"], "scheme"),
     ("unknown --set key", lambda t: SOLVE + ["--set", "solver.nothing=1"], "solver.nothing"),
     # 3D scenes (sphere-3d, torus-table1-3d), refused before any solve
     ("3D box with 4 pairs", lambda t: SPHERE + ["--set", "domain.box=[[-2,2],[-2,2],[-2,2],[-2,2]]"], "domain.box"),

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from vesicle_opt import fd, fem
+from vesicle_opt.mesh import fd
+from vesicle_opt.mesh import fem
 
 BOX2 = ((0.0, 2 * np.pi), (0.0, 2 * np.pi))
 

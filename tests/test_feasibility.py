@@ -5,10 +5,13 @@ import math
 import numpy as np
 import pytest
 
-from vesicle_opt import cli, feasibility, fd, functionals as F
+from vesicle_opt import cli
+from vesicle_opt.model import feasibility
+from vesicle_opt.mesh import fd
+from vesicle_opt.model import functionals as F
 from vesicle_opt.errors import InfeasibleError
-from vesicle_opt.scene import Shape
-from vesicle_opt.shapes import phase_field
+from vesicle_opt.scene.shape_spec import Shape
+from vesicle_opt.scene.shapes import phase_field
 
 from _scenes import bundled
 
@@ -39,8 +42,9 @@ def test_bound_lies_between_sharp_limit_corrections_and_the_tanh_ball():
 
 def test_infeasible_beta_is_refused_before_solving(tmp_path, capsys):
     sc = bundled("ellipse-2d", "mesh.n=32")
-    from vesicle_opt.nlp import build_nlp, constraint_data
-    from vesicle_opt.discretization import discretize
+    from vesicle_opt.nlp import build_nlp
+    from vesicle_opt.model.problem import constraint_data
+    from vesicle_opt.mesh import discretize
     alpha, _ = constraint_data(sc, discretize(sc))
     bound = feasibility.beta_min(alpha, sc.model.epsilon, sc.domain.box, sc.domain.boundary)
     with pytest.raises(InfeasibleError, match="beta_min"):

@@ -75,7 +75,7 @@ def test_study_quick_runs(tmp_path, study, monkeypatch):
 def test_time_step_convergence_resumes_after_kill(tmp_path):
     """Cut the CSV as a kill would leave it (a finished case's rows gone, a torn line), delete a
     reference field: the re-run recomputes them and the rows equal the uninterrupted run's."""
-    from studies import time_step_convergence as mod
+    from vesicle_opt.studies import time_step_convergence as mod
     assert mod.main(tmp_path, quick=True) == 0
     path = tmp_path / "time_step_convergence.csv"
     full = _read(path)
@@ -99,7 +99,7 @@ def test_time_step_convergence_resumes_after_kill(tmp_path):
 @pytest.mark.slow
 def test_flow_vs_nlp_small_resumes(tmp_path, monkeypatch):
     """16^2 with a 3 s cap per flow (not the study's settings: just the case plumbing and outputs)."""
-    from studies import flow_vs_nlp as mod
+    from vesicle_opt.studies import flow_vs_nlp as mod
     assert mod.main(tmp_path, quick=True, n=16, cap=3.0) == 0
     _check_outputs(tmp_path, "flow_vs_nlp.csv")
     summary = _read(tmp_path / "flow_vs_nlp_summary.csv")

@@ -21,7 +21,7 @@ LAW_TOL = 1e-11
 
 
 def _scene(*sets, name="ellipse-2d", n=24):
-    return S.load(f"problems/{name}.toml", [f"mesh.n={n}", "solver.M=100", "flow.steady_tol=0", *sets])
+    return S.load(name, [f"mesh.n={n}", "solver.M=100", "flow.steady_tol=0", *sets])
 
 
 @pytest.fixture(params=["fd", "fem-lumped-natural"])
@@ -46,7 +46,7 @@ def test_discrete_chain_rules_exact(model, rng):
     assert abs(md.B(phi) - md.B(eta) + md.inner(d, md.f2(phi, eta))) <= LAW_TOL * md.B(phi)
     assert abs(md.E(phi) - md.E(eta) - md.inner(d, md.g2(phi, eta))) <= LAW_TOL * md.E(phi)
     # consistency f(phi, phi), g(phi, phi) = -grad B, grad E (lumped L2) of the core's hand gradients
-    from vesicle_opt.functionals import gradients
+    from vesicle_opt.model.functionals import gradients
     dE, _, dB = gradients(md.disc, phi, md.epsilon, md.C)
     g = md.g1(phi)
     # 1e-13: two evaluations of the same polynomial in a different order (round-off only)
@@ -93,7 +93,7 @@ def test_energy_law_round_off(scheme, mesh):
 def test_lagrange_initial_projection():
     sc = _scene('flow.scheme="lagrange"')
     md = build_model(sc)
-    from vesicle_opt.shapes import phase_field
+    from vesicle_opt.scene.shapes import phase_field
     phi0 = phase_field(sc.initial, md.disc.nodes, md.disc.box, md.epsilon)
     assert abs(md.A(phi0) - md.alpha) > 1e-3 and abs(md.B(phi0) - md.beta) > 1e-2  # a real projection
     from vesicle_opt.flows.projection import project_volume

@@ -17,13 +17,13 @@ from vesicle_opt import scene as S
 from vesicle_opt.flows.discrete import FlowModel
 from vesicle_opt.flows.run import build_model, initial_field, make_scheme
 from vesicle_opt.flows.stepper import StepperOptions, run
-from vesicle_opt.spectral import fourier_grid
+from vesicle_opt.mesh.spectral import fourier_grid
 
 LAW_TOL = 1e-11  # as test_flows: laws measured at 1e-15..3e-13 relative on these grids
 
 
 def _scene(*sets, n=24):
-    return S.load("problems/ellipse-2d.toml", [f"mesh.n={n}", "solver.M=100", "flow.steady_tol=0", *sets])
+    return S.load("ellipse-2d", [f"mesh.n={n}", "solver.M=100", "flow.steady_tol=0", *sets])
 
 
 def _fft_twin(md: FlowModel) -> FlowModel:

@@ -5,10 +5,12 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from vesicle_opt import fd, fem, functionals as F
+from vesicle_opt.mesh import fd
+from vesicle_opt.mesh import fem
+from vesicle_opt.model import functionals as F
 from vesicle_opt.nlp import build_nlp
-from vesicle_opt.scene import Shape
-from vesicle_opt.shapes import phase_field
+from vesicle_opt.scene.shape_spec import Shape
+from vesicle_opt.scene.shapes import phase_field
 
 from _scenes import bundled
 

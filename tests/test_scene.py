@@ -1,17 +1,29 @@
 """Scene loading, overrides and bad input (one-line InputError naming the key)."""
 
+from pathlib import Path
+
 import pytest
 
+import vesicle_opt
 from vesicle_opt import scene
 from vesicle_opt.errors import InputError
 
-from _scenes import PROBLEMS, bundled
+from _scenes import bundled
+
+FOLDER = Path(vesicle_opt.__file__).parent / "problems"
 
 
-@pytest.mark.parametrize("path", sorted(PROBLEMS.glob("*.toml")), ids=lambda p: p.stem)
-def test_bundled_scenes_load(path):
-    sc = scene.load(path)
-    assert sc.name == path.stem and sc.model.epsilon > 0
+def test_bundled_names_are_the_shipped_files():
+    assert scene.bundled.names() == sorted(p.stem for p in FOLDER.glob("*.toml"))
+    assert "ellipse-2d" in scene.bundled.names()
+
+
+@pytest.mark.parametrize("name", scene.bundled.names())
+def test_bundled_scene_loads_by_name_as_from_its_file(name, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # by name from any directory (importlib.resources)
+    by_name = scene.load(name)
+    assert by_name.name == name
+    assert by_name == scene.load(FOLDER / f"{name}.toml") == scene.load(f"{name}.toml")
 
 
 def test_override_parses_toml_values():
@@ -52,7 +64,7 @@ def test_missing_required_key():
 def test_warm_start_file_restarts_at_the_solution(tmp_path):
     from vesicle_opt import cli
     assert cli.main(["solve", "ellipse-2d", "--out", str(tmp_path / "a"), "--set", "mesh.n=32"]) == 0
-    from vesicle_opt.solve import solve
+    from vesicle_opt.api import solve
     res = solve(bundled("ellipse-2d", "mesh.n=32", "initial.shape='file'", f"initial.file='{tmp_path / 'a' / 'phi.npz'}'"))
     assert res.converged and res.iterations <= 3  # already optimal: IPOPT only confirms it
 

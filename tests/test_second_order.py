@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from vesicle_opt import second_order as SO, solve as S
+from vesicle_opt.verify import second_order as SO
+import vesicle_opt as S
 from vesicle_opt.nlp import build_nlp
 
 from _scenes import bundled
@@ -35,9 +36,9 @@ def test_eigenvalues_match_a_dense_reduced_hessian():
     res = S.solve(nlp)
     assert res.converged
     so = SO.check(nlp, res, n_eig=3)
-    H = SO._hessian(nlp, res.x, res.lam_g).toarray()
+    H = SO.hessian(nlp, res.x, res.lam_g).toarray()
     m = nlp.disc.weights
-    J = SO._constraint_rows(nlp, res.x, SO.translation_modes(nlp.disc, res.phi), np.diag(m)).toarray()
+    J = SO.constraint_rows(nlp, res.x, SO.translation_modes(nlp.disc, res.phi), np.diag(m)).toarray()
     # orthonormal basis Z of the tangent space in the mass metric: Z = M^{-1/2} null(J M^{-1/2})
     Jt = J / np.sqrt(m)
     _, _, Vt = np.linalg.svd(Jt)

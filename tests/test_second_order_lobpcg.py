@@ -2,19 +2,19 @@
 
 import warnings
 
-from vesicle_opt import newton_krylov as nk
+from vesicle_opt.nk import solve as nk
 from vesicle_opt import scene as S
-from vesicle_opt.cli import resolve_scene
-from vesicle_opt.second_order_lobpcg import reduced_hessian_eigenvalues
+from vesicle_opt.nk.setup import prepare
+from vesicle_opt.verify.lobpcg import reduced_hessian_eigenvalues
 
 
 def _solve(*sets):
-    sc = S.load(resolve_scene("ellipse-2d"), ["mesh.n=64", *sets])
+    sc = S.load("ellipse-2d", ["mesh.n=64", *sets])
     r = nk.solve(sc)
     assert r.converged  # both are KKT points: the first-order test cannot tell them apart
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # lobpcg warns when the unwanted eigenvalues lag behind
-        return r, reduced_hessian_eigenvalues(sc, r, rotations=True)
+        return r, reduced_hessian_eigenvalues(sc, r, prepare(sc), rotations=True)
 
 
 def test_minimiser_has_a_positive_reduced_hessian():
@@ -32,10 +32,10 @@ def test_symmetric_saddle_has_a_negative_direction():
 
 
 def _verdicts(*sets):
-    from vesicle_opt.solve import solve
+    from vesicle_opt.api import solve
     out = {}
     for backend in ("newton-krylov", "ipopt"):
-        sc = S.load(resolve_scene("ellipse-2d"), ["mesh.kind='fem-p1'", "mesh.mass='lumped'", "solver.second_order=true",
+        sc = S.load("ellipse-2d", ["mesh.kind='fem-p1'", "mesh.mass='lumped'", "solver.second_order=true",
                                                   f"solver.backend='{backend}'", *sets])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # near-bound and lobpcg warnings

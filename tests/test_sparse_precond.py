@@ -7,9 +7,9 @@ import pytest
 import scipy.linalg as sl
 import scipy.sparse as sp
 
-from vesicle_opt import newton_krylov as nk
-from vesicle_opt import precond
-from vesicle_opt.discretization import discretize
+from vesicle_opt.nk import solve as nk
+from vesicle_opt.nk import precond
+from vesicle_opt.mesh import discretize
 
 from _scenes import bundled
 

@@ -5,13 +5,13 @@ gradients and with finite differences, spectral convergence in n on a sphere, sc
 import numpy as np
 import pytest
 
-from vesicle_opt import functionals as F
+from vesicle_opt.model import functionals as F
 from vesicle_opt import scene as S
 from vesicle_opt.errors import InputError
-from vesicle_opt.fd import grid as fd_grid
-from vesicle_opt.matfree import LumpedOperators, PhaseField
-from vesicle_opt.precond import FourierPreconditioner
-from vesicle_opt.spectral import fourier_grid
+from vesicle_opt.mesh.fd import grid as fd_grid
+from vesicle_opt.model.lumped import LumpedOperators, PhaseField
+from vesicle_opt.nk.precond import FourierPreconditioner
+from vesicle_opt.mesh.spectral import fourier_grid
 
 BOX2 = ((-4.0, 4.0), (-3.0, 3.0))
 BOX3 = ((-np.pi, np.pi),) * 3
@@ -142,7 +142,7 @@ def test_scene_spectral_validation():
 @pytest.mark.parametrize("lam,rho", [((0.0, 0.0), (1e3, 1e3)), ((0.4, -1.3), (50.0, 200.0))])
 def test_penalised_and_augmented_objective_vs_finite_differences(lam, rho, rng):
     """E_{M,h} (11) (lam = 0, rho = M) and the augmented Lagrangian: value, gradient, Hessian."""
-    from vesicle_opt.newton import Counters, Objective
+    from vesicle_opt.nk.newton_cg import Counters, Objective
     disc = fourier_grid(BOX2, (16, 12), "spectral")
     eps, rig = 0.4, 3.0
     pf = PhaseField(LumpedOperators(disc), eps, 0.2)

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from studies import stress
+from vesicle_opt.studies import stress
 
 
 def _case(quick_cases, name):

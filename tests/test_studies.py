@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vesicle_opt.metrics import observed_order, restrict, trig_matrix
-from vesicle_opt.study_runner import CsvLog, run_cases
+from vesicle_opt.verify.metrics import observed_order, restrict, trig_matrix
+from vesicle_opt.studies.runner import CsvLog, run_cases
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -47,7 +47,7 @@ def test_resume_after_killed_process(tmp_path):
         import sys, time
         sys.path.insert(0, {str(ROOT)!r})
         from concurrent.futures import ThreadPoolExecutor
-        from vesicle_opt.study_runner import run_cases
+        from vesicle_opt.studies.runner import run_cases
         def slow(case):
             time.sleep(0.3)
             return [{{"n": case["k"], "energy": case["k"]}}]
@@ -99,7 +99,7 @@ def test_csv_has_required_columns(tmp_path):
 
 
 def test_trig_restriction_exact_on_trig_polynomials():
-    from vesicle_opt.fd import grid
+    from vesicle_opt.mesh.fd import grid
     box = ((-1.0, 3.0), (0.0, 2.0))
     f, c = grid(box, (36, 24)), grid(box, (20, 16))
     u = lambda X: np.sin(2 * np.pi * (X[:, 0] + 1) / 4 * 3) * np.cos(2 * np.pi * X[:, 1] / 2 * 5)  # noqa: E731
@@ -112,8 +112,8 @@ def test_observed_order_of_fd_energy_on_a_quick_sequence():
     """Successive energy differences on n = 54, 72, 96 (ratio 4/3): slope = the order.
 
     Two differences only (fast); the h_refinement quick study fits four meshes (slow test)."""
-    from studies._common import nlp_for
-    from vesicle_opt.solve import solve
+    from vesicle_opt.studies._common import nlp_for
+    from vesicle_opt.api import solve
     ns = [54, 72, 96]
     E, h = [], []
     for n in ns:
@@ -147,8 +147,8 @@ def test_quick_study_runs(name, tmp_path):
 
 
 def test_translation_alignment_recovers_a_known_shift():
-    from vesicle_opt.fd import grid
-    from vesicle_opt.metrics import field_errors, shift, translation
+    from vesicle_opt.mesh.fd import grid
+    from vesicle_opt.verify.metrics import field_errors, shift, translation
     d = grid(((-4.0, 4.0), (-4.0, 4.0)), (64, 64))
     # smooth and periodic to ~exp(-25) = 1e-11 at the box edge, resolved (width 0.7 > 5 h)
     u = lambda X: np.exp(-((X[:, 0] / 0.8) ** 2) - (X[:, 1] / 0.7) ** 2)  # noqa: E731

@@ -4,7 +4,7 @@ quick modes of the large-3D studies append their rows and resume."""
 import numpy as np
 import pytest
 
-from studies.table1 import torus_check
+from vesicle_opt.studies.table1 import torus_check
 
 
 def _grid(n=32):
@@ -46,7 +46,7 @@ def test_torus_section5_quick_pinches_a_disk_into_a_torus(tmp_path):
     law (22) verified, and the equilibrium solve from the flow's end converges to that torus."""
     import csv
 
-    from studies import torus_section5 as T
+    from vesicle_opt.studies import torus_section5 as T
     assert T.main(tmp_path, quick=True) == 0
     rows = list(csv.DictReader((tmp_path / "torus_section5.csv").open()))
     frames = [r for r in rows if r["row"] == "frame" and r["start"] == "disk"]

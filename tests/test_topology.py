@@ -3,9 +3,11 @@
 import numpy as np
 import pytest
 
-from vesicle_opt import fd, fem, topology
-from vesicle_opt.scene import Shape
-from vesicle_opt.shapes import phase_field
+from vesicle_opt.mesh import fd
+from vesicle_opt.mesh import fem
+from vesicle_opt.verify import topology
+from vesicle_opt.scene.shape_spec import Shape
+from vesicle_opt.scene.shapes import phase_field
 
 BOX2 = ((-2.0, 2.0), (-2.0, 2.0))
 BOX3 = ((-2.0, 2.0),) * 3

@@ -1,17 +1,21 @@
 """vesicle_opt: equilibrium vesicle shapes with the phase-field bending model as constrained
 minimisation (energy (3)/(6), constraints (4)-(5)/(7)-(8) of the reference paper).
 
-    from vesicle_opt import load_scene, build_nlp
-    from vesicle_opt.solve import solve
-    scene = load_scene("problems/ellipse-2d.toml", ["mesh.n=64"])
-    result = solve(build_nlp(scene))
+    import vesicle_opt as vo
+    scene = vo.load_scene("ellipse-2d", ["mesh.n=64"])     # a bundled scene, or a TOML path
+    result = vo.solve(scene)                               # the one front door; certified Result
+    print(result.converged, result.outcome, result.energy)
+
+``solve`` dispatches to the IPOPT backend (``vesicle_opt.nlp``) or the matrix-free Newton-Krylov
+backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi NLP.
 """
 
-from .errors import InfeasibleError, InputError, SolverError, VesicleError
-from .nlp import NLP, build_nlp
-from .result import Result
-from .scene import Scene, load as load_scene
-from .solve import IpoptOptions  # the function solve stays in vesicle_opt.solve (module name)
+from vesicle_opt.api import solve
+from vesicle_opt.errors import InfeasibleError, InputError, NotSupported, SolverError, VesicleError
+from vesicle_opt.nk.options import NewtonKrylovOptions
+from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp
+from vesicle_opt.result import Result, Status
+from vesicle_opt.scene import Scene, load as load_scene
 
-__all__ = ["load_scene", "Scene", "build_nlp", "NLP", "IpoptOptions", "Result",
-           "VesicleError", "InputError", "InfeasibleError", "SolverError"]
+__all__ = ["solve", "load_scene", "Scene", "build_nlp", "NLP", "IpoptOptions", "NewtonKrylovOptions",
+           "Result", "Status", "VesicleError", "InputError", "InfeasibleError", "NotSupported", "SolverError"]

@@ -13,9 +13,11 @@ import sys
 import warnings
 from pathlib import Path
 
-from .errors import InputError, VesicleError
-
-PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
+from vesicle_opt.api import solve
+from vesicle_opt.errors import InputError, VesicleError
+from vesicle_opt.flows.run import flow
+from vesicle_opt.io import output
+from vesicle_opt.scene import load as load_scene
 
 
 class _Parser(argparse.ArgumentParser):
@@ -24,34 +26,10 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def resolve_scene(arg: str) -> Path:
-    """A path, or the name of a bundled scene in problems/ (``ellipse-2d``)."""
-    p = Path(arg)
-    if p.exists():
-        return p
-    bundled = PROBLEMS / (arg if arg.endswith(".toml") else arg + ".toml")
-    if bundled.exists():
-        return bundled
-    raise InputError("scene", f"file not found: {arg} (bundled scenes: "
-                     f"{', '.join(sorted(q.stem for q in PROBLEMS.glob('*.toml')))})")
-
-
 def cmd_solve(args) -> int:
-    from . import output, scene
-    from .solve import solve
-    from .nlp import build_nlp
-    sc = scene.load(resolve_scene(args.scene), args.set)
-    from .backend import choose_backend
-    if choose_backend(sc) == "newton-krylov":  # matrix-free backend (issue 6)
-        from .discretization import discretize
-        from .solve import solve_newton_krylov
-        disc = discretize(sc)
-        result = solve_newton_krylov(sc, disc)
-    else:
-        nlp = build_nlp(sc)
-        disc = nlp.disc
-        result = solve(nlp)
-    summary = output.write_result(Path(args.out), sc, disc, result)
+    sc = load_scene(args.scene, args.set)
+    result = solve(sc)
+    summary = output.write_result(Path(args.out), sc, result.disc, result)
     print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
     if result.converged and summary.get("second_order") == "saddle":
@@ -73,9 +51,9 @@ def cmd_solve(args) -> int:
 def cmd_study(args) -> int:
     name = args.name.replace("-", "_")
     try:
-        module = importlib.import_module(f"studies.{name}")
+        module = importlib.import_module(f"vesicle_opt.studies.{name}")
     except ModuleNotFoundError as exc:
-        if exc.name != f"studies.{name}":
+        if exc.name != f"vesicle_opt.studies.{name}":
             raise
         raise InputError("study", f"unknown study {args.name!r}") from None
     if not hasattr(module, "main"):
@@ -85,8 +63,6 @@ def cmd_study(args) -> int:
 
 
 def cmd_flow(args) -> int:
-    from . import scene
-    from .flows.run import flow
     overrides = list(args.set)
     for key, value in (("flow.scheme", args.scheme), ("flow.dt", args.dt), ("flow.steps", args.steps),
                        ("flow.t_end", args.t_end)):
@@ -94,7 +70,7 @@ def cmd_flow(args) -> int:
             overrides.append(f"{key}={value!r}" if isinstance(value, str) else f"{key}={value}")
     if args.adaptive:
         overrides.append('flow.stepping="adaptive"')
-    sc = scene.load(resolve_scene(args.scene), overrides)
+    sc = load_scene(args.scene, overrides)
     run = flow(sc, Path(args.out), restart=args.restart, progress=not args.quiet)
     s = run.summary
     print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "

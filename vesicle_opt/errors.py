@@ -35,3 +35,8 @@ class SolverError(VesicleError, RuntimeError):
     def __init__(self, message: str, result=None):
         self.result = result
         super().__init__(message)
+
+
+class NotSupported(InputError):
+    """A combination the package does not support (a backend, method, mesh or scheme): names the
+    key and what is supported. Raised before any work; the CLI exits 2 with one line."""

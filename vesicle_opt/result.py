@@ -1,11 +1,42 @@
-"""The frozen result of an equilibrium solve, and its JSON summary (the CLI's output contract)."""
+"""The frozen result of an equilibrium solve, its status vocabulary, and its JSON summary.
+
+``Status`` is the one vocabulary of outcomes across IPOPT, Newton-Krylov and the gradient flows
+(optimistix style); the solver's own status string (IPOPT's ``return_status``, the Newton-Krylov
+loop's ``status``) is kept beside it in ``Result.status``. Results are built in one place only,
+``vesicle_opt.verify.certify.build_result``, which recomputes every residual it reports.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import enum
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+
+class Status(str, enum.Enum):
+    """Outcome of a solve or a flow (the ``outcome`` key of summary.json)."""
+
+    # equilibrium solves (certified by ``verify.certify.certify``)
+    CONVERGED = "converged"  # solver success and every recomputed residual within tol
+    MAX_ITERATIONS = "max_iterations"  # the solver ran out of iterations
+    SOLVER_FAILED = "solver_failed"  # the solver reported another failure
+    NON_FINITE = "non_finite"  # the iterate has NaN or inf entries
+    ROUNDOFF_FLOOR = "roundoff_floor"  # stationarity cannot be known to tol in double precision
+    INFEASIBLE = "infeasible"  # the constraints A = alpha, B = beta do not hold to tol
+    KKT_NOT_MET = "kkt_not_met"  # the recomputed KKT residual exceeds its bound
+    NOT_CERTIFIED = "not_certified"  # another consistency check failed (it says which)
+    # gradient flows (``vesicle_opt.flows``)
+    T_END = "t_end"  # reached the final time
+    STEADY = "steady"  # ||phi_t|| fell below flow.steady_tol times its first value
+    MAX_STEPS = "max_steps"  # reached flow.steps accepted steps
+    STOPPED = "stopped"  # a tracker asked to stop
+    FAILED = "failed"  # a step was rejected down to flow.dt_min
+
+    def __str__(self) -> str:  # the value, so f-strings and JSON read "converged"
+        return self.value
 
 
 @dataclass(frozen=True, eq=False)
@@ -13,8 +44,9 @@ class Result:
     """phi (and w) with energies, residuals and multipliers in the convention
     rigidity * grad E_h = lambda_volume grad A + lambda_area grad B  (at a KKT point).
 
-    ``success`` is the solver's own verdict; ``converged`` additionally requires the independently
-    recomputed KKT and constraint residuals to meet the tolerance. Never trust phi unless converged.
+    ``success`` is the solver's own verdict; ``converged`` (and ``outcome``) additionally require
+    the independently recomputed KKT and constraint residuals to meet the tolerance and the
+    round-off floor to lie below it. Never trust phi unless converged.
     """
 
     phi: np.ndarray
@@ -24,14 +56,15 @@ class Result:
     area_residual: float  # B - beta
     lambda_volume: float
     lambda_area: float
-    kkt_residual: float  # relative L2 norm of the Lagrangian gradient (see kkt.py)
-    status: str
+    kkt_residual: float  # relative L2 norm of the Lagrangian gradient (see verify/kkt.py)
+    status: str  # the solver's own status string
     success: bool
     converged: bool
+    outcome: Status
     iterations: int
     wall_time_s: float
     derivative_time_s: float  # gradient, Jacobian and Hessian evaluations
-    other_time_s: float  # everything else: linear algebra inside IPOPT, function values
+    other_time_s: float  # everything else: linear algebra, function values
     n_nodes: int
     hessian_nnz_per_row: float
     method: str = "exact"
@@ -42,6 +75,12 @@ class Result:
     lam_x: np.ndarray | None = None
     lam_g: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
+    disc: object = field(default=None, repr=False)  # the discretisation phi lives on (for writers, plots)
+
+    @property
+    def reason(self) -> str | None:
+        """Why the result is not converged (None when it is)."""
+        return self.extra.get("reason")
 
     def summary(self, scene_name: str) -> dict:
         """The summary.json dict; numbers that are not finite are written as null."""
@@ -55,7 +94,8 @@ class Result:
             "energy": num(self.energy), "volume_residual": num(self.volume_residual),
             "area_residual": num(self.area_residual), "lambda_volume": num(self.lambda_volume),
             "lambda_area": num(self.lambda_area), "kkt_residual": num(self.kkt_residual),
-            "status": self.status, "success": bool(self.success), "converged": bool(self.converged),
+            "status": self.status, "outcome": self.outcome.value, "success": bool(self.success),
+            "converged": bool(self.converged),
             "iterations": int(self.iterations), "wall_time_s": num(self.wall_time_s),
             "derivative_time_s": num(self.derivative_time_s), "other_time_s": num(self.other_time_s),
             "n_nodes": int(self.n_nodes), "hessian_nnz_per_row": num(self.hessian_nnz_per_row),
@@ -63,6 +103,7 @@ class Result:
         if self.M is not None:
             out["M"] = num(self.M)
             out["penalized_energy"] = num(self.penalized_energy)
+
         def item(v):
             if isinstance(v, bool) or v is None or isinstance(v, (str, list)):
                 return v
@@ -71,3 +112,26 @@ class Result:
             return num(v)
         out.update({k: item(v) for k, v in self.extra.items()})
         return out
+
+
+def stage_record(r: Result) -> dict:
+    """One stage of a continuation or augmented Lagrangian, as ``history['stages']`` keeps it."""
+    return {"M": r.M, "energy": r.energy, "penalized_energy": r.penalized_energy,
+            "volume_residual": r.volume_residual, "area_residual": r.area_residual,
+            "lambda_volume": r.lambda_volume, "lambda_area": r.lambda_area,
+            "kkt_residual": r.kkt_residual, "iterations": r.iterations, "wall_time_s": r.wall_time_s,
+            "status": r.status, "converged": r.converged}
+
+
+def combine_stages(last: Result, stages: list[Result], method: str, t_wall: float,
+                   extra: dict | None = None) -> Result:
+    """The last stage's result with the whole run's counts, times and stage history; its certificate
+    is the last stage's (nothing here changes ``converged``)."""
+    history = dict(last.history)
+    history["stages"] = [stage_record(r) for r in stages]
+    info = dict(last.extra)
+    info.update({"stages": len(stages)}, **(extra or {}))
+    deriv = sum(r.derivative_time_s for r in stages)
+    return dataclasses.replace(
+        last, method=method, iterations=sum(r.iterations for r in stages), wall_time_s=t_wall,
+        derivative_time_s=deriv, other_time_s=t_wall - deriv, history=history, extra=info)

@@ -25,11 +25,11 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .. import functionals as Fn
-from ..nlp import objective_scale
-from ..solve import IpoptOptions
-from .base import Scheme, StepOutcome
-from .discrete import FlowModel
+from vesicle_opt.model import functionals as Fn
+from vesicle_opt.model.problem import objective_scale
+from vesicle_opt.nlp.ipopt import IpoptOptions
+from vesicle_opt.flows.base import Scheme, StepOutcome
+from vesicle_opt.flows.discrete import FlowModel
 
 LAW = "(24)"
 

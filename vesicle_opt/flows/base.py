@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .discrete import FlowModel
+from vesicle_opt.flows.discrete import FlowModel
 
 
 @dataclass(frozen=True)

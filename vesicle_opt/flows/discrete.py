@@ -38,8 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..discretization import Discretization
-from ..errors import InputError
+from vesicle_opt.mesh.base import Discretization
+from vesicle_opt.errors import InputError
 
 
 def require_lumped(disc: Discretization) -> None:

@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .base import Scheme, StepOutcome, equality_law
-from .discrete import FlowModel
-from .newton import KrylovBordered, newton
+from vesicle_opt.flows.base import Scheme, StepOutcome, equality_law
+from vesicle_opt.flows.discrete import FlowModel
+from vesicle_opt.flows.newton import KrylovBordered, newton
 
 LAW = "Lemma 4.2"
 

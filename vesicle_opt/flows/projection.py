@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from ..errors import SolverError
-from .discrete import FlowModel
+from vesicle_opt.errors import SolverError
+from vesicle_opt.flows.discrete import FlowModel
 
 
 def project_volume(md: FlowModel, phi0: np.ndarray, alpha: float) -> np.ndarray:

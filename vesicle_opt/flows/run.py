@@ -18,17 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import output
-from ..discretization import Discretization, discretize
-from ..errors import InputError
-from ..nlp import constraint_data
-from ..shapes import phase_field
-from .backward_euler import BackwardEulerScheme
-from .discrete import FlowModel
-from .lagrange import LagrangeScheme
-from .penalty import PenaltyScheme
-from .projection import project
-from .stepper import RunOutcome, StepperOptions, run
+from vesicle_opt.io import output
+from vesicle_opt.mesh import Discretization, discretize
+from vesicle_opt.errors import InputError
+from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.scene.shapes import phase_field
+from vesicle_opt.flows.backward_euler import BackwardEulerScheme
+from vesicle_opt.flows.discrete import FlowModel
+from vesicle_opt.flows.lagrange import LagrangeScheme
+from vesicle_opt.flows.penalty import PenaltyScheme
+from vesicle_opt.flows.projection import project
+from vesicle_opt.flows.stepper import RunOutcome, StepperOptions, run
 
 SCHEMES = {"penalty": PenaltyScheme, "lagrange": LagrangeScheme, "backward-euler": BackwardEulerScheme}
 COLUMNS = ["step", "t", "dt", "energy", "penalized_energy", "volume_residual", "area_residual",

@@ -33,7 +33,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..output import load_npz, save_npz
+from vesicle_opt.io.output import load_npz, save_npz
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,132 @@
+"""The front door: ``solve(scene_or_problem, *, backend=None, method=None, x0=None, throw=False)``.
+
+This is the only dispatcher of an equilibrium solve: the CLI, the studies, the tests and the README
+call it. The backend (``backends.choose_backend``) and the method are chosen here, once; both
+backends return the same certified :class:`~vesicle_opt.result.Result` (``verify.certify``), with
+the same reports added here:
+
+* ``second_order``: ``minimum`` / ``saddle`` / ``not checked`` for converged exact-constraint
+  solves with ``solver.second_order`` (IPOPT: ``verify.second_order``, assembled; Newton-Krylov:
+  ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``;
+* ``topology`` and its counts (``verify.topology.report``).
+
+Warm starts: ``x0`` is a field phi (nodal values), a full NLP vector, or an earlier ``Result`` (on
+IPOPT its primal-dual point is reused when the NLP matches, else its phi), on either backend.
+``throw=True`` raises :class:`~vesicle_opt.errors.SolverError` (carrying the result) instead of
+returning a result that is not converged.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+
+from vesicle_opt.backends import choose_backend
+from vesicle_opt.errors import InputError, NotSupported, SolverError
+from vesicle_opt.nk import solve as nk_solve
+from vesicle_opt.nk.options import NewtonKrylovOptions
+from vesicle_opt.nk.setup import on_fourier_grid, prepare
+from vesicle_opt.mesh import discretize
+from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp, solve_nlp
+from vesicle_opt.result import Result
+from vesicle_opt.scene import Scene
+from vesicle_opt.verify import second_order, topology
+from vesicle_opt.verify.lobpcg import reduced_hessian_eigenvalues
+
+
+def _replace_extra(result: Result, **items) -> Result:
+    return dataclasses.replace(result, extra={**result.extra, **items})
+
+
+def _ipopt_start(nlp: NLP, x0) -> dict:
+    """x0, lam_x0, lam_g0 for IPOPT from any accepted warm start (module docstring)."""
+    if x0 is None:
+        return {}
+    if isinstance(x0, Result):
+        if x0.x is not None and x0.x.size == nlp.x0.size and x0.lam_g is not None \
+                and x0.lam_g.size == nlp.lbg.size:
+            return {"x0": x0.x, "lam_x0": x0.lam_x, "lam_g0": x0.lam_g}
+        x0 = x0.phi
+    x0 = np.asarray(x0, float).ravel()
+    if x0.size == nlp.x0.size:
+        return {"x0": x0}
+    if x0.size == nlp.disc.n_nodes:
+        return {"x0": nlp.from_phi(x0)}
+    raise InputError("x0", f"a warm start needs {nlp.disc.n_nodes} nodal values (or the NLP's "
+                     f"{nlp.x0.size}), got {x0.size}")
+
+
+def _phi_start(x0, n_nodes: int) -> np.ndarray | None:
+    if x0 is None:
+        return None
+    phi = np.asarray(x0.phi if isinstance(x0, Result) else x0, float).ravel()
+    if phi.size < n_nodes:
+        raise InputError("x0", f"a warm start needs {n_nodes} nodal values, got {phi.size}")
+    return phi[:n_nodes]  # an IPOPT vector starts with phi
+
+
+def _check_options(options, kind, backend: str):
+    if options is not None and not isinstance(options, kind):
+        raise NotSupported("options", f"the {backend} backend takes {kind.__name__}, got {type(options).__name__}")
+
+
+def _second_order_ipopt(scene, nlp, result: Result) -> Result:
+    so = second_order.check(nlp, result)
+    return _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue)
+
+
+def _second_order_nk(scene, disc, result: Result) -> Result:
+    """LOBPCG on the tangent space (``verify.lobpcg``): on Fourier grids translations and rotations,
+    the continuum's symmetries, excluded; "minimum" when the least eigenvalue exceeds 10x its
+    residual, "saddle" when it is below -10x, else "not checked" (undecided)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # lobpcg warns when unwanted eigenvalues lag behind
+        vals, res = reduced_hessian_eigenvalues(scene, result, prepare(scene, disc), k=3, rotations=True)
+    verdict = "minimum" if vals[0] > 10 * res[0] else "saddle" if vals[0] < -10 * res[0] else "not checked"
+    return _replace_extra(result, second_order=verdict, second_order_min_eigenvalue=float(vals[0]))
+
+
+def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | None = None, x0=None,
+          options: IpoptOptions | NewtonKrylovOptions | None = None, throw: bool = False) -> Result:
+    """Minimise rigidity * E_h subject to A = alpha, B = beta (or its penalty form); see the module
+    docstring. ``backend`` and ``method`` override the scene's ``solver.backend`` / ``solver.method``;
+    ``options`` replaces the scene's solver settings (``IpoptOptions`` or ``NewtonKrylovOptions``)."""
+    if isinstance(problem, NLP):
+        nlp, scene = problem, problem.scene
+        if backend not in (None, "ipopt"):
+            raise NotSupported("solver.backend", "an NLP of build_nlp runs on 'ipopt'; pass the Scene "
+                               f"for {backend!r}")
+        if method not in (None, scene.solver.method):
+            raise NotSupported("solver.method", f"this NLP was built for {scene.solver.method!r}; "
+                               f"build it again for {method!r}")
+        chosen = "ipopt"
+    elif isinstance(problem, Scene):
+        nlp, scene = None, problem
+        if method is not None:
+            scene = scene.replace(solver=dataclasses.replace(scene.solver, method=method))
+        chosen = choose_backend(scene, backend)
+    else:
+        raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
+    exact = scene.solver.method == "exact"
+    if chosen == "ipopt":
+        _check_options(options, IpoptOptions, chosen)
+        nlp = nlp or build_nlp(scene)
+        disc = nlp.disc
+        result = solve_nlp(nlp, options=options, **_ipopt_start(nlp, x0))
+        checked = result.converged and exact and scene.solver.second_order
+        result = _second_order_ipopt(scene, nlp, result) if checked else _replace_extra(result, second_order="not checked")
+    else:
+        _check_options(options, NewtonKrylovOptions, chosen)
+        disc = on_fourier_grid(discretize(scene))
+        result = nk_solve.solve(scene, disc, x0=_phi_start(x0, disc.n_nodes), options=options)
+        checked = result.converged and exact and scene.solver.second_order
+        result = _second_order_nk(scene, disc, result) if checked else \
+            _replace_extra(result, second_order="not checked", second_order_min_eigenvalue=None)
+    result = _replace_extra(result, **topology.report(disc, result.phi))
+    if throw and not result.converged:
+        raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
+                          f"{result.kkt_residual:.3g}, A-alpha {result.volume_residual:.3g}, "
+                          f"B-beta {result.area_residual:.3g}", result)
+    return result

@@ -1,0 +1,65 @@
+"""What each backend supports, in one table, and the choice of backend (``solver.backend``).
+
+* ``ipopt``: the exact-Hessian CasADi/IPOPT NLP (``vesicle_opt.nlp``); 2D and small 3D. A
+  ``spectral`` mesh has a dense Laplacian, so it is not supported there.
+* ``newton-krylov``: the matrix-free backend (``vesicle_opt.nk``); needs lumped mass and nodal
+  quadrature (its products use Delta_h = -M_L^{-1} K).
+* ``auto``: newton-krylov for spectral meshes and for 3D lumped/nodal meshes above ``AUTO_3D_NODES``
+  (the sparse factorisation of the bi-Laplacian fills in beyond that: ~24 s per IPOPT iteration
+  at 32^3 was measured), IPOPT otherwise.
+
+Both backends run every ``solver.method`` (exact, penalty, continuation, augmented) with the same
+meaning; an unsupported combination raises :class:`~vesicle_opt.errors.NotSupported` naming the key
+and what is supported, before any work.
+"""
+
+from __future__ import annotations
+
+import math
+
+from vesicle_opt.errors import NotSupported
+
+AUTO_3D_NODES = 20**3
+BACKENDS = ("ipopt", "newton-krylov")
+METHODS = ("exact", "penalty", "continuation", "augmented")
+SUPPORT = {
+    "ipopt": {"mesh.kind": ("fem-p1", "fd"), "mesh.mass": ("lumped", "consistent"),
+              "mesh.quadrature": ("nodal", "gauss"), "solver.method": METHODS},
+    "newton-krylov": {"mesh.kind": ("fem-p1", "fd", "spectral"), "mesh.mass": ("lumped",),
+                      "mesh.quadrature": ("nodal",), "solver.method": METHODS},
+}
+_WHY = {("ipopt", "mesh.kind"): "its Laplacian is dense; use 'newton-krylov' or 'auto'",
+        ("newton-krylov", "mesh.mass"): "its products need Delta_h = -M_L^-1 K; use 'ipopt'",
+        ("newton-krylov", "mesh.quadrature"): "its products need nodal quadrature; use 'ipopt'"}
+
+
+def _value(scene, key: str) -> str:
+    section, name = key.split(".")
+    return getattr(getattr(scene, section), name)
+
+
+def supports(scene, backend: str) -> bool:
+    return all(_value(scene, key) in allowed for key, allowed in SUPPORT[backend].items())
+
+
+def check_supported(scene, backend: str) -> None:
+    """NotSupported (key ``solver.backend``, one line) when ``backend`` cannot run ``scene``."""
+    for key, allowed in SUPPORT[backend].items():
+        value = _value(scene, key)
+        if value not in allowed:
+            why = _WHY.get((backend, key), "")
+            raise NotSupported("solver.backend", f"'{backend}' does not support {key} = {value!r} "
+                               f"(supported: {', '.join(allowed)}){'; ' + why if why else ''}")
+
+
+def choose_backend(scene, backend: str | None = None) -> str:
+    """The backend a scene runs on (``backend`` overrides ``solver.backend``), validated."""
+    b = backend or scene.solver.backend
+    if b == "auto":
+        n_nodes = math.prod(scene.mesh.n)
+        big_3d = scene.dim == 3 and n_nodes > AUTO_3D_NODES and supports(scene, "newton-krylov")
+        return "newton-krylov" if scene.mesh.kind == "spectral" or big_3d else "ipopt"
+    if b not in BACKENDS:
+        raise NotSupported("solver.backend", f"must be one of {', '.join(BACKENDS)}, auto; got {b!r}")
+    check_supported(scene, b)
+    return b

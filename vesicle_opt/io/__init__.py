@@ -1,0 +1,1 @@
+"""Writers: summary.json, phi.npz, VTK (meshio) and PNG (matplotlib); atomic npz files."""

@@ -1,0 +1,24 @@
+"""Spatial discretisations (Definition 2.2 and its FD special case): ``discretize(scene)``.
+
+* ``base``: the shared :class:`Discretization` interface (nodes, weights, K, M, quadrature);
+* ``fd``: uniform periodic grids with the (2d+1)-point Laplacian (sparse);
+* ``fem``: P1 finite elements on triangles / tetrahedra (scikit-fem);
+* ``spectral``: periodic grids whose Laplacian is applied by FFT (pseudo-spectral, or FD by FFT).
+"""
+
+from __future__ import annotations
+
+from vesicle_opt.mesh import fd, fem, spectral
+from vesicle_opt.mesh.base import Discretization
+
+__all__ = ["Discretization", "discretize"]
+
+
+def discretize(scene) -> Discretization:
+    """Build the discretisation a scene asks for (``mesh.kind``, ``mesh.n``, ``mesh.mass``, ...)."""
+    if scene.mesh.kind == "fd":
+        return fd.grid(scene.domain.box, scene.mesh.n)
+    if scene.mesh.kind == "spectral":
+        return spectral.grid(scene.domain.box, scene.mesh.n)
+    return fem.p1(scene.domain.box, scene.mesh.n, periodic=scene.domain.boundary == "periodic",
+                  mass=scene.mesh.mass, quadrature=scene.mesh.quadrature, mesh_file=scene.mesh.file)

@@ -1,0 +1,104 @@
+"""The shared interface of all spatial discretisations (Definition 2.2 and its FD special case).
+
+A :class:`Discretization` holds nodes, nodal quadrature weights m (the lumped mass), the stiffness
+K_ij = <grad psi_i, grad psi_j>, the consistent mass M_ij = <psi_i, psi_j> (FD: diag(m)), and the
+quadrature that integrates nodal nonlinear terms:
+
+* ``nodal`` (default): sum_i m_i F(phi_i), the mass-lumping rule; for FD this is the grid sum;
+* ``gauss``: sum_q W_q F((P phi)_q) with P the P1 interpolation to Gauss points of each element.
+
+The discrete Laplacian of Definition 2.2 is ``-M^{-1} K`` (consistent) or ``-M_L^{-1} K`` (lumped).
+The consistent one is never formed: the NLP carries w = Delta_h phi with M w + K phi = 0 and numpy
+evaluation solves with a cached sparse LU of M.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+
+@dataclass(frozen=True, eq=False)
+class Discretization:
+    kind: str  # "fem-p1" | "fd"
+    dim: int
+    nodes: np.ndarray  # (N, dim)
+    weights: np.ndarray  # (N,) lumped mass = nodal quadrature weights
+    K: sp.csr_matrix  # stiffness
+    M: sp.csr_matrix  # consistent mass (FD: diag(weights))
+    mass: str  # "lumped" | "consistent"
+    h: float  # largest edge / grid spacing
+    volume: float  # |Omega|
+    box: tuple
+    quad_P: sp.csr_matrix | None = None  # Gauss quadrature: interpolation (n_q x N); None = nodal
+    quad_w: np.ndarray | None = None  # Gauss weights (n_q,)
+    grid_shape: tuple[int, ...] | None = None  # structured periodic grids: nodes in C order
+    mesh: object = None  # scikit-fem mesh (FEM), for output
+    unfold: sp.csr_matrix | None = None  # periodic FEM: maps periodic dofs to all mesh nodes
+
+    @property
+    def n_nodes(self) -> int:
+        return self.nodes.shape[0]
+
+    @property
+    def consistent(self) -> bool:
+        return self.mass == "consistent"
+
+    @cached_property
+    def laplacian(self) -> sp.csr_matrix:
+        """The lumped discrete Laplacian -M_L^{-1} K (sparse). Only for ``mass == 'lumped'``."""
+        if self.consistent:
+            raise ValueError("the consistent-mass Laplacian is dense; use apply_laplacian")
+        return sp.csr_matrix(-sp.diags(1.0 / self.weights) @ self.K)
+
+    @cached_property
+    def _mass_lu(self):
+        return spla.splu(sp.csc_matrix(self.M))
+
+    def apply_laplacian(self, phi: np.ndarray) -> np.ndarray:
+        """Delta_h phi of Definition 2.2 (numpy evaluation)."""
+        if self.consistent:
+            return -self._mass_lu.solve(self.K @ phi)
+        return self.laplacian @ phi
+
+    def apply_laplacian_transpose(self, v: np.ndarray) -> np.ndarray:
+        """(Delta_h)^T v, used by the adjoint (gradient) of the energy."""
+        if self.consistent:
+            return -(self.K @ self._mass_lu.solve(v))  # M, K symmetric
+        return -(self.K @ (v / self.weights))
+
+    def solve_mass(self, v: np.ndarray) -> np.ndarray:
+        """M^{-1} v with the mass of this discretisation (lumped: diagonal)."""
+        return self._mass_lu.solve(v) if self.consistent else v / self.weights
+
+    # quadrature of nodal nonlinear terms
+    @property
+    def gauss(self) -> bool:
+        return self.quad_P is not None
+
+    def at_quad(self, v: np.ndarray) -> np.ndarray:
+        return self.quad_P @ v if self.gauss else v
+
+    def integrate(self, values_at_quad: np.ndarray) -> float:
+        w = self.quad_w if self.gauss else self.weights
+        return float(w @ values_at_quad)
+
+    def quad_transpose(self, v: np.ndarray) -> np.ndarray:
+        """P^T (W v): the adjoint of ``integrate(F(at_quad(phi)))`` with respect to phi."""
+        if self.gauss:
+            return self.quad_P.T @ (self.quad_w * v)
+        return self.weights * v
+
+    def dual_norm(self, v: np.ndarray) -> float:
+        """|v|_* = sqrt(v^T M^{-1} v): the L2 norm of the Riesz representative of a nodal-integral vector."""
+        return float(np.sqrt(max(v @ self.solve_mass(v), 0.0)))
+
+    def l2_norm(self, v: np.ndarray) -> float:
+        return float(np.sqrt(v @ (self.M @ v)))
+
+    def h1_seminorm(self, v: np.ndarray) -> float:
+        return float(np.sqrt(max(v @ (self.K @ v), 0.0)))

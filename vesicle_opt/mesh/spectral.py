@@ -1,0 +1,130 @@
+"""Periodic grids whose Laplacian is diagonal in Fourier space: pseudo-spectral and FD-by-FFT.
+
+Nodes x_j = lo + j h per direction (C order, as ``fd.grid``), weights m = prod(h) (nodal
+quadrature: the grid sum, the trapezoid rule, spectrally accurate for periodic integrands).
+The discrete Laplacian Delta_h = F^{-1} diag(sigma) F is applied by real FFTs, O(N log N):
+
+* ``spectral`` (the paper's Section 5): sigma(k) = -|k|^2, k the integer wavenumbers times 2 pi / L;
+* ``fd``: sigma(k) = -sum_i (4 / h_i^2) sin^2(k_i h_i / 2), the symbol of the (2d+1)-point stencil,
+  so this equals ``fd.grid``'s sparse Laplacian to round-off (a test checks it).
+
+Both are symmetric, so in the lumped framework of Definition 2.2 K = -m Delta_h (m constant) and
+Delta_h^T = Delta_h. :func:`grid` wraps a :class:`FourierGrid` into a
+:class:`~vesicle_opt.discretization.Discretization` whose K is a ``LinearOperator`` (never a dense
+matrix), so ``functionals.evaluate``/``gradients`` and ``kkt.kkt_residual`` work unchanged on it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft as sfft
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from vesicle_opt.mesh.base import Discretization
+
+WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
+
+
+class FourierGrid:
+    """FFT machinery of one periodic grid: Laplacian symbol, spectral derivatives."""
+
+    def __init__(self, box, n, kind: str = "spectral"):
+        if kind not in ("spectral", "fd"):
+            raise ValueError(f"unknown Fourier grid kind {kind!r}")
+        self.kind = kind
+        self.box = tuple(tuple(map(float, b)) for b in box)
+        self.shape = tuple(int(k) for k in n)
+        self.dim = len(self.shape)
+        self.lengths = np.array([b - a for a, b in self.box])
+        self.h = self.lengths / np.array(self.shape)
+        self.cell = float(np.prod(self.h))
+        self.size = int(np.prod(self.shape))
+        ks = []
+        for d, (nd, Ld) in enumerate(zip(self.shape, self.lengths)):
+            f = sfft.rfftfreq(nd, 1.0 / nd) if d == self.dim - 1 else sfft.fftfreq(nd, 1.0 / nd)
+            ks.append(2 * np.pi / Ld * f)
+        self.k = [k.reshape([-1 if i == d else 1 for i in range(self.dim)]) for d, k in enumerate(ks)]
+        sym = 0.0
+        for d, k in enumerate(self.k):
+            if kind == "spectral":
+                sym = sym - k**2
+            else:
+                sym = sym - (4 / self.h[d] ** 2) * np.sin(k * self.h[d] / 2) ** 2
+        self.symbol = np.asarray(sym, float)  # Delta_h in Fourier space (rfft layout), <= 0
+        # spectral first derivatives (Nyquist mode zeroed so they stay real and skew)
+        self._ik = []
+        for d, k in enumerate(self.k):
+            kk = k.copy()
+            nd = self.shape[d]
+            if nd % 2 == 0 and d != self.dim - 1:
+                kk[tuple(nd // 2 if i == d else 0 for i in range(self.dim))] = 0.0
+            if nd % 2 == 0 and d == self.dim - 1:
+                kk[..., -1] = 0.0
+            self._ik.append(1j * kk)
+
+    # --- transforms -----------------------------------------------------------------------
+    def fft(self, v: np.ndarray) -> np.ndarray:
+        return sfft.rfftn(v.reshape(self.shape), workers=WORKERS)
+
+    def ifft(self, vh: np.ndarray) -> np.ndarray:
+        return sfft.irfftn(vh, s=self.shape, workers=WORKERS).ravel()
+
+    def apply_symbol(self, v: np.ndarray, sym: np.ndarray) -> np.ndarray:
+        """F^{-1} diag(sym) F v for a real, even symbol (rfft layout)."""
+        return self.ifft(sym * self.fft(v))
+
+    def laplacian(self, v: np.ndarray) -> np.ndarray:
+        """Delta_h v (symmetric)."""
+        return self.apply_symbol(v, self.symbol)
+
+    def derivatives(self, v: np.ndarray) -> list[np.ndarray]:
+        """Spectral partial derivatives d_i v (the translation modes of a field v)."""
+        vh = self.fft(v)
+        return [self.ifft(ik * vh) for ik in self._ik]
+
+    def nodes(self) -> np.ndarray:
+        axes = [a + h * np.arange(k) for (a, _), h, k in zip(self.box, self.h, self.shape)]
+        return np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class FourierDiscretization(Discretization):
+    """A lumped discretisation on a periodic grid with Delta_h applied by FFT (see module doc)."""
+
+    fourier: FourierGrid | None = None
+
+    @property
+    def laplacian(self) -> spla.LinearOperator:  # type: ignore[override]
+        n = self.n_nodes
+        return spla.LinearOperator((n, n), matvec=self.fourier.laplacian, rmatvec=self.fourier.laplacian,
+                                   dtype=float)
+
+    def apply_laplacian(self, phi: np.ndarray) -> np.ndarray:
+        return self.fourier.laplacian(np.asarray(phi, float))
+
+    def apply_laplacian_transpose(self, v: np.ndarray) -> np.ndarray:
+        return self.fourier.laplacian(np.asarray(v, float))
+
+
+def fourier_grid(box, n, kind: str = "spectral") -> FourierDiscretization:
+    """The ``spectral`` (or FFT-applied ``fd``) discretisation of a periodic box."""
+    fg = FourierGrid(box, n, kind)
+    N = fg.size
+    weights = np.full(N, fg.cell)
+
+    def K(v):
+        return -fg.cell * fg.laplacian(np.ravel(v))
+
+    Kop = spla.LinearOperator((N, N), matvec=K, rmatvec=K, dtype=float)
+    return FourierDiscretization(kind=kind, dim=fg.dim, nodes=fg.nodes(), weights=weights, K=Kop,
+                                 M=sp.diags(weights, format="csr"), mass="lumped", h=float(fg.h.max()),
+                                 volume=float(np.prod(fg.lengths)), box=fg.box, grid_shape=fg.shape,
+                                 fourier=fg)
+
+
+def grid(box, n) -> FourierDiscretization:
+    """``mesh.kind = 'spectral'``: the Fourier pseudo-spectral discretisation of a periodic box."""
+    return fourier_grid(box, n, "spectral")

@@ -1,0 +1,8 @@
+"""The phase-field model on a discretisation, in one home per concept.
+
+* ``functionals``: E_h (6), A (7), B (8) and their gradients, for numpy and CasADi;
+* ``lumped``: the same with Hessian-vector products, matrix-free (lumped mass, nodal quadrature);
+* ``penalty``: the penalised energy E_M (11), exact residuals, the round-off floor, the M schedule;
+* ``problem``: (alpha, beta), starts and the scaling of the stopping test;
+* ``feasibility``: the phase-field bound beta_min(alpha) checked before any solve.
+"""

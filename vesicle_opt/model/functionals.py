@@ -1,0 +1,140 @@
+"""The discrete energy (6) and constraints (7), (8): one definition each, for numpy and CasADi.
+
+With f_c(phi) = eps Delta_h phi + (phi/eps + C)(1 - phi^2), C = sqrt(2) c0 (the paper's (12)):
+
+* (6)  E_h(phi)  = 1/(2 eps) * integral f_c^2           (``energy``; the physical energy is rigidity * E_h)
+* (7)  A(phi)    = integral phi = sum_i m_i phi_i        (``volume_functional``; exact for P1)
+* (8)  B(phi)    = eps/2 phi^T K phi + 1/(4 eps) integral (phi^2 - 1)^2   (``area_functional``)
+
+"integral" is the discretisation's quadrature of nodal nonlinear terms (nodal or Gauss). Each
+function takes an ``ops`` object: :class:`NumpyOps` evaluates, :class:`CasadiOps` builds MX
+expressions with sparse constant matrices, so the NLP and the numpy checks share these lines.
+Helpers: volume = (|Omega| + A)/2 and area = 3 sqrt(2) B / 4 (Section 3.1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from vesicle_opt.mesh.base import Discretization
+
+
+class NumpyOps:
+    def __init__(self, disc: Discretization):
+        self.disc = disc
+        self.K = disc.K
+        self.weights = disc.weights
+
+    def at_quad(self, v):
+        return self.disc.at_quad(v)
+
+    def integrate(self, values):
+        return self.disc.integrate(values)
+
+    @staticmethod
+    def dot(a, b):
+        return float(a @ b)
+
+    def matvec(self, A, v):
+        return A @ v
+
+
+class CasadiOps:
+    """Sparse constant matrices as CasADi DM inside MX graphs."""
+
+    def __init__(self, disc: Discretization):
+        self.disc = disc
+        self.K = ca.DM(disc.K.tocsc())
+        self.weights = ca.DM(disc.weights)
+        self.P = ca.DM(disc.quad_P.tocsc()) if disc.gauss else None
+        self.quad_w = ca.DM(disc.quad_w if disc.gauss else disc.weights)
+
+    def at_quad(self, v):
+        return ca.mtimes(self.P, v) if self.P is not None else v
+
+    def integrate(self, values):
+        return ca.dot(self.quad_w, values)
+
+    @staticmethod
+    def dot(a, b):
+        return ca.dot(a, b)
+
+    @staticmethod
+    def matvec(A, v):
+        return ca.mtimes(A, v)
+
+
+def curvature_residual(phi, lap, epsilon: float, C: float):
+    """f_c(phi) = eps Delta phi + (phi/eps + C)(1 - phi^2), the integrand of (3)/(6) (paper's (12))."""
+    return epsilon * lap + (phi / epsilon + C) * (1 - phi * phi)
+
+
+def energy(ops, phi, lap, epsilon: float, C: float):
+    """E_h of (6), given lap = Delta_h phi (lumped: L phi; consistent: the unknown w)."""
+    r = curvature_residual(ops.at_quad(phi), ops.at_quad(lap), epsilon, C)
+    return ops.integrate(r * r) / (2 * epsilon)
+
+
+def volume_functional(ops, phi):
+    """A of (7): integral of phi, exact for P1 (row sums of M are the lumped weights)."""
+    return ops.dot(ops.weights, phi)
+
+
+def area_functional(ops, phi, epsilon: float):
+    """B of (8): eps/2 |grad phi|^2 (exact, via K) + 1/(4 eps) integral (phi^2 - 1)^2."""
+    q = ops.at_quad(phi)
+    return epsilon / 2 * ops.dot(phi, ops.matvec(ops.K, phi)) + ops.integrate((q * q - 1) ** 2) / (4 * epsilon)
+
+
+# --- numpy evaluation with the scene's model ----------------------------------------------------
+
+
+def evaluate(disc: Discretization, phi: np.ndarray, epsilon: float, C: float) -> dict[str, float]:
+    """E_h, A, B of a nodal field (Delta_h by Definition 2.2 with the discretisation's mass)."""
+    ops = NumpyOps(disc)
+    lap = disc.apply_laplacian(phi)
+    return {"E": energy(ops, phi, lap, epsilon, C), "A": volume_functional(ops, phi),
+            "B": area_functional(ops, phi, epsilon)}
+
+
+def gradients(disc: Discretization, phi: np.ndarray, epsilon: float, C: float):
+    """Euclidean gradients (dE_h, dA, dB) with respect to the nodal values, derived by hand.
+
+    dE = 1/eps [ eps Delta_h^T P^T W r + P^T W (r s) ],  r = f_c, s = (1 - 3 phi^2 - 2 C eps phi)/eps;
+    dA = m;  dB = eps K phi + 1/eps P^T W (phi^2 - 1) phi.
+    """
+    lap = disc.apply_laplacian(phi)
+    q = disc.at_quad(phi)
+    r = curvature_residual(q, disc.at_quad(lap), epsilon, C)
+    s = (1 - 3 * q * q - 2 * C * epsilon * q) / epsilon
+    dE = disc.apply_laplacian_transpose(disc.quad_transpose(r)) + disc.quad_transpose(r * s) / epsilon
+    dA = disc.weights.copy()
+    dB = epsilon * (disc.K @ phi) + disc.quad_transpose((q * q - 1) * q) / epsilon
+    return dE, dA, dB
+
+
+def enclosed_volume(A: float, domain_volume: float) -> float:
+    """Volume of {phi > 0} implied by A (Section 3.1): (|Omega| + A)/2."""
+    return (domain_volume + A) / 2
+
+
+def surface_area(B: float) -> float:
+    """Area (3D) or length (2D) implied by B (Section 3.1): 3 sqrt(2) B / 4."""
+    return 3 * math.sqrt(2) * B / 4
+
+
+def sharp_energy_sphere(B: float, dim: int) -> float:
+    """E of (3) for the tanh profile of a circle/sphere of area 3 sqrt(2) B/4, c0 = 0, eps -> 0.
+
+    Derivation: f_c = (1 - phi^2)(C - kappa/sqrt(2)) for phi = tanh(-d/(sqrt 2 eps)), and
+    integral of (1 - phi^2)^2 across the interface is 4 sqrt(2) eps / 3, so
+    E -> (sqrt(2)/3) integral_Gamma (kappa - sqrt(2) C)^2 with kappa the sum of principal curvatures:
+    2D circle of radius R: 2 sqrt(2) pi / (3 R); 3D sphere: 16 sqrt(2) pi / 3 for every R.
+    """
+    if dim == 3:
+        return 16 * math.sqrt(2) * math.pi / 3
+    R = surface_area(B) / (2 * math.pi)
+    return 2 * math.sqrt(2) * math.pi / (3 * R)

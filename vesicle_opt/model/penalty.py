@@ -1,0 +1,71 @@
+"""The penalised energy E_{M,h} of (11), in one place, with the exact evaluation of its residuals.
+
+Section 5's convention (the rigidity multiplies the bending energy only):
+
+    E_{M,h}(phi) = rigidity E_h(phi) + M1/2 (A - alpha)^2 + M2/2 (B - beta)^2
+
+(``penalised_energy``; the paper's M1 = M2 = M). ``residuals`` evaluates (A - alpha, B - beta) with
+compensated sums, and ``roundoff_floor`` is the least stationarity residual double precision permits
+at a given M (why the penalty cannot be pushed to M -> infinity).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vesicle_opt.model import functionals as F
+
+AL_REDUCTION = 0.25  # augmented Lagrangian: increase M when a residual did not drop by this factor
+
+
+def penalised_energy(rigidity: float, E: float, res: tuple[float, float], M1: float, M2: float) -> float:
+    """E_{M,h} of (11) (rigidity times E_h plus the penalty terms; no multiplier shift)."""
+    return rigidity * E + M1 / 2 * res[0] ** 2 + M2 / 2 * res[1] ** 2
+
+
+def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) -> tuple[float, float]:
+    """(A - alpha, B - beta) evaluated with compensated sums (math.fsum).
+
+    At M = 1e8 the residuals are ~1e-8 while A, B are O(10-100): a plain sum loses ~1e-14 to
+    cancellation, i.e. 1e-6 in M (A - alpha). fsum of the nodal terms brings this to ~1e-16.
+    """
+    q = disc.at_quad(phi)
+    w = disc.quad_w if disc.gauss else disc.weights
+    A = math.fsum(np.concatenate([disc.weights * phi, [-alpha]]))
+    grad = epsilon / 2 * phi * (disc.K @ phi)
+    well = w * (q * q - 1) ** 2 / (4 * epsilon)
+    B = math.fsum(np.concatenate([grad, well, [-beta]]))
+    return A, B
+
+
+def roundoff_floor(disc, phi, epsilon: float, C: float, rigidity: float, lam: tuple[float, float],
+                   M: tuple[float, float]) -> float:
+    """Least relative stationarity residual (kkt.py) that double precision permits at penalty M.
+
+    The estimates lambda = mu - M (A - alpha) inherit the evaluation error of A and B inside the
+    NLP (CasADi sums N nodal terms in order: error ~ sqrt(N) u_mach sum|terms|), multiplied by M:
+    the floor is sqrt(N) M u (S_A |dA|_* + S_B |dB|_*) / (|rig dE|_* + |lambda_A dA|_* + |lambda_B dB|_*),
+    S_A = sum |m_i phi_i|, S_B = B. (Measured on ellipse-2d 32^2 - 128^2, M = 1e4 ... 1e10: the
+    residuals sit at 0.05 - 2x of it.) It is why the penalty cannot be pushed to M -> inf: a stage
+    whose floor reaches tol cannot be certified and is reported as not converged, with this reason.
+    """
+    dE, dA, dB = F.gradients(disc, phi, epsilon, C)
+    u = np.finfo(float).eps
+    S_A = float(np.sum(np.abs(disc.weights * phi)))
+    S_B = float(F.area_functional(F.NumpyOps(disc), phi, epsilon))
+    scale = (disc.dual_norm(rigidity * dE) + abs(lam[0]) * disc.dual_norm(dA)
+             + abs(lam[1]) * disc.dual_norm(dB))
+    num = np.sqrt(phi.size) * u * (M[0] * S_A * disc.dual_norm(dA) + M[1] * S_B * disc.dual_norm(dB))
+    return float(num / max(scale, np.finfo(float).tiny))
+
+
+def schedule(M0: float, factor: float, M_max: float) -> list[float]:
+    """M0, M0 r, M0 r^2, ... while <= M_max, with M_max itself appended as the last stage."""
+    Ms = [float(M0)]
+    while Ms[-1] * factor < M_max * (1 - 1e-12):
+        Ms.append(Ms[-1] * factor)
+    if Ms[-1] < M_max:
+        Ms.append(float(M_max))
+    return Ms

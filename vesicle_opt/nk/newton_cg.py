@@ -1,0 +1,163 @@
+"""Inexact Newton-CG with a backtracking line search for the augmented Lagrangian / penalty function
+
+    f(phi) = rigidity E_h(phi) - lam . c(phi) + 1/2 sum_i rho_i c_i(phi)^2,   c = (A - alpha, B - beta).
+
+lam = 0, rho = (M, M) is the paper's penalised energy (11) (rigidity on E only, M on the constraint
+terms); otherwise it is the augmented Lagrangian of the exact-constraint problem. With
+mu = lam - rho c, grad f = rig dE - mu_A dA - mu_B dB and
+
+    Hess f = rig H_E - mu_B H_B + rho_A dA dA^T + rho_B dB dB^T        (A is linear: H_A = 0).
+
+Steps come from ``krylov.projected_pcg`` with the Fourier/sparse model of ``precond`` (cE = rig,
+cB = -mu_B, rho_A), forcing term eta = min(ETA_MAX, sqrt(rel)) (Eisenstat-Walker, superlinear), and
+translation modes projected out on periodic boxes. Stationarity is measured in the dual norm of the
+fixed model P0 (``precond.dual_norm``), relative to rig |dE|_* + |mu_A| |dA|_* + |mu_B| |dB|_*.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vesicle_opt.nk.krylov import SubspacePreconditioner, projected_pcg
+
+ARMIJO = 1e-4  # sufficient-decrease constant (the usual textbook value)
+ETA_MAX = 0.01  # CG relative tolerance cap of every Newton step (the forcing term above)
+STEP_CAP = 1.0  # no Newton step changes a nodal value by more than 1 (phi lives in [-1, 1])
+STALL = 1e-13  # an accepted step this small relative to |phi| changes phi only at round-off level
+ROUNDOFF_REL = 1e-6  # below this relative stationarity f's decrease is under round-off: accept a full
+# step when it reduces the dual gradient norm instead of testing Armijo
+
+
+@dataclass
+class Counters:
+    newton: int = 0
+    cg: int = 0
+    evaluations: int = 0
+    hvp: int = 0
+    deriv_time: float = 0.0
+    history: dict = field(default_factory=lambda: {"f": [], "dual_rel": [], "cg": [], "step": [],
+                                                   "cg_status": []})
+
+
+@dataclass
+class Point:
+    phi: np.ndarray
+    st: object
+    f: float
+    c: np.ndarray
+    dE: np.ndarray
+    dA: np.ndarray
+    dB: np.ndarray
+    mu: np.ndarray
+    g: np.ndarray
+    rel: float  # relative dual norm of g
+
+
+class Objective:
+    def __init__(self, pf, prec, translations, rig: float, alpha: float, beta: float,
+                 lam, rho, counters: Counters):
+        self.pf, self.prec, self.translations = pf, prec, translations
+        self.rig, self.target = float(rig), np.array([alpha, beta], float)
+        self.lam, self.rho = np.asarray(lam, float), np.asarray(rho, float)
+        self.cnt = counters
+
+    def value(self, phi) -> tuple[float, object]:
+        st = self.pf.state(phi)
+        c = np.array([st.A, st.B]) - self.target
+        return self.rig * st.E - self.lam @ c + 0.5 * float(self.rho @ (c * c)), st
+
+    def point(self, phi, f=None, st=None) -> Point:
+        t0 = time.perf_counter()
+        if st is None:
+            f, st = self.value(phi)
+        self.cnt.evaluations += 1
+        c = np.array([st.A, st.B]) - self.target
+        dE, dA, dB = self.pf.gradients(st)
+        mu = self.lam - self.rho * c
+        g = self.rig * dE - mu[0] * dA - mu[1] * dB
+        dn = self.prec.dual_norm
+        scale = self.rig * dn(dE) + abs(mu[0]) * dn(dA) + abs(mu[1]) * dn(dB)
+        self.cnt.deriv_time += time.perf_counter() - t0
+        return Point(phi, st, f, c, dE, dA, dB, mu, g, dn(g) / max(scale, np.finfo(float).tiny))
+
+    def hvp(self, pt: Point):
+        parts = self.pf.hessian_parts(pt.st)
+        rig, cB = self.rig, -pt.mu[1]
+        rA, rB = self.rho
+        dA, dB = pt.dA, pt.dB
+
+        def H(v):
+            t0 = time.perf_counter()
+            out = self.pf.hvp(pt.st, parts, v, rig, cB)
+            if rA:
+                out += rA * float(dA @ v) * dA
+            if rB:
+                out += rB * float(dB @ v) * dB
+            self.cnt.hvp += 1
+            self.cnt.deriv_time += time.perf_counter() - t0
+            return out
+        return H
+
+    def preconditioner(self, pt: Point) -> SubspacePreconditioner:
+        pinv = self.prec.inverse(self.rig, -pt.mu[1], self.rho[0])
+        T = self.translations(pt.phi)
+        C = None if T is None else self.pf.m[:, None] * T
+        return SubspacePreconditioner(pinv, C)
+
+
+def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, max_cg: int = 200):
+    """Minimise obj from phi until the relative dual stationarity <= tol. Returns (Point, status)."""
+    cnt = obj.cnt
+    pt = obj.point(phi)
+    for _ in range(max_iter):
+        if not np.isfinite(pt.f) or not np.isfinite(pt.rel):
+            return pt, "non_finite"
+        if pt.rel <= tol:
+            return pt, "converged"
+        eta = min(ETA_MAX, np.sqrt(pt.rel))
+        prec = obj.preconditioner(pt)
+        cg = projected_pcg(obj.hvp(pt), -pt.g, prec, eta, max_cg)
+        cnt.cg += cg.iterations
+        p = cg.x
+        slope = float(pt.g @ p)
+        if not slope < 0:  # cannot happen in exact arithmetic; fall back to the model gradient
+            p = prec(-pt.g)
+            slope = float(pt.g @ p)
+            if not slope < 0:
+                return pt, "no_descent_direction"
+        t = min(1.0, STEP_CAP / max(float(np.max(np.abs(p))), np.finfo(float).tiny))
+        accepted = None
+        for _ls in range(40):
+            f_new, st_new = obj.value(pt.phi + t * p)
+            if np.isfinite(f_new) and f_new <= pt.f + ARMIJO * t * slope:
+                accepted = obj.point(pt.phi + t * p, f_new, st_new)
+                break
+            if pt.rel < ROUNDOFF_REL and t == 1.0 and np.isfinite(f_new):
+                trial = obj.point(pt.phi + p, f_new, st_new)
+                if trial.rel < pt.rel:
+                    accepted = trial
+                    break
+            t *= 0.5
+        cnt.newton += 1
+        h = cnt.history
+        h["f"].append(pt.f)
+        h["dual_rel"].append(pt.rel)
+        h["cg"].append(cg.iterations)
+        h["cg_status"].append(cg.status)
+        h["step"].append(t if accepted is not None else 0.0)
+        if accepted is None:
+            return pt, "line_search_failed"
+        if t * float(np.max(np.abs(p))) <= STALL * max(1.0, float(np.max(np.abs(pt.phi)))):
+            return accepted, "stalled"  # steps below round-off of phi: no further progress possible
+        pt = accepted
+    return pt, "converged" if pt.rel <= tol else "max_iter"
+
+
+def hessian_solve(obj: Objective, pt: Point, b: np.ndarray, eta: float, max_cg: int = 200):
+    """H^{-1} b on the translation-free subspace (for the multipliers' Newton update)."""
+    cg = projected_pcg(obj.hvp(pt), b, obj.preconditioner(pt), eta, max_cg)
+    obj.cnt.cg += cg.iterations
+    return cg

@@ -1,0 +1,73 @@
+"""Setting up the matrix-free backend on a discretisation: operators, preconditioner, symmetries,
+and the grids of nested iteration.
+
+``prepare`` gives (disc, PhaseField, preconditioner, translations); FD grids are moved to FFT
+(``mesh.spectral.fourier_grid``, equal to the sparse FD operator to round-off). Translations d_i phi
+are null modes only where the discrete problem is translation invariant (grid shifts of Fourier
+grids). ``coarse_levels`` and ``resample`` serve nested iteration on Fourier grids.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import resample as fourier_resample
+
+from vesicle_opt.mesh import discretize
+from vesicle_opt.mesh.spectral import fourier_grid
+from vesicle_opt.model.lumped import LumpedOperators, PhaseField
+from vesicle_opt.nk.precond import FourierPreconditioner, SparsePreconditioner
+
+
+def on_fourier_grid(disc):
+    """The discretisation with Delta_h applied by FFT where it is a periodic grid (FD -> FFT-FD)."""
+    if disc.kind == "fd" and getattr(disc, "fourier", None) is None:
+        return fourier_grid(disc.box, disc.grid_shape, "fd")  # equal to the sparse FD to round-off
+    return disc
+
+
+def prepare(scene, disc=None):
+    """(disc, PhaseField, preconditioner, translations) for a scene; FD grids go to FFT."""
+    disc = on_fourier_grid(disc or discretize(scene))
+    ops = LumpedOperators(disc)
+    pf = PhaseField(ops, scene.model.epsilon, scene.model.C)
+    fourier = getattr(disc, "fourier", None)
+    if fourier is not None:
+        prec = FourierPreconditioner(fourier, disc.weights[0], scene.model.epsilon)
+    else:
+        prec = SparsePreconditioner(disc.K, disc.weights, scene.model.epsilon, disc.dim)
+    # translations are null modes only where the discrete problem is translation invariant (grid
+    # shifts of Fourier grids); a tetrahedral mesh breaks the symmetry, so its gradient has parts
+    # along d_i phi that a projection would freeze (measured: a stall at kkt_dual 3e-6)
+    deriv = fourier
+
+    def translations(phi):
+        if deriv is None:
+            return None
+        return np.column_stack(deriv.derivatives(phi))
+
+    return disc, pf, prec, translations
+
+
+def coarse_levels(disc, epsilon: float, min_n: int = 16) -> list[tuple[int, ...]]:
+    """Grid shapes of the nested-iteration start, coarse to fine, excluding disc's own.
+
+    Halve n while every side stays even and >= min_n and the coarse spacing still resolves
+    the interface (h <= eps); only on Fourier grids (spectral or FD), where the Fourier interpolant
+    carries a coarse solution to the fine grid.
+    """
+    if getattr(disc, "fourier", None) is None:
+        return []
+    shapes, n = [], tuple(disc.grid_shape)
+    lengths = disc.fourier.lengths
+    while all(k % 2 == 0 and k // 2 >= min_n for k in n) and max(lengths / (np.array(n) // 2)) <= epsilon:
+        n = tuple(k // 2 for k in n)
+        shapes.append(n)
+    return shapes[::-1]
+
+
+def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
+    """The trigonometric interpolant of a periodic grid field on another grid (same box)."""
+    v = phi.reshape(shape_from)
+    for axis, n in enumerate(shape_to):
+        v = fourier_resample(v, n, axis=axis)
+    return np.ascontiguousarray(v).ravel()

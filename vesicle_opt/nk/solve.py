@@ -1,0 +1,287 @@
+"""The matrix-free Newton-Krylov backend (``solver.backend = 'newton-krylov'``).
+
+Methods (``solver.method``):
+
+* ``exact``: an augmented Lagrangian around ``newton.newton_minimize``. After each inner solve the
+  multipliers take a Newton step on the dual function, lam <- lam - W^{-1} c with
+  W = G^T H_rho^{-1} G (G = [dA, dB], two extra CG solves), which is the Newton-KKT step in the
+  multipliers (and lam - rho c, the classical update, when rho is large); rho grows 10x when |c|
+  falls by less than 4x. Stops when the constraints hold to 0.1 tol (|A-alpha| <= tol |Omega|,
+  |B-beta| <= tol beta is the IPOPT backend's test) and the relative dual KKT residual <= tol.
+* ``penalty``: the same inner solver with lam = 0, rho = (M, M) fixed: the paper's E_{M,h} (11) with
+  rigidity on E only. The multipliers are the penalty's, lam = -M c (exact at its stationary point).
+* ``continuation``: penalty solves at M_k = M0 r^k up to M_max (``solver.M0``, ``M_factor``,
+  ``M_max``: the schedule of the IPOPT path, ``model.penalty.schedule``), each warm-started from
+  the last; the result is the last stage's, every stage in ``history['stages']``.
+* ``augmented``: the first-order augmented Lagrangian of the IPOPT path: stage k minimises
+  E_{M,h} - mu_k . c, mu_{k+1} = mu_k - M c, M grows by ``M_factor`` (to ``M_max``) when a residual
+  fails to drop by 4, at most ``solver.max_outer`` stages; certified with the exact constraints.
+
+Translations d_i phi are projected out of every step on Fourier grids (exact null modes of the
+spectral problem up to aliasing). On coarse grids (h ~ eps) several KKT points are close: from the
+symmetric torus start both backends end at the axisymmetric one; so does the P1 tensor mesh (whose
+lumped operator equals FD) with a preconditioner that keeps the mesh symmetries, while three plain
+pyamg V-cycles, which break them at ~3e-5, led to a lower, slightly non-axisymmetric one (330.02 vs
+330.53 at 16^3, 406.41 vs 407.21 at 24^3; see ``precond``). Neither backend certifies a minimiser;
+``verify.lobpcg.reduced_hessian_eigenvalues`` checks one.
+
+Nested iteration (``NewtonKrylovOptions.nested``, the default on Fourier grids): coarser grids first, each
+level started from the trigonometric interpolant of the last; see ``coarse_levels``.
+
+Reported multipliers of ``exact`` are the least-squares ones of the final phi in the dual metric
+(independent of the iteration), with rigidity * grad E_h = lam_A grad A + lam_B grad B. The result
+records both the dual-norm KKT residual (``extra['kkt_dual']``, the stopping test) and the L2 one
+recomputed by ``verify.certify.build_result`` (``kkt_residual``), which has a round-off floor
+~ eps_mach k_max^4 on Fourier grids (``l2_floor``, ``extra['kkt_floor']``): ``converged`` is the
+one certificate of every backend (the dual test as the solver's success, the constraints for
+exact and augmented, the L2 residual, and the floor below tol).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from vesicle_opt.mesh import discretize
+from vesicle_opt.mesh.spectral import fourier_grid
+from vesicle_opt.model.feasibility import check_feasible
+from vesicle_opt.model.penalty import AL_REDUCTION, schedule
+from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.nk.newton_cg import Counters, Objective, hessian_solve, newton_minimize
+from vesicle_opt.nk.options import NewtonKrylovOptions
+from vesicle_opt.nk.setup import coarse_levels, on_fourier_grid, prepare, resample
+from vesicle_opt.result import Result, combine_stages
+from vesicle_opt.scene.shapes import phase_field
+from vesicle_opt.verify.certify import build_result
+
+
+def _least_squares_multipliers(prec, rig, dE, dA, dB) -> np.ndarray:
+    """argmin_lam |rig dE - lam_A dA - lam_B dB|_* in the dual metric of the model P0."""
+    pinv = prec.inverse(1.0)
+    G = [dA, dB]
+    PG = [pinv(v) for v in G]
+    N = np.array([[G[i] @ PG[j] for j in range(2)] for i in range(2)])
+    rhs = np.array([rig * (dE @ PG[i]) for i in range(2)])
+    return np.linalg.solve(N, rhs)
+
+
+def _dual_kkt(prec, rig, dE, dA, dB, lam) -> float:
+    dn = prec.dual_norm
+    res = rig * dE - lam[0] * dA - lam[1] * dB
+    scale = rig * dn(dE) + abs(lam[0]) * dn(dA) + abs(lam[1]) * dn(dB)
+    return dn(res) / max(scale, np.finfo(float).tiny)
+
+
+def _l2_floor(disc, rig, dE, eps) -> float:
+    """Round-off floor of the relative L2 KKT residual: eps_mach * |symbol|_max^2 * eps scale of dE.
+
+    dE contains eps Delta_h^T (m eps Delta_h phi)/eps; round-off in phi (eps_mach) is amplified by
+    the largest |symbol|^2, so |delta dE|_L2 ~ eps_mach eps sigma_max^2 |Omega|^{1/2}.
+    """
+    fourier = getattr(disc, "fourier", None)
+    if fourier is None:
+        return 0.0
+    smax = float(np.max(-fourier.symbol))
+    dn = math.sqrt(max(dE @ (dE / disc.weights), np.finfo(float).tiny))
+    return np.finfo(float).eps * eps * smax**2 * math.sqrt(disc.volume) / dn
+
+
+def _dual_hessian(obj: Objective, pt, w_tol: float) -> np.ndarray | None:
+    """W = G^T H_rho^{-1} G (2 x 2) by two CG solves; None when CG meets negative curvature."""
+    sols = [hessian_solve(obj, pt, g, w_tol) for g in (pt.dA, pt.dB)]
+    if not all(s.status == "converged" for s in sols):
+        return None
+    W = np.array([[pt.dA @ sols[j].x, pt.dB @ sols[j].x] for j in range(2)])
+    return 0.5 * (W + W.T)
+
+
+def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta, log, dual_model=None):
+    """Augmented Lagrangian with dual Newton steps. dual_model = (W, rho) of a coarser level: with
+    the same rho, W = dc/dlam is a mesh-independent quantity, so it carries over to discretisation
+    accuracy and the finer level needs no W solves unless its |c| stops falling."""
+    prec, rig = obj.prec, obj.rig
+    pt = obj.point(pt0_phi)
+    obj.lam = _least_squares_multipliers(prec, rig, pt.dE, pt.dA, pt.dB)
+    W = None
+    if dual_model is not None:
+        W, obj.rho = dual_model
+    else:
+        pinv = prec.inverse(rig)
+        obj.rho = np.array([opts.rho_hat / float(g @ pinv(g)) for g in (pt.dA, pt.dB)])
+    cscale = np.array([volume, abs(beta)])
+    prev_c = np.inf
+    status = "max_iter"
+    for outer in range(1, opts.max_outer + 1):
+        crel = float(np.max(np.abs(pt.c) / cscale))
+        inner_tol = max(0.1 * tol, min(1e-3, crel))
+        budget = opts.max_iter - obj.cnt.newton
+        pt, inner = newton_minimize(obj, pt.phi, inner_tol, budget, opts.max_cg)
+        crel = float(np.max(np.abs(pt.c) / cscale))
+        lam_ls = _least_squares_multipliers(prec, rig, pt.dE, pt.dA, pt.dB)
+        dual = _dual_kkt(prec, rig, pt.dE, pt.dA, pt.dB, lam_ls)
+        log.append({"outer": outer, "inner": inner, "newton": obj.cnt.newton, "c_rel": crel,
+                    "dual": dual, "rho": obj.rho.tolist(), "lam": lam_ls.tolist()})
+        if inner not in ("converged", "max_iter"):
+            status = f"inner_{inner}"
+            break
+        if crel <= opts.constraint_margin * tol and dual <= tol:
+            status = "converged"
+            break
+        if obj.cnt.newton >= opts.max_iter:
+            break
+        # Newton step on the dual: lam <- lam - W^{-1} c, W = G^T H_rho^{-1} G; a reused W is
+        # refreshed when |c| fell by less than w_refresh over the last outer iteration
+        if W is None or crel > opts.w_refresh * prev_c:
+            W = _dual_hessian(obj, pt, opts.w_tol)
+        try:
+            obj.lam = obj.lam - np.linalg.solve(W, pt.c)
+        except (np.linalg.LinAlgError, ValueError):
+            W = None
+            obj.lam = obj.lam - obj.rho * pt.c
+        if crel > 0.25 * prev_c:
+            obj.rho = obj.rho * 10.0
+        prev_c = crel
+    return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy()))
+
+
+@dataclass
+class Stage:
+    """One inner solve of a level: its point, status, multiplier data and dual test."""
+
+    pt: object
+    status: str
+    M: tuple[float, float] | None  # None for 'exact'
+    mu: tuple[float, float]
+    lam: np.ndarray  # lambda of 'exact' (least squares); mu - M c otherwise
+    dual: float
+    newton: int
+    wall_s: float
+
+
+def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> list[Stage]:
+    """penalty (one M), continuation (the schedule M0 ... M_max) or augmented (mu updates)."""
+    stages: list[Stage] = []
+    if method == "augmented":
+        M, mu, prev = float(s.M), np.zeros(2), (math.inf, math.inf)
+        plan = range(s.max_outer)
+    else:
+        plan = [s.M] if method == "penalty" else schedule(s.M0, s.M_factor, s.M_max)
+    for item in plan:
+        if method != "augmented":
+            M, mu = float(item), np.zeros(2)
+        obj.lam, obj.rho = mu.copy(), np.array([M, M], float)
+        t0, n0 = time.perf_counter(), obj.cnt.newton
+        pt, status = newton_minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg)
+        stages.append(Stage(pt, status, (M, M), tuple(mu), mu - M * pt.c, pt.rel, obj.cnt.newton - n0,
+                            time.perf_counter() - t0))
+        phi = pt.phi
+        if status != "converged":
+            break
+        if method == "augmented":
+            res = (abs(pt.c[0]) / volume, abs(pt.c[1]) / abs(beta))
+            if res[0] <= tol and res[1] <= tol:
+                break
+            mu = mu - M * pt.c  # the first-order multiplier update
+            if any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
+                M = min(M * s.M_factor, s.M_max)
+            prev = res
+    return stages
+
+
+def _run_level(scene, disc, phi, cnt, log, tol, opts, check, W=None):
+    disc, pf, prec, translations = prepare(scene, disc)
+    alpha, beta = constraint_data(scene, disc)
+    if check:
+        check_feasible(alpha, beta, scene, disc)
+    method = scene.solver.method
+    obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt)
+    if method == "exact":
+        t0, n0 = time.perf_counter(), cnt.newton
+        pt, status, lam, dual, W = _exact(obj, phi, tol, opts, disc.volume, beta, log, W)
+        stages = [Stage(pt, status, None, (0.0, 0.0), lam, dual, cnt.newton - n0, time.perf_counter() - t0)]
+    else:
+        stages = _penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta)
+    return disc, stages, alpha, beta, W
+
+
+def l2_floor(disc, rig, dE, eps) -> float:
+    """Round-off floor of the relative L2 KKT residual on Fourier grids: eps_mach * |symbol|_max^2 *
+    eps scale of dE. dE contains eps Delta_h^T (m eps Delta_h phi)/eps; round-off in phi (eps_mach)
+    is amplified by the largest |symbol|^2, so |delta dE|_L2 ~ eps_mach eps sigma_max^2 |Omega|^{1/2}."""
+    fourier = getattr(disc, "fourier", None)
+    if fourier is None:
+        return 0.0
+    smax = float(np.max(-fourier.symbol))
+    dn = math.sqrt(max(dE @ (dE / disc.weights), np.finfo(float).tiny))
+    return np.finfo(float).eps * eps * smax**2 * math.sqrt(disc.volume) / dn
+
+
+def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
+          check: bool = True) -> Result:
+    """Solve a scene with the Newton-Krylov backend; the same certified Result as the IPOPT path.
+
+    ``x0``: a start phi (nodal values) instead of the scene's initial shape. With
+    ``options.nested`` and no ``x0``, Fourier grids are first solved on the ``coarse_levels`` (to
+    ``coarse_tol``) from the same initial shape, each finer level started from the Fourier
+    interpolant (the reported wall time and counts include the coarse levels).
+    """
+    opts = options or NewtonKrylovOptions.from_scene(scene)
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    disc = on_fourier_grid(disc or discretize(scene))
+    rig, eps, tol = scene.model.rigidity, scene.model.epsilon, opts.tol
+    levels = coarse_levels(disc, eps, opts.coarse_min_n) if (opts.nested and x0 is None) else []
+    cnt = Counters()
+    log: list = []
+    level_log = []
+    phi = W = prev_shape = None
+    for shape in levels:
+        cdisc = fourier_grid(disc.box, shape, disc.kind)
+        start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \
+            resample(phi, prev_shape, shape)
+        n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
+        _, cstages, *_, W = _run_level(scene, cdisc, start, cnt, log, max(tol, opts.coarse_tol), opts,
+                                       check=False, W=W)
+        level_log.append({"n": list(shape), "status": cstages[-1].status, "newton": cnt.newton - n0,
+                          "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
+        phi, prev_shape = cstages[-1].pt.phi, shape
+    if phi is None:
+        phi = phase_field(scene.initial, disc.nodes, disc.box, eps) if x0 is None else np.array(x0, float)
+    else:
+        phi = resample(phi, prev_shape, disc.grid_shape)
+    n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
+    disc, stages, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol, opts, check, W)
+    level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": stages[-1].status,
+                      "newton": cnt.newton - n0, "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
+    wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
+    method = scene.solver.method
+
+    def pack(st: Stage, wall_s: float, iterations: int, history=None, extra=None) -> Result:
+        penalty = st.M is not None
+        return build_result(
+            scene=scene, disc=disc, alpha=alpha, beta=beta, phi=st.pt.phi, tol=tol,
+            solver_status=st.status, solver_success=st.status == "converged", method=method,
+            lam=None if penalty else tuple(st.lam), M=st.M, mu=st.mu,
+            exact_constraints=method in ("exact", "augmented"), floor=l2_floor(disc, rig, st.pt.dE, eps),
+            iterations=iterations, wall_time_s=wall_s, derivative_time_s=cnt.deriv_time,
+            history=history, extra={"backend": "newton-krylov", "mesh_kind": disc.kind,
+                                    "kkt_dual": float(st.dual), **(extra or {})})
+
+    hist = dict(cnt.history)
+    hist["outer"] = log
+    hist["levels"] = level_log
+    last = pack(stages[-1], wall, cnt.newton, hist, {
+        "kkt_l2_floor": l2_floor(disc, rig, stages[-1].pt.dE, eps), "cpu_time_s": cpu,
+        "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
+        "outer_iterations": len(log) if method == "exact" else len(stages),
+        "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
+        "fine_newton_iterations": level_log[-1]["newton"]})
+    if method in ("continuation", "augmented"):
+        records = [pack(st, st.wall_s, st.newton) for st in stages[:-1]] + [last]
+        last = combine_stages(last, records, method, wall)
+        last = dataclasses.replace(last, iterations=cnt.newton, derivative_time_s=cnt.deriv_time,
+                                   other_time_s=wall - cnt.deriv_time)
+    return last

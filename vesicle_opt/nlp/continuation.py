@@ -1,0 +1,127 @@
+"""Penalty continuation M_k = M0 r^k -> M_max and the augmented-Lagrangian variant, on ONE solver.
+
+Both drive the lifted penalty NLP of ``penalty.py`` (E_{M,h} of (11), M a CasADi parameter), so
+the IPOPT solver is built once and every stage is warm-started from the previous one: primal x,
+lam_g, lam_x, and IPOPT's ``warm_start_init_point`` (options in ``WARM_OPTIONS``).
+
+* ``continuation`` (Theorem 3.2, 3.4): penalty stages at M0, M0 r, ..., M_max; the penalty's
+  bias is O(1/M): A - alpha ~ -lambda_A / M.
+* ``augmented_lagrangian``: the natural fix of that bias. Stage k minimises E_{M,h} - mu_k (A - alpha, B - beta)
+  and updates mu_{k+1} = mu_k - M (A - alpha, B - beta) (first-order multiplier update, in the
+  exact solve's convention); M grows by r only when a residual fails to drop by 4. Stops when the
+  exact solve's feasibility test holds, so its ``converged`` means what the exact solve's does.
+
+Every stage is recorded in ``result.history['stages']`` (M, energies, residuals, multiplier
+estimates, iterations, wall time, status); ``stage_callback(k, result)`` sees each one as it ends.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from vesicle_opt.model.penalty import AL_REDUCTION, schedule
+from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
+from vesicle_opt.nlp.lifted import PenaltyNLP
+from vesicle_opt.nlp.solve import solve_stage
+from vesicle_opt.result import Result, combine_stages
+
+WARM_OPTIONS = (("ipopt.warm_start_init_point", "yes"), ("ipopt.warm_start_bound_push", 1e-9),
+                ("ipopt.warm_start_mult_bound_push", 1e-9), ("ipopt.mu_init", 1e-6))
+# The NLP is scaled by design (nlp.py; IpoptOptions sets this for every solve, repeated here as the
+# penalty's own reason): IPOPT's gradient-based rescaling of f would loosen the
+# dual tolerance by the large u-gradient at a warm start with a 10x larger M (measured on 64^2:
+# stationarity 5e-6 instead of 6e-8 at M = 1e6, and cold solves at M >= 1e8 ending off the minimiser).
+# The lifted rows A - a, B - b must hold far below the penalty bias ~1/M, or M (A - alpha) is off
+# by M |A - a|: with constr_viol_tol = tol IPOPT stopped at |B - b|/beta = 4e-12 on 128^2, i.e. an
+# error 4e-5 in lambda_B at M = 1e6 and 1e-3 at 1e8. The rows are O(1)-scaled, so 1e-14 is a few
+# ulps above their evaluation round-off (measured lift gaps 1e-16 ... 6e-15 on FD, P1 lumped,
+# consistent and Gauss, M = 1e1 ... 1e8), reached by one extra Newton step on these rows.
+PENALTY_OPTIONS = (("ipopt.nlp_scaling_method", "none"), ("ipopt.constr_viol_tol", 1e-14))
+
+
+def penalty_options(nlp: PenaltyNLP, options: IpoptOptions | None = None, warm: bool = False) -> IpoptOptions:
+    """The scene's IPOPT options plus PENALTY_OPTIONS (and WARM_OPTIONS); user extras win."""
+    s = nlp.scene.solver
+    options = options or IpoptOptions(tol=s.tol, max_iter=s.max_iter)
+    extra = PENALTY_OPTIONS + (WARM_OPTIONS if warm else ()) + tuple(options.extra)
+    return dataclasses.replace(options, extra=extra)
+
+
+def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: IpoptOptions | None = None,
+                 warm: bool = True, x0=None, solver=None, stage_callback=None) -> Result:
+    """Penalty stages at increasing M on one solver; the result is the last stage's (see module doc).
+
+    warm=False restarts every stage from the initial guess (for measuring what warm starts buy).
+    """
+    s = nlp.scene.solver
+    Ms = Ms or schedule(s.M0, s.M_factor, s.M_max)
+    options = penalty_options(nlp, options, warm)
+    solver = solver or make_solver(nlp, options)
+    x, lam_x, lam_g = (nlp.x0 if x0 is None else x0), None, None
+    stages: list[Result] = []
+    t0 = time.perf_counter()
+    for k, M in enumerate(Ms):
+        p = nlp.parameters(M)
+        if not warm:
+            x, lam_x, lam_g = nlp.x0, None, None
+        r = solve_stage(nlp, solver, p, x0=x, lam_x0=lam_x, lam_g0=lam_g, tol=options.tol,
+                        method="continuation")
+        stages.append(r)
+        if stage_callback is not None:
+            stage_callback(k, r)
+        if np.all(np.isfinite(r.x)):
+            x, lam_x, lam_g = r.x, r.lam_x, r.lam_g
+    failed = [i for i, r in enumerate(stages) if not r.success]
+    return combine_stages(stages[-1], stages, "continuation", time.perf_counter() - t0,
+                   {"failed_stages": len(failed)})
+
+
+def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: IpoptOptions | None = None,
+                         max_outer: int | None = None, x0=None, solver=None, stage_callback=None) -> Result:
+    """Multiplier updates mu <- mu - M (A - alpha, B - beta) between warm-started stages. Every stage is
+    certified with the exact constraints (the method's promise), so the first converged stage ends it."""
+    s = nlp.scene.solver
+    M = float(M or s.M)
+    max_outer = max_outer or s.max_outer
+    options = penalty_options(nlp, options, True)
+    solver = solver or make_solver(nlp, options)
+    tol, vol, beta = options.tol, nlp.disc.volume, abs(nlp.beta)
+    mu = (0.0, 0.0)
+    x, lam_x, lam_g = (nlp.x0 if x0 is None else x0), None, None
+    prev = (math.inf, math.inf)
+    stages: list[Result] = []
+    t0 = time.perf_counter()
+    for k in range(max_outer):
+        r = solve_stage(nlp, solver, nlp.parameters(M, mu=mu), x0=x, lam_x0=lam_x, lam_g0=lam_g,
+                        tol=tol, method="augmented", exact_constraints=True)
+        stages.append(r)
+        if stage_callback is not None:
+            stage_callback(k, r)
+        if r.converged or not np.all(np.isfinite(r.x)):
+            break
+        x, lam_x, lam_g = r.x, r.lam_x, r.lam_g
+        res = (abs(r.volume_residual) / vol, abs(r.area_residual) / beta)
+        mu = (r.lambda_volume, r.lambda_area)  # = mu - M (A - alpha): the first-order update
+        if any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
+            M = min(M * s.M_factor, s.M_max)
+        prev = res
+    last = stages[-1]
+    return combine_stages(last, stages, "augmented", time.perf_counter() - t0,
+                   {"mu_volume": last.extra["mu_volume"], "mu_area": last.extra["mu_area"]})
+
+
+def solve_penalised(nlp: PenaltyNLP, *, x0=None, lam_x0=None, lam_g0=None, solver=None,
+                    options: IpoptOptions | None = None) -> Result:
+    """The methods penalty (one solve at solver.M), continuation and augmented on IPOPT."""
+    s = nlp.scene.solver
+    if s.method == "continuation":
+        return continuation(nlp, options=options, x0=x0, solver=solver)
+    if s.method == "augmented":
+        return augmented_lagrangian(nlp, options=options, x0=x0, solver=solver)
+    options = penalty_options(nlp, options)
+    solver = solver or make_solver(nlp, options)
+    return solve_stage(nlp, solver, nlp.parameters(s.M), x0=x0, lam_x0=lam_x0, lam_g0=lam_g0, tol=options.tol)

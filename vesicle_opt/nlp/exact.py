@@ -1,0 +1,121 @@
+"""The discrete equilibrium problem (6)-(8) as a CasADi NLP: ``build_nlp(scene)``.
+
+Unknowns x = phi (lumped mass, FD) or x = (phi, w) (consistent mass, with the linear equality
+M w + K phi = 0 of Definition 2.2 among the constraints). Built once with MX and sparse constant
+matrices; the Hessian of the Lagrangian stays sparse (the bi-Laplacian stencil).
+
+Scaling (documented contract): the stopping test means the same at every eps, M, mesh and size.
+    f = rigidity E_h / k,   k = rigidity * m_bar * G_ref,   m_bar = |Omega| / N,
+    G_ref = 2 (E_ref / V) sqrt(|Omega| / (eps |Gamma|))                    (``gradient_scale``)
+    g_A = (A - alpha) / |Omega|,  g_B = (B - beta) / beta,  g_w = eps^2 (M w + K phi) / m_bar
+E_ref: sharp circle/sphere energy of area beta; V = (|Omega| + alpha)/2 the enclosed volume;
+|Gamma| = 3 sqrt2 beta / 4. Why: IPOPT's dual test is a max-norm over nodal components of
+grad f + J^T lam_g, i.e. max_i (m_i / m_bar) |r(x_i)| / (rigidity G_ref) <= tol with r the L2
+representative of the Lagrangian gradient rigidity dE - lambda_A dA - lambda_B dB. The independent
+test (``kkt.py``) is the relative L2 norm |r| / D with D = |rigidity dE| + |lambda_A dA| +
+|lambda_B dB|. At a solution D is dominated by the volume pressure lambda_A ~ E / V acting on all of
+Omega, D ~ 2 (E / V) sqrt|Omega|, while r lives on the interface band, |r|_L2 ~ |r|_max
+sqrt(eps |Gamma|). G_ref = D_ref / sqrt(eps |Gamma|) is that conversion, so IPOPT's tol and
+kkt_residual measure the same relative stationarity (measured kkt_residual / IPOPT's final dual
+infeasibility: 0.19 - 0.55 for exact solves of ellipse-2d over eps = 0.1 - 0.4, h = 1/16 - 1/4,
+1.3 for the penalty at M = 1e4; 7 - 12 for a sphere, whose gradient terms nearly vanish). Every factor has the units of
+rigidity dE / dphi per volume, so a geometrically similar problem (box, shape, eps scaled by s)
+takes the same iterations to the same relative residuals. The constraint rows are relative to
+|Omega| and beta, as in ``solve``'s feasibility test. IPOPT's own gradient-based rescaling is off
+(``IpoptOptions``): it would rescale f by 100 / |grad f(x0)|, a test that depends on the start.
+The penalty NLP (``penalty.py``) reuses k and the g scales, so the test is the same at every M.
+IPOPT's multipliers lam_g of these scaled rows convert to the physical convention
+    rigidity * grad E_h = lambda_A grad A + lambda_B grad B
+by lambda_A = -k lam_g[0] / |Omega|, lambda_B = -k lam_g[1] / beta (``NLP.multipliers``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from vesicle_opt.mesh import Discretization, discretize
+from vesicle_opt.model import functionals as F
+from vesicle_opt.model.feasibility import check_feasible
+from vesicle_opt.model.problem import constraint_data, initial_guess, objective_scale
+from vesicle_opt.scene.schema import Scene
+
+
+@dataclass(frozen=True, eq=False)
+class NLP:
+    """The CasADi pieces of one discrete problem; ``as_dict()`` goes to any ``ca.nlpsol``."""
+
+    scene: Scene
+    disc: Discretization
+    alpha: float
+    beta: float
+    x: ca.MX
+    f: ca.MX
+    g: ca.MX
+    p: ca.MX
+    x0: np.ndarray
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    f_scale: float  # f = energy / f_scale
+    g_scale: np.ndarray  # g[:2] = (A - alpha, B - beta) / g_scale
+
+    def as_dict(self) -> dict:
+        return {"x": self.x, "f": self.f, "g": self.g, "p": self.p}
+
+    @property
+    def n_phi(self) -> int:
+        return self.disc.n_nodes
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        x = np.asarray(x, float).ravel()
+        n = self.n_phi
+        return x[:n], (x[n:] if self.disc.consistent else None)
+
+    def from_phi(self, phi: np.ndarray) -> np.ndarray:
+        """The NLP vector of a field phi: phi itself, or (phi, Delta_h phi) with consistent mass."""
+        phi = np.asarray(phi, float).ravel()
+        return np.concatenate([phi, self.disc.apply_laplacian(phi)]) if self.disc.consistent else phi
+
+    def multipliers(self, lam_g: np.ndarray) -> tuple[float, float]:
+        """Physical (lambda_A, lambda_B) from IPOPT's lam_g (see the module docstring)."""
+        k = self.f_scale
+        lam = np.asarray(lam_g, float).ravel()[:2]
+        return float(-k * lam[0] / self.g_scale[0]), float(-k * lam[1] / self.g_scale[1])
+
+
+def build_exact(scene: Scene, disc: Discretization | None = None, check: bool = True) -> NLP:
+    """The exact-constraint NLP (6)-(8) of a scene, whatever its ``solver.method`` (``nlp.build_nlp``
+    lifts it into the penalty NLP (11) for the other methods)."""
+    disc = disc or discretize(scene)
+    alpha, beta = constraint_data(scene, disc)
+    if check:
+        check_feasible(alpha, beta, scene, disc)
+    eps, C = scene.model.epsilon, scene.model.C
+    ops = F.CasadiOps(disc)
+    n = disc.n_nodes
+    m_bar = disc.volume / n
+    x = ca.MX.sym("x", 2 * n if disc.consistent else n)
+    phi = x[:n]
+    if disc.consistent:
+        lap = x[n:]
+    else:
+        lap = ca.mtimes(ca.DM(disc.laplacian.tocsc()), phi)
+    E = F.energy(ops, phi, lap, eps, C)
+    A = F.volume_functional(ops, phi)
+    B = F.area_functional(ops, phi, eps)
+    f_scale = objective_scale(disc, scene.model.rigidity, eps, alpha, beta)
+    g_scale = np.array([disc.volume, beta])
+    rows = [(A - alpha) / g_scale[0], (B - beta) / g_scale[1]]
+    if disc.consistent:
+        rows.append(eps**2 / m_bar * (ca.mtimes(ca.DM(disc.M.tocsc()), lap) + ca.mtimes(ops.K, phi)))
+    g = ca.vertcat(*rows)
+    ng = g.shape[0]
+    inf = np.full(x.shape[0], np.inf)
+    return NLP(scene=scene, disc=disc, alpha=alpha, beta=beta, x=x,
+               f=scene.model.rigidity * E / f_scale, g=g, p=ca.MX.sym("p", 0),
+               x0=initial_guess(scene, disc), lbx=-inf, ubx=inf, lbg=np.zeros(ng), ubg=np.zeros(ng),
+               f_scale=f_scale, g_scale=g_scale)

@@ -1,0 +1,44 @@
+"""The scenes shipped inside the package (``vesicle_opt/problems/*.toml``), found by name.
+
+They are package data, read through ``importlib.resources``, so ``load_scene("ellipse-2d")`` and
+``vesicle-opt solve ellipse-2d`` work from any directory and from a non-editable install.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+from vesicle_opt.errors import InputError
+
+
+def _folder():
+    return resources.files("vesicle_opt") / "problems"
+
+
+def names() -> list[str]:
+    """The bundled scene names (file stems), sorted."""
+    return sorted(p.name[:-5] for p in _folder().iterdir() if p.name.endswith(".toml"))
+
+
+def text(name: str) -> str:
+    """The TOML text of a bundled scene (``ellipse-2d`` or ``ellipse-2d.toml``)."""
+    stem = name[:-5] if name.endswith(".toml") else name
+    entry = _folder() / f"{stem}.toml"
+    if not entry.is_file():
+        raise InputError("scene", f"no bundled scene {name!r} (bundled scenes: {', '.join(names())})")
+    return entry.read_text()
+
+
+def resolve(arg: str | Path) -> tuple[str, str]:
+    """(name, TOML text) of a scene given as a path or as the name of a bundled scene."""
+    p = Path(arg)
+    if p.is_file():
+        try:
+            return p.stem, p.read_text()
+        except UnicodeDecodeError as exc:
+            raise InputError("scene", f"{arg} is not valid TOML: {exc}") from None
+    stem = p.name[:-5] if p.name.endswith(".toml") else p.name
+    if str(arg) in (stem, f"{stem}.toml") and stem in names():
+        return stem, text(stem)
+    raise InputError("scene", f"file not found: {arg} (bundled scenes: {', '.join(names())})")

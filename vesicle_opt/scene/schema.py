@@ -1,0 +1,328 @@
+"""Scenes: TOML files describing one equilibrium problem, validated into frozen dataclasses.
+
+A scene has the sections ``domain``, ``mesh``, ``model``, ``constraints``, ``initial`` and ``solver``
+(keys listed in ``SCHEMA``). Every key is checked for existence, type and range; a violation raises
+:class:`~vesicle_opt.errors.InputError` naming the key and the allowed range. ``--set KEY=VALUE``
+overrides use the same dotted keys, with values parsed as TOML.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from vesicle_opt.errors import InputError
+from vesicle_opt.scene.bundled import resolve as resolve_scene
+from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES, Shape, number, numbers, parse_shape
+
+@dataclass(frozen=True)
+class Domain:
+    box: tuple[tuple[float, float], ...]
+    boundary: str  # "periodic" | "natural"
+
+    @property
+    def dim(self) -> int:
+        return len(self.box)
+
+    @property
+    def volume(self) -> float:
+        return math.prod(b - a for a, b in self.box)
+
+
+@dataclass(frozen=True)
+class Mesh:
+    kind: str  # "fem-p1" | "fd" | "spectral"
+    n: tuple[int, ...]  # cells per side
+    mass: str  # "lumped" | "consistent"
+    quadrature: str  # "nodal" | "gauss"
+    file: str | None = None
+
+
+@dataclass(frozen=True)
+class Model:
+    epsilon: float
+    c0: float = 0.0
+    rigidity: float = 1.0
+
+    @property
+    def C(self) -> float:
+        """The paper's C = sqrt(2) c0."""
+        return math.sqrt(2.0) * self.c0
+
+
+@dataclass(frozen=True)
+class Constraints:
+    alpha: float | None = None
+    beta: float | None = None
+    target: Shape | None = None
+
+
+@dataclass(frozen=True)
+class Solver:
+    method: str  # "exact" | "penalty" | "continuation"
+    M: float
+    tol: float
+    max_iter: int
+    backend: str = "ipopt"  # "ipopt" | "newton-krylov" | "auto" (see vesicle_opt.backend)
+    second_order: bool = True  # run the second-order check after a converged solve
+    # penalty continuation / augmented Lagrangian (see vesicle_opt.continuation)
+    M0: float = 10.0
+    M_factor: float = 10.0
+    M_max: float = 1e6  # continuation end; beyond ~1e6 the round-off floor (penalty.py) exceeds tol 1e-8
+    max_outer: int = 20
+
+
+@dataclass(frozen=True)
+class Flow:
+    """Gradient-flow settings (``vesicle_opt.flows``); the penalty constant is ``solver.M``."""
+
+    scheme: str = "penalty"  # "penalty" (18) | "lagrange" (17) | "backward-euler" (23)
+    gamma: float = 1.0  # time relaxation gamma of (13)/(14)
+    dt: float = 1e-3
+    t_end: float = 1.0
+    steps: int = 100000  # at most this many accepted steps
+    stepping: str = "constant"  # "constant" | "adaptive"
+    dt_min: float = 1e-12
+    dt_max: float = 1.0
+    steady_tol: float = 1e-6  # stop when ||phi_t|| < steady_tol * its first value; 0 = never
+    law_tol: float = 1e-9  # reject a step whose relative energy-law residual exceeds this
+    frames: int = 10  # snapshots + PNG frames at t_end * j / frames
+    checkpoint_every: int = 50
+    initial: str = "projected"  # "projected" onto A = alpha, B = beta | "shape" (not for lagrange)
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    domain: Domain
+    mesh: Mesh
+    model: Model
+    constraints: Constraints
+    initial: Shape
+    solver: Solver
+    flow: Flow = Flow()
+
+    @property
+    def dim(self) -> int:
+        return self.domain.dim
+
+    def replace(self, **sections) -> "Scene":
+        return dataclasses.replace(self, **sections)
+
+
+# --- schema: key -> (kind, default, allowed). kind in {float, int, str, shape, box, ints, floats}.
+_REQ = object()
+M_LIMIT = 1e12  # largest penalty constant accepted (double precision: M |A - alpha| loses digits beyond)
+SCHEMA: dict[str, tuple[str, Any, Any]] = {
+    "domain.box": ("box", _REQ, "list of [lo, hi] pairs with lo < hi, 2 or 3 of them"),
+    "domain.boundary": ("str", "periodic", ("periodic", "natural")),
+    "mesh.kind": ("str", "fem-p1", ("fem-p1", "fd", "spectral")),
+    "mesh.n": ("ints", _REQ, "integer >= 4, or one per dimension"),
+    "mesh.mass": ("str", "lumped", ("lumped", "consistent")),
+    "mesh.quadrature": ("str", "nodal", ("nodal", "gauss")),
+    "mesh.file": ("str", None, "path to a mesh file meshio can read"),
+    "model.epsilon": ("float", _REQ, "> 0"),
+    "model.c0": ("float", 0.0, "any real"),
+    "model.rigidity": ("float", 1.0, "> 0"),
+    "constraints.alpha": ("float", None, "-|Omega| < alpha < |Omega|"),
+    "constraints.beta": ("float", None, "> 0"),
+    "constraints.target": ("shape", None, "a shape table"),
+    "initial": ("shape", _REQ, "a shape table"),
+    "solver.method": ("str", "exact", ("exact", "penalty", "continuation", "augmented")),
+    "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
+    "solver.tol": ("float", 1e-8, "> 0"),
+    "solver.max_iter": ("int", 500, ">= 1"),
+    "solver.backend": ("str", "ipopt", ("ipopt", "newton-krylov", "auto")),
+    "solver.second_order": ("bool", True, "true or false"),
+    "solver.M0": ("float", 10.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
+    "solver.M_factor": ("float", 10.0, "> 1"),
+    "solver.M_max": ("float", 1e6, f"M0 <= M_max <= {M_LIMIT:g}"),
+    "solver.max_outer": ("int", 20, ">= 1"),
+    # gradient flows (vesicle_opt.flows)
+    "flow.scheme": ("str", "penalty", ("penalty", "lagrange", "backward-euler")),
+    "flow.gamma": ("float", 1.0, "> 0"),
+    "flow.dt": ("float", 1e-3, "> 0"),
+    "flow.t_end": ("float", 1.0, "> 0"),
+    "flow.steps": ("int", 100000, ">= 1"),
+    "flow.stepping": ("str", "constant", ("constant", "adaptive")),
+    "flow.dt_min": ("float", 1e-12, "> 0"),
+    "flow.dt_max": ("float", 1.0, "> 0"),
+    "flow.steady_tol": ("float", 1e-6, ">= 0 (0: never stop early)"),
+    "flow.law_tol": ("float", 1e-9, "> 0"),
+    "flow.frames": ("int", 10, ">= 1"),
+    "flow.checkpoint_every": ("int", 50, ">= 1"),
+    "flow.initial": ("str", "projected", ("projected", "shape")),
+}
+_POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "solver.M", "solver.tol",
+             "solver.M0", "solver.M_max",
+             "flow.gamma", "flow.dt", "flow.t_end", "flow.dt_min", "flow.dt_max", "flow.law_tol"}
+
+
+def _check_penalty(val: dict) -> None:
+    """Ranges of the penalty keys (methods penalty, continuation, augmented)."""
+    for key in ("solver.M", "solver.M0", "solver.M_max"):
+        if val[key] > M_LIMIT:
+            raise InputError(key, f"allowed range {SCHEMA[key][2]}, got {val[key]!r}")
+    if val["solver.M_factor"] <= 1:
+        raise InputError("solver.M_factor", f"allowed range > 1, got {val['solver.M_factor']!r}")
+    if val["solver.M0"] > val["solver.M_max"]:
+        raise InputError("solver.M0", f"allowed range {SCHEMA['solver.M0'][2]}, got M0 = "
+                         f"{val['solver.M0']!r} > M_max = {val['solver.M_max']!r}")
+
+
+def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if key in SCHEMA:
+            out[key] = v
+        elif isinstance(v, dict):
+            out.update(_flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def parse_value(text: str) -> Any:
+    """Parse a ``--set`` value as TOML; a bare word that is not TOML is taken as a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _set_dotted(d: dict, key: str, value: Any) -> None:
+    parts = key.split(".")
+    for p in parts[:-1]:
+        d = d.setdefault(p, {})
+        if not isinstance(d, dict):
+            raise InputError(key, "cannot set a sub-key of a non-table value")
+    d[parts[-1]] = value
+
+
+def _known(key: str) -> bool:
+    if key in SCHEMA:
+        return True
+    for base in ("initial", "constraints.target"):
+        if key.startswith(base + ".") and key[len(base) + 1:] in SHAPE_KEYS:
+            return True
+    return False
+
+
+def apply_overrides(raw: dict, overrides: list[str] | None) -> dict:
+    """Apply ``KEY=VALUE`` overrides (dotted keys) to a raw scene dict, refusing unknown keys."""
+    for item in overrides or []:
+        if "=" not in item:
+            raise InputError("--set", f"expected KEY=VALUE, got {item!r}")
+        key, text = item.split("=", 1)
+        key = key.strip()
+        if not _known(key):
+            raise InputError(key, f"unknown scene key (allowed: {', '.join(SCHEMA)})")
+        _set_dotted(raw, key, parse_value(text.strip()))
+    return raw
+
+
+def from_dict(raw: dict, name: str = "scene") -> Scene:
+    """Validate a raw scene dict (as read from TOML) into a :class:`Scene`."""
+    flat = _flatten(raw)
+    for key in flat:
+        if not _known(key):
+            raise InputError(key, f"unknown scene key (allowed: {', '.join(SCHEMA)})")
+    val: dict[str, Any] = {}
+    for key, (kind, default, allowed) in SCHEMA.items():
+        if key not in flat:
+            if default is _REQ:
+                raise InputError(key, f"missing (allowed: {allowed})")
+            val[key] = default
+            continue
+        v = flat[key]
+        if kind == "str":
+            if not isinstance(v, str) or (isinstance(allowed, tuple) and v not in allowed):
+                raise InputError(key, f"must be one of {', '.join(allowed)}, got {v!r}"
+                                 if isinstance(allowed, tuple) else f"expected a string, got {v!r}")
+        elif kind == "bool":
+            if not isinstance(v, bool):
+                raise InputError(key, f"expected true or false, got {v!r}")
+        elif kind in ("float", "int"):
+            v = number(key, v, integer=kind == "int")
+            v = int(v) if kind == "int" else float(v)
+            if key in _POSITIVE and v <= 0:
+                raise InputError(key, f"must be > 0, got {v!r}")
+            if kind == "int" and v < 1:
+                raise InputError(key, f"must be >= 1, got {v!r}")
+        val[key] = v
+    box_raw = val["domain.box"]
+    if (not isinstance(box_raw, list) or len(box_raw) not in (2, 3)
+            or not all(isinstance(p, list) and len(p) == 2 for p in box_raw)):
+        raise InputError("domain.box", f"expected 2 or 3 [lo, hi] pairs, got {box_raw!r}")
+    box = tuple(numbers("domain.box", p, 2) for p in box_raw)
+    if any(hi <= lo for lo, hi in box):
+        raise InputError("domain.box", f"each pair needs lo < hi, got {[list(p) for p in box]}")
+    dim = len(box)
+    n_raw = val["mesh.n"]
+    n = (n_raw,) * dim if isinstance(n_raw, int) and not isinstance(n_raw, bool) else n_raw
+    if (not isinstance(n, (list, tuple)) or len(n) != dim
+            or not all(isinstance(k, int) and not isinstance(k, bool) for k in n)):
+        raise InputError("mesh.n", f"expected an integer or {dim} integers, got {n_raw!r}")
+    if min(n) < 4:
+        raise InputError("mesh.n", f"must be >= 4 cells per side, got {n_raw!r}")
+    domain = Domain(box, val["domain.boundary"])
+    if val["mesh.kind"] == "fd" and domain.boundary != "periodic":
+        raise InputError("domain.boundary", "mesh.kind 'fd' supports only 'periodic'")
+    if val["mesh.kind"] == "fd" and val["mesh.mass"] == "consistent":
+        raise InputError("mesh.mass", "mesh.kind 'fd' is lumped by construction; use 'lumped'")
+    if val["mesh.kind"] == "spectral":  # Fourier pseudo-spectral grids (issue 6)
+        if domain.boundary != "periodic":
+            raise InputError("domain.boundary", "mesh.kind 'spectral' supports only 'periodic'")
+        if val["mesh.mass"] == "consistent":
+            raise InputError("mesh.mass", "mesh.kind 'spectral' is lumped by construction; use 'lumped'")
+    if val["mesh.quadrature"] == "gauss" and val["mesh.kind"] != "fem-p1":
+        raise InputError("mesh.quadrature", "'gauss' needs mesh.kind = 'fem-p1'; use 'nodal'")
+    if val["mesh.file"] is not None and val["mesh.kind"] != "fem-p1":
+        raise InputError("mesh.file", "a mesh file needs mesh.kind = 'fem-p1'")
+    mesh = Mesh(val["mesh.kind"], tuple(n), val["mesh.mass"], val["mesh.quadrature"], val["mesh.file"])
+    model = Model(val["model.epsilon"], val["model.c0"], val["model.rigidity"])
+    target = None
+    if val["constraints.target"] is not None:
+        target = parse_shape("constraints.target", val["constraints.target"], dim)
+    alpha, beta = val["constraints.alpha"], val["constraints.beta"]
+    if target is None and (alpha is None or beta is None):
+        raise InputError("constraints.alpha" if alpha is None else "constraints.beta",
+                         "missing: give constraints.alpha and constraints.beta, or constraints.target")
+    if alpha is not None and val["mesh.file"] is None and not (-domain.volume < alpha < domain.volume):
+        raise InputError("constraints.alpha",
+                         f"must lie in (-|Omega|, |Omega|) = ({-domain.volume:.6g}, {domain.volume:.6g}), got {alpha!r}")
+    constraints = Constraints(alpha, beta, target)
+    initial = parse_shape("initial", val["initial"], dim)
+    _check_penalty(val)
+    solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
+                    val["solver.backend"], second_order=val["solver.second_order"], M0=val["solver.M0"],
+                    M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
+                    max_outer=val["solver.max_outer"])
+    return Scene(name, domain, mesh, model, constraints, initial, solver, _flow(val))
+
+
+def _flow(val: dict) -> Flow:
+    """The ``flow.*`` keys, with the checks the generic loop cannot express."""
+    if val["flow.steady_tol"] < 0:
+        raise InputError("flow.steady_tol", f"must be >= 0, got {val['flow.steady_tol']!r}")
+    if val["flow.initial"] == "shape" and val["flow.scheme"] == "lagrange":
+        raise InputError("flow.initial", "'lagrange' (17) preserves A and B, so it starts 'projected'")
+    if val["flow.dt_min"] > val["flow.dt_max"]:
+        raise InputError("flow.dt_min", f"must be <= flow.dt_max = {val['flow.dt_max']!r}")
+    return Flow(**{f.name: val[f"flow.{f.name}"] for f in dataclasses.fields(Flow)})
+
+
+def load(scene: str | Path, overrides: list[str] | None = None) -> Scene:
+    """Read and validate a scene, given as a TOML path or the name of a bundled scene
+    (``scene.bundled``: ``ellipse-2d``), applying ``--set`` style overrides."""
+    name, text = resolve_scene(scene)
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError("scene", f"{scene} is not valid TOML: {exc}") from None
+    return from_dict(apply_overrides(raw, overrides), name=name)

@@ -1,0 +1,45 @@
+"""Shared helpers of the flow studies: build a scene's flow pieces, fields beside the CSV.
+
+The study rows go through ``vesicle_opt.study_runner`` (one appending writer, resumable); the
+helpers here save the large fields a case shares with later cases (npz, written atomically so a
+kill never leaves a half file) and write the small *derived* CSVs that ``main`` recomputes from
+the finished rows on every run. Shared fields go through ``vesicle_opt.output.save_npz`` /
+``load_npz`` (atomic).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+
+from vesicle_opt import scene as S
+from vesicle_opt.flows.run import build_model, initial_field, make_scheme
+
+
+def setup(name: str, sets: list[str]):
+    sc = S.load(name, sets)
+    md = build_model(sc)
+    return sc, md, make_scheme(sc, md), initial_field(sc, md)
+
+
+def write_derived_csv(path: Path, rows: list[dict], columns: list[str] | None = None) -> None:
+    """A derived CSV (recomputed from the study rows each run), replaced atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    keys = columns or list(dict.fromkeys(k for r in rows for k in r))
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    os.replace(tmp, path)
+
+
+def report_failures(rows: list[dict]) -> bool:
+    """Print the rows ``study_runner`` recorded for cases that raised (status ``error: ...``);
+    True when there is one (the study then returns 1)."""
+    bad = [r for r in rows if str(r.get("status", "")).startswith("error")]
+    for r in bad:
+        print(f"{r['case']}: {r['status']}", flush=True)
+    return bool(bad)

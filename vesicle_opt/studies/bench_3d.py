@@ -1,0 +1,98 @@
+"""Benchmark of the large-3D path: time, memory, Newton and CG counts against n (issue 6).
+
+The ``torus-table1-3d`` scene (exact constraints, tol 1e-8, cold torus start) on
+
+* ``spectral`` grids with the newton-krylov backend,
+* ``fd`` grids with the newton-krylov backend (the FD Laplacian applied by FFT),
+* ``fem-p1`` periodic tetrahedral meshes (lumped) with the newton-krylov backend (sparse matrices;
+  S^{-1} of the preconditioner by a Chebyshev polynomial, ``precond``) up to 64^3 (measured alone:
+  32^3 10 s, 40^3 17 s, 48^3 40 s, 64^3 111 s and 2.4 GB; the sparse LU before needed 300 s at
+  32^3), and
+* ``fd`` with the IPOPT backend (exact Hessian, MUMPS) where it fits (n <= 16; ~24 s per iteration
+  at 32^3 was measured for the core).
+
+Every case runs in a fresh process (spawn), so ``peak_rss_mb`` is that solve's own peak resident
+memory (interpreter and libraries included, ~115 MB). The machine is shared, so timings are noisy:
+each case is repeated ``repeats`` times and the median wall time is written with the minimum, and
+the solver's own CPU time (``solve_cpu_s``, newton-krylov only) shows what an idle core would take.
+``main(out, quick)`` writes ``bench_3d.csv``; quick = a reduced set.
+"""
+
+from __future__ import annotations
+
+import statistics
+from pathlib import Path
+
+
+def _case(kind: str, n: int, backend: str) -> dict:
+    import os
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    import resource
+    import time
+
+    from vesicle_opt import scene
+    from vesicle_opt.api import solve
+    sc = scene.load("torus-table1-3d",
+                    [f"mesh.kind='{kind}'", f"mesh.n={n}", f"solver.backend='{backend}'"])
+    t0 = time.perf_counter()
+    r = solve(sc)
+    total = time.perf_counter() - t0
+    return {"kind": kind, "n": n, "backend": backend, "n_nodes": r.n_nodes, "energy": r.energy,
+            "status": r.status, "converged": r.converged, "kkt_residual": r.kkt_residual,
+            "kkt_dual": r.extra.get("kkt_dual"), "newton": r.iterations,
+            "cg": r.extra.get("cg_iterations"), "levels": r.extra.get("levels"),
+            "solve_wall_s": r.wall_time_s, "solve_cpu_s": r.extra.get("cpu_time_s"), "total_wall_s": total,
+            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def cases(quick: bool) -> list[tuple[str, int, str]]:
+    if quick:
+        return [("spectral", 16, "newton-krylov"), ("spectral", 32, "newton-krylov"),
+                ("fd", 16, "newton-krylov"), ("fd", 32, "newton-krylov"), ("fem-p1", 16, "newton-krylov"),
+                ("fd", 12, "ipopt")]
+    out = [("spectral", n, "newton-krylov") for n in (16, 24, 32, 48, 64, 96)]
+    out += [("fd", n, "newton-krylov") for n in (16, 24, 32, 48, 64)]
+    out += [("fem-p1", n, "newton-krylov") for n in (16, 24, 32, 40, 48, 64)]
+    out += [("fd", n, "ipopt") for n in (12, 16)]
+    return out
+
+
+EXTRA = ["kind", "backend", "n_nodes", "converged", "kkt_residual", "kkt_dual", "newton", "cg",
+         "levels", "solve_wall_s", "solve_cpu_s", "total_wall_s", "peak_rss_mb", "repeats",
+         "total_wall_median_s", "total_wall_min_s"]
+
+
+def case_rows(case: dict) -> list[dict]:
+    """``repeats`` fresh-process runs of one (kind, n, backend); one row with the median."""
+    from vesicle_opt.studies.runner import in_fresh_process
+    runs = [in_fresh_process(_case, case["kind"], case["n"], case["backend"])
+            for _ in range(case["repeats"])]
+    row = dict(runs[-1])
+    walls = [r["total_wall_s"] for r in runs]
+    row.update({"scene": "torus-table1-3d", "method": "exact", "iterations": row["newton"],
+                "wall_time_s": statistics.median(walls), "repeats": case["repeats"],
+                "total_wall_median_s": statistics.median(walls), "total_wall_min_s": min(walls),
+                "peak_rss_mb": max(r["peak_rss_mb"] for r in runs)})
+    print(f"bench_3d: {row['kind']:8s} n={row['n']:3d} {row['backend']:13s} E={row['energy']:.6f} "
+          f"conv={row['converged']} newton={row['newton']} cg={row['cg']} "
+          f"wall(median of {case['repeats']})={row['total_wall_median_s']:.2f}s rss={row['peak_rss_mb']:.0f}MB",
+          flush=True)
+    return [row]
+
+
+def main(out: Path, quick: bool = False, repeats: int | None = None) -> int:
+    """Rows are appended per case as it finishes (study_runner); a re-run skips finished cases."""
+    from vesicle_opt.studies.runner import run_cases
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    repeats = repeats or (1 if quick else 3)
+    todo = [{"case": f"{kind} {n} {backend}", "kind": kind, "n": n, "backend": backend,
+             "repeats": 1 if backend == "ipopt" or kind == "fem-p1" else repeats}
+            for kind, n, backend in cases(quick)]
+    run_cases("bench_3d", todo, case_rows, out / "bench_3d.csv", workers=1, extra_columns=EXTRA)
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+    sys.exit(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/bench_3d"), quick="--quick" in sys.argv))

@@ -1,0 +1,7 @@
+"""Checks of a computed result that share no code with the solver that produced it.
+
+* ``kkt``: the relative L2 KKT residual from hand-derived gradients; ``certify``: the one rule that
+  decides ``converged`` for every backend and method, and the one ``Result`` builder;
+* ``second_order`` (assembled, shift-invert Lanczos) and ``lobpcg`` (matrix-free): minimum or saddle;
+* ``topology``: components, Euler characteristic, periodic wraps; ``metrics``: error norms, orders.
+"""

@@ -1,0 +1,136 @@
+"""The one certification of a computed equilibrium, and the one place a ``Result`` is built.
+
+Every backend (IPOPT, Newton-Krylov), every method (exact, penalty, continuation, augmented) and
+every stage of a continuation hands its final field to :func:`build_result`, which recomputes, with
+code that shares nothing with the solver's derivatives:
+
+* E_h, A - alpha, B - beta (``model.functionals``; the residuals with compensated sums,
+  ``model.penalty.residuals``);
+* the multipliers of a penalty run, lambda = mu - M (A - alpha, B - beta) (exact runs pass theirs);
+* the relative L2 KKT residual (``verify.kkt``, hand-derived gradients);
+* the round-off floor: the least KKT residual double precision permits. For a penalty run it is
+  ``model.penalty.roundoff_floor`` (the multiplier estimates carry M times the round-off of A and
+  B); a solver may pass a floor of its own evaluation (Newton-Krylov on Fourier grids:
+  eps_mach k_max^4); the larger counts.
+
+:func:`certify` then decides, in this order (the first failure is the outcome):
+
+1. the iterate is finite                                         else ``Status.NON_FINITE``
+2. the solver reports success                                    else ``MAX_ITERATIONS`` / ``SOLVER_FAILED``
+3. floor < tol: a floor at or above tol can never be certified,
+   whatever value the (noise-dominated) residual happens to take  else ``ROUNDOFF_FLOOR``
+4. exact constraints (methods exact, augmented): |A - alpha| <= tol |Omega|,
+   |B - beta| <= tol beta                                        else ``INFEASIBLE``
+5. kkt_residual <= KKT_FACTOR tol                                 else ``KKT_NOT_MET``
+6. the solver's own consistency checks (e.g. the lifted unknowns) else ``NOT_CERTIFIED``
+
+``converged`` is True exactly when all hold (``Status.CONVERGED``); otherwise ``extra["reason"]``
+says which test failed, in words. Nothing here depends on which BLAS kernel ran: a floor at tol is
+refused before the residual is looked at.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from vesicle_opt.model import functionals as F
+from vesicle_opt.model.penalty import penalised_energy, residuals, roundoff_floor
+from vesicle_opt.result import Result, Status
+from vesicle_opt.verify.kkt import kkt_residual
+
+KKT_FACTOR = 100.0  # kkt_residual (relative L2) may exceed IPOPT's scaled max-norm test by this:
+# measured ratios (nlp.exact scaling) 0.2-1.3 on ellipse-2d, ~12 on a sphere; a larger ratio means
+# the iterate is not a KKT point
+_ITERATION_LIMITS = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded",
+                     "Maximum_WallTime_Exceeded", "max_iter")
+
+
+@dataclass(frozen=True)
+class Certificate:
+    converged: bool
+    outcome: Status
+    reason: str | None
+
+
+def certify(*, solver_status: str, solver_success: bool, finite: bool, tol: float, kkt: float,
+            floor: float = 0.0, constraints: tuple[float, float] | None = None,
+            checks: Sequence[tuple[bool, str]] = ()) -> Certificate:
+    """The rule of the module docstring. ``constraints`` = (|A - alpha| / |Omega|, |B - beta| / beta)
+    when the method promises exact constraints (None for penalty stages); ``checks`` = the solver's
+    own (passed, reason-if-not) pairs."""
+    if not finite:
+        return Certificate(False, Status.NON_FINITE, "the iterate is not finite")
+    if not solver_success:
+        limit = solver_status in _ITERATION_LIMITS
+        return Certificate(False, Status.MAX_ITERATIONS if limit else Status.SOLVER_FAILED,
+                           f"solver status {solver_status}")
+    if not floor < tol:
+        return Certificate(False, Status.ROUNDOFF_FLOOR,
+                           f"round-off floor: stationarity is known only to ~{floor:.1e} here "
+                           f"(>= tol = {tol:g}; kkt_residual {kkt:.2e}); lower solver.M or raise solver.tol")
+    if constraints is not None and not (constraints[0] <= tol and constraints[1] <= tol):
+        return Certificate(False, Status.INFEASIBLE,
+                           f"constraint residuals {constraints[0]:.1e}, {constraints[1]:.1e} above tol = "
+                           f"{tol:g} (relative to |Omega| and beta)")
+    if not kkt <= KKT_FACTOR * tol:
+        return Certificate(False, Status.KKT_NOT_MET,
+                           f"recomputed kkt_residual {kkt:.2e} above {KKT_FACTOR:g} tol = {KKT_FACTOR * tol:g}")
+    for passed, why in checks:
+        if not passed:
+            return Certificate(False, Status.NOT_CERTIFIED, why)
+    return Certificate(True, Status.CONVERGED, None)
+
+
+def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol: float,
+                 solver_status: str, solver_success: bool, method: str,
+                 lam: tuple[float, float] | None = None, M: tuple[float, float] | None = None,
+                 mu: tuple[float, float] = (0.0, 0.0), exact_constraints: bool | None = None,
+                 floor: float = 0.0, checks: Sequence[tuple[bool, str]] = (), w: np.ndarray | None = None,
+                 iterations: int = 0, wall_time_s: float = float("nan"), derivative_time_s: float = 0.0,
+                 hessian_nnz_per_row: float = float("nan"), history: dict | None = None,
+                 x=None, lam_x=None, lam_g=None, extra: dict | None = None) -> Result:
+    """Recompute, certify and pack one solve (see the module docstring).
+
+    ``lam``: the multipliers of an exact-constraint solve; for penalty runs (``M`` given, with the
+    multiplier shifts ``mu`` of an augmented Lagrangian) they are mu - M (A - alpha, B - beta).
+    ``exact_constraints`` defaults to ``M is None``.
+    """
+    eps, C, rig = scene.model.epsilon, scene.model.C, scene.model.rigidity
+    phi = np.asarray(phi, float)
+    finite = bool(np.all(np.isfinite(phi)))
+    if finite:
+        E = F.evaluate(disc, phi, eps, C)["E"]
+        res = residuals(disc, phi, eps, alpha, beta)
+    else:
+        E, res = np.nan, (np.nan, np.nan)
+    if M is not None:
+        lam = (mu[0] - M[0] * res[0], mu[1] - M[1] * res[1])
+    lam_A, lam_B = (float(v) for v in lam)
+    if finite:
+        kkt = kkt_residual(disc, phi, eps, C, rig, lam_A, lam_B)
+        if M is not None:
+            floor = max(floor, roundoff_floor(disc, phi, eps, C, rig, (lam_A, lam_B), M))
+    else:
+        kkt, floor = np.nan, np.inf
+    exact_constraints = (M is None) if exact_constraints is None else exact_constraints
+    rel = (abs(res[0]) / disc.volume, abs(res[1]) / abs(beta)) if exact_constraints else None
+    cert = certify(solver_status=solver_status, solver_success=solver_success, finite=finite, tol=tol,
+                   kkt=kkt, floor=floor, constraints=rel, checks=checks)
+    info = {"alpha": alpha, "beta": beta, "epsilon": eps, "h": disc.h, "kkt_floor": floor, **(extra or {})}
+    if M is not None:
+        info.update({"M2": M[1], "mu_volume": mu[0], "mu_area": mu[1]})
+    if cert.reason is not None:
+        info["reason"] = cert.reason
+    wall = float(wall_time_s)
+    return Result(
+        phi=phi, w=w, energy=rig * E, volume_residual=res[0], area_residual=res[1],
+        lambda_volume=lam_A, lambda_area=lam_B, kkt_residual=kkt, status=solver_status,
+        success=bool(solver_success) and finite, converged=cert.converged, outcome=cert.outcome,
+        iterations=int(iterations), wall_time_s=wall, derivative_time_s=derivative_time_s,
+        other_time_s=wall - derivative_time_s, n_nodes=disc.n_nodes,
+        hessian_nnz_per_row=hessian_nnz_per_row, method=method, M=None if M is None else M[0],
+        penalized_energy=None if M is None else penalised_energy(rig, E, res, M[0], M[1]),
+        history=history or {}, x=x, lam_x=lam_x, lam_g=lam_g, extra=info, disc=disc)

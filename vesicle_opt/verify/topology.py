@@ -1,0 +1,129 @@
+"""Topology of the inside {phi > 0}: components, Euler characteristic, periodic wrapping.
+
+On grids (FD, and FEM on periodic boxes, whose nodes are grid-ordered) the inside is the union of
+closed cells (pixels/voxels) of the nodes with phi > 0, with the box's periodicity. Then
+
+* ``components``: connected components (cells touching at a corner connect, as closed cells do);
+* ``euler_characteristic`` chi of that cell complex: a ball or disk has 1, a solid torus 0, a
+  slab or band across a periodic box 0, a 2D annulus 0 (chi = V - E + F - C counted with rolls);
+* ``cavities``: components of the outside {phi <= 0} beyond the first — pockets of outside fluid
+  enclosed by the vesicle (a stomatocyte); for one connected body chi = 1 - genus + cavities
+  (3D; in 2D the holes are the cavities and chi = 1 - holes), which separates the two;
+* ``wraps``: the axes along which a component joins its own periodic image (doubling the box
+  along that axis leaves it one component instead of two) — a "vesicle" that is really a slab
+  or a tube across the box, not a closed membrane.
+
+On unstructured meshes only the components are computed (graph of mesh edges between nodes with
+phi > 0); chi and wraps are None there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import product
+
+import numpy as np
+import scipy.sparse as sp
+from scipy import ndimage
+
+
+@dataclass(frozen=True)
+class Topology:
+    components: int
+    euler_characteristic: int | None
+    wraps: tuple[int, ...] | None
+    cavities: int | None = None
+
+    def describe(self, dim: int) -> str:
+        if self.wraps:
+            return f"wraps around the periodic box along axes {list(self.wraps)}"
+        if self.components != 1:
+            return f"{self.components} components"
+        if self.euler_characteristic is None:
+            return "one component"
+        if dim == 2:
+            return "disk-like" if self.euler_characteristic == 1 else f"with {1 - self.euler_characteristic} hole(s)"
+        genus = 1 + self.cavities - self.euler_characteristic
+        text = {0: "sphere-like (genus 0)", 1: "genus 1 (torus-like)"}.get(genus, f"genus {genus}")
+        if self.cavities:
+            text += f", enclosing {self.cavities} cavit{'y' if self.cavities == 1 else 'ies'}"
+        return text
+
+
+def _label_periodic(X: np.ndarray, periodic: bool) -> int:
+    structure = np.ones((3,) * X.ndim, bool)
+    labels, n = ndimage.label(X, structure=structure)
+    if not periodic or n == 0:
+        return n
+    parent = np.arange(n + 1)
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+    for axis in range(X.ndim):
+        first = np.take(labels, 0, axis=axis)
+        last = np.take(labels, -1, axis=axis)
+        # corner contacts across the face: compare with the 3^(d-1) shifted neighbours
+        for shift in product((-1, 0, 1), repeat=X.ndim - 1):
+            shifted = np.roll(last, shift, axis=tuple(range(X.ndim - 1))) if X.ndim > 1 else last
+            for a, b in zip(first.ravel(), shifted.ravel()):
+                if a and b:
+                    ra, rb = find(a), find(b)
+                    if ra != rb:
+                        parent[ra] = rb
+    return len({find(a) for a in range(1, n + 1)})
+
+
+def euler_characteristic(X: np.ndarray) -> int:
+    """chi of the union of closed cells X on a periodic grid (all faces counted with rolls)."""
+    d = X.ndim
+    chi = 0
+    for k in range(d + 1):  # k-dimensional cells: each spans k axes, shared by 2^(d-k) voxels
+        for axes in product((0, 1), repeat=d):
+            if sum(axes) != k:
+                continue
+            free = [a for a in range(d) if not axes[a]]  # directions in which neighbours share it
+            present = np.zeros_like(X)
+            for shift in product((0, 1), repeat=len(free)):
+                Y = X
+                for a, s in zip(free, shift):
+                    if s:
+                        Y = np.roll(Y, 1, axis=a)
+                present = present | Y
+            chi += (-1) ** k * int(present.sum())
+    return chi
+
+
+def analyse(disc, phi: np.ndarray) -> Topology:
+    inside = phi > 0
+    if disc.grid_shape is not None:
+        X = inside.reshape(disc.grid_shape)
+        n = _label_periodic(X, periodic=True)
+        wraps = tuple(a for a in range(X.ndim)
+                      if _label_periodic(np.concatenate([X, X], axis=a), periodic=True) < 2 * n)
+        cavities = max(_label_periodic(~X, periodic=True) - 1, 0)
+        return Topology(n, euler_characteristic(X), wraps, cavities)
+    t = disc.mesh.t
+    rows, cols = [], []
+    for i in range(t.shape[0]):
+        for j in range(i):
+            rows.append(t[i])
+            cols.append(t[j])
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    keep = inside[r] & inside[c]
+    graph = sp.coo_matrix((np.ones(keep.sum()), (r[keep], c[keep])), shape=(len(phi),) * 2)
+    _, labels = sp.csgraph.connected_components(graph, directed=False)
+    return Topology(len(np.unique(labels[inside])), None, None)
+
+
+def report(disc, phi: np.ndarray) -> dict:
+    """The topology keys of a result's ``extra`` (summary.json): ``topology`` (in words),
+    ``components``, ``euler_characteristic``, ``cavities``, ``wraps``; empty for a non-finite phi."""
+    if not np.all(np.isfinite(phi)):
+        return {}
+    topo = analyse(disc, phi)
+    return {"topology": topo.describe(disc.dim), "components": topo.components,
+            "euler_characteristic": topo.euler_characteristic, "cavities": topo.cavities,
+            "wraps": None if topo.wraps is None else list(topo.wraps)}
