@@ -77,13 +77,13 @@ def _second_order_ipopt(scene, nlp, result: Result) -> Result:
     return _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue)
 
 
-def _second_order_nk(scene, disc, result: Result) -> Result:
+def _second_order_nk(scene, setup, result: Result) -> Result:
     """LOBPCG on the tangent space (``verify.lobpcg``): on Fourier grids translations and rotations,
     the continuum's symmetries, excluded; "minimum" when the least eigenvalue exceeds 10x its
     residual, "saddle" when it is below -10x, else "not checked" (undecided)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # lobpcg warns when unwanted eigenvalues lag behind
-        vals, res = reduced_hessian_eigenvalues(scene, result, prepare(scene, disc), k=3, rotations=True)
+        vals, res = reduced_hessian_eigenvalues(scene, result, setup, k=3, rotations=True)
     verdict = "minimum" if vals[0] > 10 * res[0] else "saddle" if vals[0] < -10 * res[0] else "not checked"
     return _replace_extra(result, second_order=verdict, second_order_min_eigenvalue=float(vals[0]))
 
@@ -119,10 +119,11 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         result = _second_order_ipopt(scene, nlp, result) if checked else _replace_extra(result, second_order="not checked")
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
-        disc = on_fourier_grid(discretize(scene))
-        result = nk_solve.solve(scene, disc, x0=_phi_start(x0, disc.n_nodes), options=options)
+        setup = prepare(scene, on_fourier_grid(discretize(scene)))  # built once: solve and check
+        disc = setup[0]
+        result = nk_solve.solve(scene, x0=_phi_start(x0, disc.n_nodes), options=options, setup=setup)
         checked = result.converged and exact and scene.solver.second_order
-        result = _second_order_nk(scene, disc, result) if checked else \
+        result = _second_order_nk(scene, setup, result) if checked else \
             _replace_extra(result, second_order="not checked", second_order_min_eigenvalue=None)
     result = _replace_extra(result, **topology.report(disc, result.phi))
     if throw and not result.converged:

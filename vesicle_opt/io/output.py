@@ -14,8 +14,10 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.tri as mtri  # noqa: E402
 import meshio  # noqa: E402
 import numpy as np  # noqa: E402
+from scipy.interpolate import griddata  # noqa: E402
 
 
 def write_json(path: Path, data: dict) -> None:
@@ -81,7 +83,6 @@ def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
         if disc.grid_shape is not None:
             draw_cut(ax, _grid_field(disc, phi), (box[0][0], box[1][0]), (box[0][1], box[1][1]))
         else:
-            import matplotlib.tri as mtri
             tri = mtri.Triangulation(disc.mesh.p[0], disc.mesh.p[1], disc.mesh.t.T)
             vals = disc.unfold @ phi if disc.unfold is not None else phi
             ax.tripcolor(tri, vals, cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
@@ -115,7 +116,6 @@ def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "") -> None
 
 
 def _sample_cut(disc, phi, axis: int, n: int = 64) -> np.ndarray:
-    from scipy.interpolate import griddata
     box = disc.box
     other = [d for d in range(3) if d != axis]
     g = [np.linspace(*box[d], n) for d in other]

@@ -76,20 +76,6 @@ def _dual_kkt(prec, rig, dE, dA, dB, lam) -> float:
     return dn(res) / max(scale, np.finfo(float).tiny)
 
 
-def _l2_floor(disc, rig, dE, eps) -> float:
-    """Round-off floor of the relative L2 KKT residual: eps_mach * |symbol|_max^2 * eps scale of dE.
-
-    dE contains eps Delta_h^T (m eps Delta_h phi)/eps; round-off in phi (eps_mach) is amplified by
-    the largest |symbol|^2, so |delta dE|_L2 ~ eps_mach eps sigma_max^2 |Omega|^{1/2}.
-    """
-    fourier = getattr(disc, "fourier", None)
-    if fourier is None:
-        return 0.0
-    smax = float(np.max(-fourier.symbol))
-    dn = math.sqrt(max(dE @ (dE / disc.weights), np.finfo(float).tiny))
-    return np.finfo(float).eps * eps * smax**2 * math.sqrt(disc.volume) / dn
-
-
 def _dual_hessian(obj: Objective, pt, w_tol: float) -> np.ndarray | None:
     """W = G^T H_rho^{-1} G (2 x 2) by two CG solves; None when CG meets negative curvature."""
     sols = [hessian_solve(obj, pt, g, w_tol) for g in (pt.dA, pt.dB)]
@@ -192,8 +178,8 @@ def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> 
     return stages
 
 
-def _run_level(scene, disc, phi, cnt, log, tol, opts, check, W=None):
-    disc, pf, prec, translations = prepare(scene, disc)
+def _run_level(scene, disc, phi, cnt, log, tol, opts, check, W=None, setup=None):
+    disc, pf, prec, translations = setup or prepare(scene, disc)
     alpha, beta = constraint_data(scene, disc)
     if check:
         check_feasible(alpha, beta, scene, disc)
@@ -221,17 +207,18 @@ def l2_floor(disc, rig, dE, eps) -> float:
 
 
 def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
-          check: bool = True) -> Result:
+          check: bool = True, setup=None) -> Result:
     """Solve a scene with the Newton-Krylov backend; the same certified Result as the IPOPT path.
 
     ``x0``: a start phi (nodal values) instead of the scene's initial shape. With
     ``options.nested`` and no ``x0``, Fourier grids are first solved on the ``coarse_levels`` (to
     ``coarse_tol``) from the same initial shape, each finer level started from the Fourier
-    interpolant (the reported wall time and counts include the coarse levels).
+    interpolant (the reported wall time and counts include the coarse levels). ``setup``: the
+    fine level's ``nk.setup.prepare(scene, disc)``, when the caller reuses it (the second-order check).
     """
     opts = options or NewtonKrylovOptions.from_scene(scene)
     t0, cpu0 = time.perf_counter(), time.process_time()
-    disc = on_fourier_grid(disc or discretize(scene))
+    disc = setup[0] if setup is not None else on_fourier_grid(disc or discretize(scene))
     rig, eps, tol = scene.model.rigidity, scene.model.epsilon, opts.tol
     levels = coarse_levels(disc, eps, opts.coarse_min_n) if (opts.nested and x0 is None) else []
     cnt = Counters()
@@ -253,7 +240,7 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
     else:
         phi = resample(phi, prev_shape, disc.grid_shape)
     n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
-    disc, stages, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol, opts, check, W)
+    disc, stages, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol, opts, check, W, setup)
     level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": stages[-1].status,
                       "newton": cnt.newton - n0, "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
