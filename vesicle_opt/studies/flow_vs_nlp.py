@@ -29,7 +29,9 @@ from vesicle_opt.flows.stepper import StepperOptions, run
 from vesicle_opt.io.output import load_npz, save_npz
 from vesicle_opt.api import solve
 
+from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup, write_derived_csv
+from vesicle_opt.studies.runner import run_cases
 
 TARGET = 1e-6  # relative energy error asked by the study
 PHI_TOL = 1e-3  # and the field itself close to phi* (lumped L^2, |Omega| = 64)
@@ -134,7 +136,6 @@ def main(out: Path, quick: bool = False, n: int | None = None, cap: float | None
 
     Cases through ``study_runner`` (a re-run skips the finished ones): the NLP and the three flows,
     then the re-solve from the lowest flow end state; the summary CSV and the figure are derived."""
-    from vesicle_opt.studies.runner import run_cases
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n0, cap0 = (32, 90.0) if quick else (64, 300.0)
@@ -168,9 +169,6 @@ def main(out: Path, quick: bool = False, n: int | None = None, cap: float | None
 
 
 def _plot(path, rows, nlp_time):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for m in dict.fromkeys(r["method"] for r in rows):
         r = [x for x in rows if x["method"] == m]

@@ -22,7 +22,9 @@ import numpy as np
 from vesicle_opt.flows.stepper import StepperOptions, run
 from vesicle_opt.io.output import load_npz, save_npz
 
+from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup, write_derived_csv
+from vesicle_opt.studies.runner import run_cases
 
 SCHEMES = (("penalty", "(14)"), ("lagrange", "(13)"), ("backward-euler", "(14)"))
 REFERENCE = {"(14)": "penalty", "(13)": "lagrange"}  # the scheme whose fine-k run is each flow's reference
@@ -79,7 +81,6 @@ def case_rows(case: dict) -> list[dict]:
 
 def main(out: Path, quick: bool = False) -> int:
     """Cases through ``study_runner`` (a re-run skips the finished ones); orders and figure derived."""
-    from vesicle_opt.studies.runner import run_cases
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n, T, levels = (24, 0.01, 4) if quick else (48, 0.01, 5)
@@ -111,9 +112,6 @@ def main(out: Path, quick: bool = False) -> int:
 
 
 def _plot(path, rows, orders):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     for o in orders:
         r = [x for x in rows if x["scheme"] == o["scheme"]]
