@@ -2,6 +2,7 @@
 
 import csv
 import importlib
+import inspect
 import struct
 import subprocess
 import sys
@@ -15,6 +16,10 @@ import pytest
 from matplotlib.image import imread
 
 from vesicle_opt.verify.metrics import observed_order, restrict, richardson, trig_matrix
+import vesicle_opt
+from vesicle_opt import cli
+from vesicle_opt.errors import InputError
+from vesicle_opt.studies import NOT_STUDIES, STUDIES, run_study, study
 from vesicle_opt.studies.runner import CsvLog, run_cases
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -183,3 +188,26 @@ def test_translation_alignment_recovers_a_known_shift():
     e = field_errors(d, moved, u(d.nodes))
     assert e["error_h1"] < 1e-8 < 0.1 < e["error_h1_raw"]
     assert e["shift"] == pytest.approx(np.linalg.norm(s), rel=1e-8)
+
+
+def test_study_list_names_every_registered_study_each_with_a_main(capsys):
+    assert cli.main(["study", "--list"]) == 0
+    listed = capsys.readouterr().out.split()
+    assert listed == list(STUDIES)
+    for name in listed:
+        main = study(name).main
+        assert callable(main) and {"out", "quick"} <= set(inspect.signature(main).parameters)
+    # every module of vesicle_opt/studies is registered or named as no study
+    modules = {p.stem for p in Path(study("table1").__file__).parent.glob("*.py")} - {"__init__"}
+    assert modules == set(STUDIES) | set(NOT_STUDIES) and not set(STUDIES) & set(NOT_STUDIES)
+    assert study("time-step-convergence") is study("time_step_convergence")
+    assert vesicle_opt.run_study is run_study and "run_study" in vesicle_opt.__all__
+
+
+def test_unknown_study_is_one_line_naming_study_and_the_allowed_names(capsys):
+    assert cli.main(["study", "no-such-study", "--out", "unused"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("vesicle-opt: error: study: unknown study 'no-such-study'")
+    assert all(name in err for name in STUDIES)
+    with pytest.raises(InputError, match="runner"):  # a helper module is no study
+        run_study("runner", "unused")
