@@ -84,7 +84,7 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False, repeats: int | None = None) -> int:
-    """Rows are appended per case as it finishes (study_runner); a re-run skips finished cases."""
+    """Rows are appended per case as it finishes (runner); a re-run skips finished cases."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     repeats = repeats or (1 if quick else 3)

@@ -7,7 +7,7 @@ is rejected repeatedly.
 E_min is the penalised energy of the discrete steady state: an adaptive run of (18) to t = T_ss,
 then polished by IPOPT minimising E_M from there (the k -> infinity minimising movement of (23));
 the steady states of (18) are the critical points of E_M, the same for every k. The two constant-k curves should lie on top of each other (convergence in k).
-Rows go through ``study_runner``: ``energy_decay.csv`` with one ``row = "steady"`` (E_min in
+Rows go through ``runner``: ``energy_decay.csv`` with one ``row = "steady"`` (E_min in
 ``penalized_energy``; phi_min in ``steady-n<n>.npz`` beside it) and ``row = "step"`` per step of each
 constant-k case; ``energy_decay.png`` is drawn from the finished rows.
 """
@@ -84,7 +84,7 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False) -> int:
-    """Cases through ``study_runner`` (a re-run skips the finished ones); gap and figure derived."""
+    """Cases through ``runner`` (a re-run skips the finished ones); gap and figure derived."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n, T, k = (24, 0.5, 2e-3) if quick else (48, 2.0, 1e-3)

@@ -13,7 +13,7 @@ the grid breaks translation invariance): all flows plateau near it and then drif
 flow end state to confirm the lower constrained critical point.
 (18) and (23) minimise E_M, whose minimiser misses the constraints by O(1/M) and whose E differs from
 E* by about lambda^2/M: they may stall above 1e-6 (the floor is reported).
-Rows go through ``study_runner``: ``flow_vs_nlp.csv`` (``row = "step"`` per flow step, ``row = "summary"``
+Rows go through ``runner``: ``flow_vs_nlp.csv`` (``row = "step"`` per flow step, ``row = "summary"``
 per case; phi*, the flows' end fields in npz files beside it); ``flow_vs_nlp_summary.csv`` (the
 summary rows) and the PNG are derived from the finished rows.
 """
@@ -134,7 +134,7 @@ def case_rows(case: dict) -> list[dict]:
 def main(out: Path, quick: bool = False, n: int | None = None, cap: float | None = None) -> int:
     """quick: 32^2 with a 90 s cap per flow; full: 64^2 with 300 s (n, cap override).
 
-    Cases through ``study_runner`` (a re-run skips the finished ones): the NLP and the three flows,
+    Cases through ``runner`` (a re-run skips the finished ones): the NLP and the three flows,
     then the re-solve from the lowest flow end state; the summary CSV and the figure are derived."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -100,7 +100,7 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False) -> int:
-    """Rows are appended per grid as it finishes (study_runner); a re-run skips finished grids."""
+    """Rows are appended per grid as it finishes (runner); a re-run skips finished grids."""
     out = Path(out)
     fields_dir = out / "fields"
     fields_dir.mkdir(parents=True, exist_ok=True)

@@ -23,7 +23,7 @@ eps = 0.255254, rigidity 10, c0 = 0, penalty M = 1e4, Fourier-spectral grids n^3
    ``table1``: one component, chi 0, no wrap, phi < 0 on the centre axis); ``path`` lists the
    distinct states.
 
-Rows (one CSV, appended per grid through ``study_runner``; a killed flow resumes from its
+Rows (one CSV, appended per grid through ``runner``; a killed flow resumes from its
 checkpoint in ``flow-<n>/``): ``row = "frame"`` per snapshot (t, energy, topology) and one
 ``row = "final"`` per grid (flow and equilibrium energies beside the paper's Table 1).
 ``main(out, quick)``: quick = 16^3 only; full = 16^3, 32^3, 48^3, 64^3 and the wide disk. Writes
