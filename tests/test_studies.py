@@ -2,6 +2,8 @@
 
 import csv
 import importlib
+import inspect
+import struct
 import subprocess
 import sys
 import textwrap
@@ -11,8 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from matplotlib.image import imread
 
-from vesicle_opt.verify.metrics import observed_order, restrict, trig_matrix
+from vesicle_opt.verify.metrics import observed_order, restrict, richardson, trig_matrix
+import vesicle_opt
+from vesicle_opt import cli
+from vesicle_opt.errors import InputError
+from vesicle_opt.studies import NOT_STUDIES, STUDIES, run_study, study
 from vesicle_opt.studies.runner import CsvLog, run_cases
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -108,6 +115,17 @@ def test_trig_restriction_exact_on_trig_polynomials():
     assert np.allclose(trig_matrix(8, 8), np.eye(8), atol=1e-13)  # identity to round-off
 
 
+def test_richardson_recovers_limit_and_order():
+    """E = E_inf + C h^p through three meshes gives back E_inf and p (exact data: to round-off);
+    oscillating differences fit no order and give nan."""
+    h = np.array([0.2, 0.15, 0.1, 0.075])
+    E_inf, p = richardson(h, 3.0 + 0.7 * h**2.0)
+    assert E_inf == pytest.approx(3.0, abs=1e-12) and p == pytest.approx(2.0, abs=1e-8)  # brentq xtol 2e-12, cancellation ~1e-13
+    E_inf, p = richardson(h[:3], 1.0 - 2.0 * h[:3] ** 1.5)  # from below, p = 1.5
+    assert E_inf == pytest.approx(1.0, abs=1e-12) and p == pytest.approx(1.5, abs=1e-8)  # as above
+    assert all(map(np.isnan, richardson(h[:3], [1.0, 1.1, 1.0])))
+
+
 def test_observed_order_of_fd_energy_on_a_quick_sequence():
     """Successive energy differences on n = 54, 72, 96 (ratio 4/3): slope = the order.
 
@@ -130,6 +148,11 @@ def test_observed_order_of_fd_energy_on_a_quick_sequence():
     assert abs(p - 2) < 0.3, f"observed order {p:.3f}"
 
 
+# the figure of each quick study: figsize (inches) x dpi 110 of _common.savefig, in pixels (w, h)
+FIGURE_PX = {"penalty_continuation": (660, 495), "diagonal": (1320, 495), "h_refinement": (1650, 495),
+             "penalty_vs_exact": (1430, 550)}
+
+
 @pytest.mark.parametrize("name", ["penalty_continuation",  # ~8 s; the others 30-45 s on 2 shared cores
                                   pytest.param("diagonal", marks=pytest.mark.slow),
                                   pytest.param("h_refinement", marks=pytest.mark.slow),
@@ -140,7 +163,11 @@ def test_quick_study_runs(name, tmp_path):
     assert status == 0
     rows = _read(tmp_path / f"{name}.csv")
     assert rows and all(r["status"] and not r["status"].startswith("error") for r in rows)
-    assert (tmp_path / f"{name}.png").stat().st_size > 0
+    png = (tmp_path / f"{name}.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and png[12:16] == b"IHDR"  # a PNG, IHDR first
+    assert struct.unpack(">II", png[16:24]) == FIGURE_PX[name]  # its pixel size
+    image = imread(tmp_path / f"{name}.png")  # decodes (a truncated file raises)
+    assert image.shape[:2] == FIGURE_PX[name][::-1] and np.ptp(image[..., :3]) > 0.5  # not blank: drawn lines
     n_before = len(rows)
     mod.main(tmp_path, quick=True)  # resume: nothing recomputed, nothing duplicated
     assert len(_read(tmp_path / f"{name}.csv")) == n_before
@@ -161,3 +188,26 @@ def test_translation_alignment_recovers_a_known_shift():
     e = field_errors(d, moved, u(d.nodes))
     assert e["error_h1"] < 1e-8 < 0.1 < e["error_h1_raw"]
     assert e["shift"] == pytest.approx(np.linalg.norm(s), rel=1e-8)
+
+
+def test_study_list_names_every_registered_study_each_with_a_main(capsys):
+    assert cli.main(["study", "--list"]) == 0
+    listed = capsys.readouterr().out.split()
+    assert listed == list(STUDIES)
+    for name in listed:
+        main = study(name).main
+        assert callable(main) and {"out", "quick"} <= set(inspect.signature(main).parameters)
+    # every module of vesicle_opt/studies is registered or named as no study
+    modules = {p.stem for p in Path(study("table1").__file__).parent.glob("*.py")} - {"__init__"}
+    assert modules == set(STUDIES) | set(NOT_STUDIES) and not set(STUDIES) & set(NOT_STUDIES)
+    assert study("time-step-convergence") is study("time_step_convergence")
+    assert vesicle_opt.run_study is run_study and "run_study" in vesicle_opt.__all__
+
+
+def test_unknown_study_is_one_line_naming_study_and_the_allowed_names(capsys):
+    assert cli.main(["study", "no-such-study", "--out", "unused"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("vesicle-opt: error: study: unknown study 'no-such-study'")
+    assert all(name in err for name in STUDIES)
+    with pytest.raises(InputError, match="runner"):  # a helper module is no study
+        run_study("runner", "unused")

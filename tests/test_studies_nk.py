@@ -4,27 +4,35 @@ quick modes of the large-3D studies append their rows and resume."""
 import numpy as np
 import pytest
 
-from vesicle_opt.studies.table1 import torus_check
+from vesicle_opt.mesh.fd import grid
+from vesicle_opt.studies._common import torus_check
 
-
-def _grid(n=32):
-    x = -np.pi + 2 * np.pi / n * np.arange(n)
-    return np.meshgrid(x, x, x, indexing="ij")
+BOX = [(-np.pi, np.pi)] * 3
 
 
 def test_torus_check_accepts_a_torus_and_rejects_others():
-    X, Y, Z = _grid()
+    disc = grid(BOX, (32, 32, 32))
+    X, Y, Z = disc.nodes.T
     rho = np.hypot(X, Y)
     torus = np.tanh(0.6 - np.hypot(rho - 1.5, Z))
     sphere = np.tanh(1.5 - np.sqrt(X**2 + Y**2 + Z**2))
     blobs = np.tanh(0.6 - np.minimum(np.sqrt((X - 1.5) ** 2 + Y**2 + Z**2), np.sqrt((X + 1.5) ** 2 + Y**2 + Z**2)))
-    assert torus_check(torus.ravel(), X.shape) == {"components": 1, "axis_negative": True, "torus_ok": True}
-    assert not torus_check(sphere.ravel(), X.shape)["torus_ok"]
-    b = torus_check(blobs.ravel(), X.shape)
+    assert torus_check(disc, torus) == {"components": 1, "euler_characteristic": 0, "wraps": "none",
+                                        "axis_negative": True, "torus_ok": True}
+    s = torus_check(disc, sphere)
+    assert s["components"] == 1 and s["euler_characteristic"] == 1 and not s["axis_negative"] and not s["torus_ok"]
+    b = torus_check(disc, blobs)
     assert b["components"] == 2 and not b["torus_ok"]
     # a blob cut by the periodic boundary is still one component
     wrapped = np.tanh(0.6 - np.sqrt((np.abs(X) - np.pi) ** 2 + Y**2 + Z**2))
-    assert torus_check(wrapped.ravel(), X.shape)["components"] == 1
+    assert torus_check(disc, wrapped)["components"] == 1
+    # a slab across the box with a hole on the axis: one component, axis outside, but it joins its
+    # periodic images along x and y -- not a torus (the faces-only check of old said it was)
+    slab = np.minimum(np.tanh(0.6 - np.abs(Z)), np.tanh(rho - 1.0))
+    sl = torus_check(disc, slab)
+    assert sl["components"] == 1 and sl["axis_negative"] and sl["wraps"] == "xy" and not sl["torus_ok"]
+    # the check reads a front-door result's topology report when given one
+    assert torus_check(disc, torus, {"components": 2, "euler_characteristic": 0, "wraps": []})["torus_ok"] is False
 
 
 @pytest.mark.slow

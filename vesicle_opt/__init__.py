@@ -7,7 +7,8 @@ minimisation (energy (3)/(6), constraints (4)-(5)/(7)-(8) of the reference paper
     print(result.converged, result.outcome, result.energy)
 
 ``solve`` dispatches to the IPOPT backend (``vesicle_opt.nlp``) or the matrix-free Newton-Krylov
-backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi NLP.
+backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi NLP;
+``run_study(name, out, quick)`` runs one of the studies (``vesicle_opt.studies.STUDIES``).
 """
 
 from vesicle_opt.api import solve
@@ -16,6 +17,8 @@ from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp
 from vesicle_opt.result import Result, Status
 from vesicle_opt.scene import Scene, load as load_scene
+from vesicle_opt.studies import run_study
 
 __all__ = ["solve", "load_scene", "Scene", "build_nlp", "NLP", "IpoptOptions", "NewtonKrylovOptions",
-           "Result", "Status", "VesicleError", "InputError", "InfeasibleError", "NotSupported", "SolverError"]
+           "Result", "Status", "VesicleError", "InputError", "InfeasibleError", "NotSupported", "SolverError",
+           "run_study"]

@@ -1,5 +1,5 @@
 """Command line: ``vesicle-opt solve SCENE.toml [--out DIR] [--set KEY=VALUE ...]`` and
-``vesicle-opt study NAME --out DIR [--quick]``.
+``vesicle-opt study NAME --out DIR [--quick]`` (``vesicle-opt study --list``: the names).
 
 Exit codes: 0 converged; 1 the solver did not converge (results still written); 2 bad input
 (one line naming the key and the allowed range, no traceback).
@@ -8,7 +8,6 @@ Exit codes: 0 converged; 1 the solver did not converge (results still written); 
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 import warnings
 from pathlib import Path
@@ -18,6 +17,7 @@ from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.flows.run import flow
 from vesicle_opt.io import output
 from vesicle_opt.scene import load as load_scene
+from vesicle_opt.studies import STUDIES, run_study
 
 
 class _Parser(argparse.ArgumentParser):
@@ -49,17 +49,12 @@ def cmd_solve(args) -> int:
 
 
 def cmd_study(args) -> int:
-    name = args.name.replace("-", "_")
-    try:
-        module = importlib.import_module(f"vesicle_opt.studies.{name}")
-    except ModuleNotFoundError as exc:
-        if exc.name != f"vesicle_opt.studies.{name}":
-            raise
-        raise InputError("study", f"unknown study {args.name!r}") from None
-    if not hasattr(module, "main"):
-        raise InputError("study", f"{args.name!r} is not a study (no main(out, quick))")
-    status = module.main(Path(args.out), quick=args.quick)
-    return int(status or 0)
+    if args.list:
+        print("\n".join(STUDIES))
+        return 0
+    if args.name is None:
+        raise InputError("study", f"give a study name or --list; one of {', '.join(STUDIES)}")
+    return run_study(args.name, Path(args.out), quick=args.quick)
 
 
 def cmd_flow(args) -> int:
@@ -109,7 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a scene key (dotted, value parsed as TOML); repeatable")
     s.set_defaults(func=cmd_solve)
     st = sub.add_parser("study", help="run a study from studies/ writing CSV and figures")
-    st.add_argument("name")
+    st.add_argument("name", nargs="?", help="the study (- or _ alike); see --list")
+    st.add_argument("--list", action="store_true", help="print the study names, one per line")
     st.add_argument("--out", default="out", help="output directory (default: out)")
     st.add_argument("--quick", action="store_true", help="small, fast variant")
     st.set_defaults(func=cmd_study)

@@ -1,4 +1,5 @@
-"""Shared pieces of the theorem studies: scenes by name, CSV rows from results, fitted rates."""
+"""Shared pieces of the studies: scenes by name, CSV rows from results, fitted rates, the torus
+check of the Section-5 studies, and pyplot on the Agg backend (``pyplot``; figures are files)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,21 @@ import math
 import warnings
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 
 from vesicle_opt import scene as scene_mod
-from vesicle_opt.verify.metrics import field_errors
 from vesicle_opt.nlp import build_nlp
 from vesicle_opt.result import Result
+from vesicle_opt.verify import topology
+from vesicle_opt.verify.metrics import field_errors
+
+matplotlib.use("Agg")  # before pyplot: the studies write figure files, never open windows
+import matplotlib.pyplot as pyplot  # noqa: E402
+
+# Table 1 of the paper (the torus of Section 5, penalty M = 1e4): rigidity * E_h per grid n^3
+TABLE1 = {16: 409.22535, 32: 423.20807, 48: 423.20086, 64: 423.20087}
+TABLE1_M = 1e4
 
 EXTRA = ["error_lap", "error_h1_raw", "shift", "penalized_energy", "kkt_residual", "converged", "tol",
          "setting"]
@@ -68,12 +78,35 @@ def select(rows: list[dict], **match) -> list[dict]:
 def savefig(fig, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    import matplotlib.pyplot as plt
-    plt.close(fig)
+    pyplot.close(fig)
 
 
 def plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as pyplot
+    """pyplot on the Agg backend (the module's ``pyplot``)."""
     return pyplot
+
+
+def torus_check(disc, phi: np.ndarray, topo: dict | None = None) -> dict:
+    """Is {phi > 0} a solid torus around the z axis? The topology columns of ``table1`` and
+    ``torus_section5`` (one rule for both):
+
+    * ``components``, ``euler_characteristic``, ``wraps`` from ``verify.topology`` (periodic,
+      corner contacts connect): ``topo`` is a ``topology.report`` dict (a front-door result's
+      ``extra``), computed from ``disc`` and ``phi`` when not given; ``wraps`` is written as the
+      axis letters, ``"none"`` when the body does not join its periodic image (None, and chi
+      None, off grids: not a torus then);
+    * ``axis_negative``: phi < 0 at every node of the centre axis x = y = 0 (the grid column
+      nearest to it): the hole of the torus, not a sphere or a disk;
+    * ``torus_ok``: one component, chi = 0, no wrap, and the axis outside.
+    """
+    topo = topology.report(disc, phi) if topo is None else topo
+    if "components" not in topo:  # report() of a non-finite phi is empty
+        return {"components": None, "euler_characteristic": None, "wraps": None, "axis_negative": False,
+                "torus_ok": False}
+    rho = np.hypot(disc.nodes[:, 0], disc.nodes[:, 1])
+    axis = rho <= rho.min() + 1e-9 * disc.h  # the column nearest to x = y = 0 (on it for even n)
+    wraps = None if topo["wraps"] is None else "".join("xyz"[a] for a in topo["wraps"]) or "none"
+    axis_negative = bool(np.all(np.asarray(phi)[axis] < 0))
+    ok = topo["components"] == 1 and topo["euler_characteristic"] == 0 and wraps == "none" and axis_negative
+    return {"components": topo["components"], "euler_characteristic": topo["euler_characteristic"],
+            "wraps": wraps, "axis_negative": axis_negative, "torus_ok": bool(ok)}

@@ -1,9 +1,9 @@
 """Shared helpers of the flow studies: build a scene's flow pieces, fields beside the CSV.
 
-The study rows go through ``vesicle_opt.study_runner`` (one appending writer, resumable); the
+The study rows go through ``vesicle_opt.studies.runner`` (one appending writer, resumable); the
 helpers here save the large fields a case shares with later cases (npz, written atomically so a
 kill never leaves a half file) and write the small *derived* CSVs that ``main`` recomputes from
-the finished rows on every run. Shared fields go through ``vesicle_opt.output.save_npz`` /
+the finished rows on every run. Shared fields go through ``vesicle_opt.io.output.save_npz`` /
 ``load_npz`` (atomic).
 """
 
@@ -37,7 +37,7 @@ def write_derived_csv(path: Path, rows: list[dict], columns: list[str] | None = 
 
 
 def report_failures(rows: list[dict]) -> bool:
-    """Print the rows ``study_runner`` recorded for cases that raised (status ``error: ...``);
+    """Print the rows ``runner`` recorded for cases that raised (status ``error: ...``);
     True when there is one (the study then returns 1)."""
     bad = [r for r in rows if str(r.get("status", "")).startswith("error")]
     for r in bad:

@@ -20,18 +20,19 @@ the solver's own CPU time (``solve_cpu_s``, newton-krylov only) shows what an id
 
 from __future__ import annotations
 
+import os
+import resource
 import statistics
+import sys
+import time
 from pathlib import Path
+
+from vesicle_opt import scene
+from vesicle_opt.api import solve
+from vesicle_opt.studies.runner import in_fresh_process, run_cases
 
 
 def _case(kind: str, n: int, backend: str) -> dict:
-    import os
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    import resource
-    import time
-
-    from vesicle_opt import scene
-    from vesicle_opt.api import solve
     sc = scene.load("torus-table1-3d",
                     [f"mesh.kind='{kind}'", f"mesh.n={n}", f"solver.backend='{backend}'"])
     t0 = time.perf_counter()
@@ -64,7 +65,9 @@ EXTRA = ["kind", "backend", "n_nodes", "converged", "kkt_residual", "kkt_dual", 
 
 def case_rows(case: dict) -> list[dict]:
     """``repeats`` fresh-process runs of one (kind, n, backend); one row with the median."""
-    from vesicle_opt.studies.runner import in_fresh_process
+    # one BLAS thread in the fresh processes: set here, in the parent, because a child has loaded
+    # numpy (importing this module to unpickle _case) before _case runs
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
     runs = [in_fresh_process(_case, case["kind"], case["n"], case["backend"])
             for _ in range(case["repeats"])]
     row = dict(runs[-1])
@@ -81,8 +84,7 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False, repeats: int | None = None) -> int:
-    """Rows are appended per case as it finishes (study_runner); a re-run skips finished cases."""
-    from vesicle_opt.studies.runner import run_cases
+    """Rows are appended per case as it finishes (runner); a re-run skips finished cases."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     repeats = repeats or (1 if quick else 3)
@@ -94,5 +96,4 @@ def main(out: Path, quick: bool = False, repeats: int | None = None) -> int:
 
 
 if __name__ == "__main__":
-    import sys
     sys.exit(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/bench_3d"), quick="--quick" in sys.argv))

@@ -19,11 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.studies._common import EXTRA, column, load, nlp_for, plt, row, savefig, select
-from vesicle_opt.studies.h_refinement import richardson
 from vesicle_opt.model.penalty import schedule
 from vesicle_opt.nlp.continuation import continuation
 from vesicle_opt.mesh import discretize
-from vesicle_opt.verify.metrics import field_errors, observed_order, restrict
+from vesicle_opt.verify.metrics import field_errors, observed_order, restrict, richardson
 from vesicle_opt.api import solve
 from vesicle_opt.studies.runner import run_cases
 

@@ -7,7 +7,7 @@ is rejected repeatedly.
 E_min is the penalised energy of the discrete steady state: an adaptive run of (18) to t = T_ss,
 then polished by IPOPT minimising E_M from there (the k -> infinity minimising movement of (23));
 the steady states of (18) are the critical points of E_M, the same for every k. The two constant-k curves should lie on top of each other (convergence in k).
-Rows go through ``study_runner``: ``energy_decay.csv`` with one ``row = "steady"`` (E_min in
+Rows go through ``runner``: ``energy_decay.csv`` with one ``row = "steady"`` (E_min in
 ``penalized_energy``; phi_min in ``steady-n<n>.npz`` beside it) and ``row = "step"`` per step of each
 constant-k case; ``energy_decay.png`` is drawn from the finished rows.
 """
@@ -18,10 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
+from vesicle_opt.flows.backward_euler import BackwardEulerScheme
 from vesicle_opt.flows.stepper import StepperOptions, run
 from vesicle_opt.io.output import load_npz, save_npz
-
+from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup
+from vesicle_opt.studies.runner import run_cases
 
 T_SS = 20.0
 EXTRA = ["row", "k", "step", "t", "penalized_energy", "excess", "energy_law_residual",
@@ -40,7 +42,6 @@ def _steady(case: dict) -> dict:
     st = load_npz(path)
     if st is not None:
         return st
-    from vesicle_opt.flows.backward_euler import BackwardEulerScheme
     sc, md, sch, phi0 = setup("ellipse-2d", _base(n))  # flow.initial = "projected" (the default)
     ss = run(sch, phi0, StepperOptions(dt=1e-4, t_end=T_SS, max_steps=20000, adaptive=True, dt_max=0.5))
     phi_min, ok, status = BackwardEulerScheme(md, law_tol=sc.flow.law_tol).minimise(ss.phi)
@@ -83,8 +84,7 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False) -> int:
-    """Cases through ``study_runner`` (a re-run skips the finished ones); gap and figure derived."""
-    from vesicle_opt.studies.runner import run_cases
+    """Cases through ``runner`` (a re-run skips the finished ones); gap and figure derived."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n, T, k = (24, 0.5, 2e-3) if quick else (48, 2.0, 1e-3)
@@ -104,9 +104,6 @@ def main(out: Path, quick: bool = False) -> int:
     common = sorted(set(a) & set(b))
     rel = max(abs(a[j] - b[j]) / abs(b[j]) for j in common if b[j] > 0)
     print(f"max relative gap between the curves (E_M - E_min, k vs k/2): {rel:.3e}", flush=True)
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6, 4))
     for kk in (k, k / 2):
         r = [x for x in rows if x["k"] == kk and x["excess"] > 0]

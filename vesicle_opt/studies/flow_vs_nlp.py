@@ -13,7 +13,7 @@ the grid breaks translation invariance): all flows plateau near it and then drif
 flow end state to confirm the lower constrained critical point.
 (18) and (23) minimise E_M, whose minimiser misses the constraints by O(1/M) and whose E differs from
 E* by about lambda^2/M: they may stall above 1e-6 (the floor is reported).
-Rows go through ``study_runner``: ``flow_vs_nlp.csv`` (``row = "step"`` per flow step, ``row = "summary"``
+Rows go through ``runner``: ``flow_vs_nlp.csv`` (``row = "step"`` per flow step, ``row = "summary"``
 per case; phi*, the flows' end fields in npz files beside it); ``flow_vs_nlp_summary.csv`` (the
 summary rows) and the PNG are derived from the finished rows.
 """
@@ -29,7 +29,9 @@ from vesicle_opt.flows.stepper import StepperOptions, run
 from vesicle_opt.io.output import load_npz, save_npz
 from vesicle_opt.api import solve
 
+from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup, write_derived_csv
+from vesicle_opt.studies.runner import run_cases
 
 TARGET = 1e-6  # relative energy error asked by the study
 PHI_TOL = 1e-3  # and the field itself close to phi* (lumped L^2, |Omega| = 64)
@@ -132,9 +134,8 @@ def case_rows(case: dict) -> list[dict]:
 def main(out: Path, quick: bool = False, n: int | None = None, cap: float | None = None) -> int:
     """quick: 32^2 with a 90 s cap per flow; full: 64^2 with 300 s (n, cap override).
 
-    Cases through ``study_runner`` (a re-run skips the finished ones): the NLP and the three flows,
+    Cases through ``runner`` (a re-run skips the finished ones): the NLP and the three flows,
     then the re-solve from the lowest flow end state; the summary CSV and the figure are derived."""
-    from vesicle_opt.studies.runner import run_cases
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n0, cap0 = (32, 90.0) if quick else (64, 300.0)
@@ -168,9 +169,6 @@ def main(out: Path, quick: bool = False, n: int | None = None, cap: float | None
 
 
 def _plot(path, rows, nlp_time):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for m in dict.fromkeys(r["method"] for r in rows):
         r = [x for x in rows if x["method"] == m]

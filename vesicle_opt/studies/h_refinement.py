@@ -20,10 +20,9 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import brentq
 
 from vesicle_opt.studies._common import EXTRA, column, nlp_for, plt, row, savefig, select
-from vesicle_opt.verify.metrics import field_errors, observed_order, restrict
+from vesicle_opt.verify.metrics import field_errors, observed_order, restrict, richardson
 from vesicle_opt.api import solve
 from vesicle_opt.studies.runner import run_cases
 
@@ -48,19 +47,6 @@ def cases(quick: bool) -> list[dict]:
     out.append({"case": "sphere-3d-fem-lumped-exact", "scene": "sphere-3d", "disc": "fem-lumped",
                 "method": "exact", "ns": [12, 16, 24, 32]})
     return out
-
-
-def richardson(h, E) -> tuple[float, float]:
-    """(E_inf, p) with E = E_inf + C h^p through the three points of smallest h; nan if not monotone."""
-    (h1, h2, h3), (E1, E2, E3) = (np.asarray(h)[-3:], np.asarray(E)[-3:])
-    q = (E2 - E1) / (E3 - E2)
-    f = lambda p: (h1**p - h2**p) / (h2**p - h3**p) - q  # noqa: E731
-    try:
-        p = brentq(f, 0.25, 8.0)
-    except ValueError:
-        return math.nan, math.nan
-    C = (E3 - E2) / (h3**p - h2**p)
-    return float(E3 - C * h3**p), float(p)
 
 
 def run(case: dict) -> list[dict]:

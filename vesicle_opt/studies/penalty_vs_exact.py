@@ -21,6 +21,7 @@ from vesicle_opt.studies._common import EXTRA, column, nlp_for, plt, row, savefi
 from vesicle_opt.verify.metrics import field_errors
 from vesicle_opt.api import solve
 from vesicle_opt.nlp.ipopt import IpoptOptions
+from vesicle_opt.nlp.scp import scp  # cvxpy, its optional dependency, is imported when scp runs
 from vesicle_opt.studies.runner import run_cases
 
 NAME = "penalty_vs_exact"
@@ -41,7 +42,7 @@ def cases(quick: bool, fields: Path) -> list[dict]:
     out += [{**base, "case": f"augmented-tol{t:g}", "method": "augmented", "tol": t, "setting": f"tol={t:g}"}
             for t in tols[1:]]
     try:
-        import cvxpy  # noqa: F401 - optional extra
+        import cvxpy  # noqa: F401 - optional extra (local: the study runs without it)
         out.append({**base, "case": "scp", "method": "scp", "tol": 1e-8, "max_iter": 6 if quick else 60,
                     "setting": "Gauss-Newton SCP"})
     except ImportError:
@@ -58,7 +59,7 @@ def reference(n: int, fields: Path):
         # every method starts from the same centred, symmetric shape and stays centred.
         r = solve(nlp, options=IpoptOptions(tol=REF_TOL))
         # then its constraints to 1e-14 from there (a Newton step; stays on the same state)
-        r = solve(nlp, x0=r.x, lam_g0=r.lam_g,
+        r = solve(nlp, x0=r,  # the primal-dual point of the first solve
                   options=IpoptOptions(tol=REF_TOL, extra=(("ipopt.constr_viol_tol", 1e-14),)))
         if not r.converged:
             raise RuntimeError(f"reference solve did not converge: {r.status}")
@@ -71,7 +72,6 @@ def run(case: dict) -> list[dict]:
     E_ref = float(ref["energy"])
     over = [f"mesh.n={case['n']}", f"solver.tol={case['tol']}"]
     if case["method"] == "scp":
-        from vesicle_opt.nlp.scp import scp
         nlp = nlp_for(case["scene"], over)
         rows = []
         checkpoints = {1, 2, 4, 8, 16, 32, case["max_iter"]}  # cumulative time

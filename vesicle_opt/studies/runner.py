@@ -15,12 +15,15 @@ from __future__ import annotations
 
 import csv
 import io
+import multiprocessing as mp
 import os
 import sys
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable, Iterable
+
+import numpy as np
 
 COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual", "area_residual",
            "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
@@ -85,7 +88,6 @@ class CsvLog:
 
 def _fmt(v):
     """Plain text for numpy scalars too (full precision floats, no 'np.float64(...)')."""
-    import numpy as np
     if isinstance(v, (bool, np.bool_)):
         return bool(v)
     if isinstance(v, (float, np.floating)):
@@ -124,7 +126,6 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
         return log.rows()
     own = executor is None
     if own:
-        import multiprocessing as mp
         executor = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
     try:
         futures = {executor.submit(_timed, fn, c): c for c in todo}
@@ -147,7 +148,6 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
 
 def in_fresh_process(fn: Callable, *args):
     """``fn(*args)`` in a new spawned process, so that its peak memory (ru_maxrss) is its own."""
-    import multiprocessing as mp
     with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
         return pool.submit(fn, *args).result()
 

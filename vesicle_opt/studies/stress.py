@@ -32,6 +32,20 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+import skfem
+
+from vesicle_opt import scene
+from vesicle_opt.api import solve
+from vesicle_opt.errors import InputError
+from vesicle_opt.flows import stepper
+from vesicle_opt.flows.run import build_model, initial_field, make_scheme
+from vesicle_opt.mesh import discretize
+from vesicle_opt.model import feasibility
+from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.studies._common import pyplot as plt
+from vesicle_opt.studies.runner import run_cases
+
 EXTRA = ["group", "parameter", "outcome", "reference_energy", "relative_energy_error", "kkt_residual",
          "second_order", "second_order_min_eigenvalue", "topology", "rejections", "max_law_residual",
          "limit_reference", "beta_over_beta_min"]
@@ -87,23 +101,19 @@ def _cases(quick: bool, mesh_dir: Path) -> list[dict]:
 
 
 def _scene(case: dict, extra=()):
-    from vesicle_opt import scene
     overrides = [o for o in case["overrides"] if not o.startswith("@")]
     return scene.load(case["scene"], [*overrides, *extra])
 
 
 def run_flow_case(case: dict) -> dict:
     """Three steps of the flow with constant k and rejection (halving) down to the default dt_min."""
-    import numpy as np
-    from vesicle_opt.flows.run import build_model, initial_field, make_scheme
-    from vesicle_opt.flows.stepper import StepperOptions, run
     sc = _scene(case)
     md = build_model(sc)
     scheme = make_scheme(sc, md)
     laws: list[float] = []
     k = sc.flow.dt
-    outcome = run(scheme, initial_field(sc, md), StepperOptions(dt=k, t_end=1e6 * k, max_steps=3),
-                  on_accept=lambda step, t, phi, row: laws.append(abs(float(row["energy_law_residual"]))))
+    outcome = stepper.run(scheme, initial_field(sc, md), stepper.StepperOptions(dt=k, t_end=1e6 * k, max_steps=3),
+                          on_accept=lambda step, t, phi, row: laws.append(abs(float(row["energy_law_residual"]))))
     obs = scheme.observe(outcome.phi)
     finite = bool(np.all(np.isfinite(outcome.phi)))
     ok = outcome.status in ("t_end", "max_steps", "steady") and finite
@@ -123,11 +133,6 @@ def sharp_beta(alpha: float, sc, v: float) -> float:
 
 
 def run_case(case: dict) -> dict:
-    from vesicle_opt.model import feasibility
-    from vesicle_opt.api import solve
-    from vesicle_opt.mesh import discretize
-    from vesicle_opt.errors import InputError
-    from vesicle_opt.model.problem import constraint_data
     row = {k: case[k] for k in ("group", "scene", "parameter", "method")}
     t0 = time.perf_counter()
     if case["group"] == "flow":
@@ -168,8 +173,6 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False) -> int:
-    import skfem
-    from vesicle_opt.studies.runner import run_cases
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     mesh_path = out / "disk.vtk"
@@ -181,9 +184,6 @@ def main(out: Path, quick: bool = False) -> int:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     colours = {"converged": "tab:green", "failed": "tab:red", "refused": "tab:grey"}
     fig, ax = plt.subplots(figsize=(8, 0.3 * len(rows) + 1))
     for i, r in enumerate(rows):

@@ -8,9 +8,11 @@ paper's penalty form (11) with M = 1e4 (rigidity 10 on E only). Written beside t
 * ``predicted_penalty_energy`` = E* - (lam_A^2 + lam_B^2)/M from the exact solve (Theorem 3.2 to first
   order: the penalty minimiser has lam = -M c, so rig E(phi_M) ~ E* + lam.c = E* - |lam|^2/M), and
   ``predicted_penalized`` = E* - |lam|^2/(2M) for E_M itself;
-* a topology check: {phi > 0} has one connected component (periodic wrap-around) and phi < 0 on the
-  whole centre axis x = y = 0, i.e. a solid torus, not a sphere or a disk;
-* for the exact solves, the least eigenvalues of the reduced Hessian (``second_order_lobpcg``): positive
+* a topology check (``_common.torus_check``, shared with ``torus_section5``): {phi > 0} has one
+  connected component of Euler characteristic 0 that does not wrap around the periodic box
+  (``verify.topology``, the front door's ``extra``), and phi < 0 on the whole centre axis
+  x = y = 0, i.e. a solid torus, not a sphere or a disk;
+* for the exact solves, the least eigenvalues of the reduced Hessian (``verify.lobpcg``): positive
   with the translations and rotations excluded means a strict local minimum up to the symmetries.
 
 ``main(out, quick)`` writes ``table1.csv`` and ``table1.png``; quick = 16^3 and 32^3 only. Returns 0
@@ -20,58 +22,40 @@ when every solve converged, is a torus, and (exact) passed the second-order chec
 from __future__ import annotations
 
 import resource
+import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 
-PAPER = {16: 409.22535, 32: 423.20807, 48: 423.20086, 64: 423.20087}
-M_PAPER = 1e4
+from vesicle_opt import scene
+from vesicle_opt.api import solve
+from vesicle_opt.io.output import draw_cut
+from vesicle_opt.nk.setup import prepare
+from vesicle_opt.studies._common import TABLE1, TABLE1_M, pyplot as plt, torus_check
+from vesicle_opt.studies.runner import run_cases
+from vesicle_opt.verify.lobpcg import reduced_hessian_eigenvalues
 
-
-def torus_check(phi: np.ndarray, shape) -> dict:
-    """Connected components of {phi > 0} on the periodic grid, and phi < 0 on the centre axis."""
-    F = phi.reshape(shape)
-    lab, n = ndimage.label(F > 0)
-    parent = list(range(n + 1))
-
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-    for ax in range(F.ndim):  # glue labels across the periodic faces
-        a, b = np.take(lab, 0, axis=ax), np.take(lab, -1, axis=ax)
-        for u, v in zip(a[(a > 0) & (b > 0)], b[(a > 0) & (b > 0)]):
-            parent[find(u)] = find(v)
-    components = len({find(i) for i in range(1, n + 1)})
-    mid = [k // 2 for k in shape]  # the node x = 0 (grids start at -pi with even n)
-    axis = F[mid[0], mid[1], :]
-    return {"components": components, "axis_negative": bool(np.all(axis < 0)),
-            "torus_ok": components == 1 and bool(np.all(axis < 0))}
+PAPER, M_PAPER = TABLE1, TABLE1_M  # the paper's Table 1 (``_common``)
 
 
 def _solve(n: int, method: str):
-    from vesicle_opt.nk import solve as newton_krylov
-    from vesicle_opt import scene
+    """The front door on the spectral grid; its own second-order check is off, ``_second_order``
+    below runs LOBPCG once with and once without the rotations (and keeps the residuals)."""
     sc = scene.load("torus-table1-3d",
                     ["mesh.kind='spectral'", f"mesh.n={n}", "solver.backend='newton-krylov'",
-                     f"solver.method='{method}'", f"solver.M={M_PAPER}"])
-    return newton_krylov.solve(sc)
+                     f"solver.method='{method}'", f"solver.M={M_PAPER}", "solver.second_order=false"])
+    return sc, solve(sc)
 
 
-def _second_order(n: int, r) -> dict:
-    """Smallest eigenvalues of the reduced Hessian (second_order_lobpcg.py): with the rotations excluded the
+def _second_order(sc, r) -> dict:
+    """Smallest eigenvalues of the reduced Hessian (``verify.lobpcg``): with the rotations excluded the
     least must be positive (a strict local minimum up to the symmetries); with them, the rotations'."""
-    import warnings
-
-    from vesicle_opt import scene
-    from vesicle_opt.verify.lobpcg import reduced_hessian_eigenvalues
-    sc = scene.load("torus-table1-3d", ["mesh.kind='spectral'", f"mesh.n={n}"])
+    setup = prepare(sc, r.disc)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # lobpcg warns when the unwanted eigenvalues lag behind
-        v_rot, r_rot = reduced_hessian_eigenvalues(sc, r, k=3, rotations=False)
-        v, res = reduced_hessian_eigenvalues(sc, r, k=3, rotations=True)
+        v_rot, r_rot = reduced_hessian_eigenvalues(sc, r, setup, k=3, rotations=False)
+        v, res = reduced_hessian_eigenvalues(sc, r, setup, k=3, rotations=True)
     return {"eig_min_no_rotations": v[0], "eig_min_no_rotations_residual": res[0],
             "eig_min_with_rotations": v_rot[0], "eig_min_with_rotations_residual": r_rot[0],
             "strict_local_min": bool(v[0] > 10 * res[0])}
@@ -79,6 +63,7 @@ def _second_order(n: int, r) -> dict:
 
 EXTRA = ["paper_energy", "rel_diff_paper", "penalized_energy", "kkt_dual", "kkt_residual", "converged",
          "newton", "cg", "wall_s", "process_peak_rss_mb", "components", "axis_negative", "torus_ok",
+         "euler_characteristic", "wraps",
          "eig_min_no_rotations", "eig_min_no_rotations_residual", "eig_min_with_rotations",
          "eig_min_with_rotations_residual", "strict_local_min", "predicted_penalty_energy",
          "predicted_penalized"]
@@ -89,8 +74,8 @@ def case_rows(case: dict) -> list[dict]:
     n = case["n"]
     rows, ex = [], None
     for method in ("exact", "penalty"):
-        r = _solve(n, method)
-        topo = torus_check(r.phi, (n, n, n))
+        sc, r = _solve(n, method)
+        topo = torus_check(r.disc, r.phi, r.extra)
         row = {"scene": "torus-table1-3d", "n": n, "method": method, "energy": r.energy,
                "paper_energy": PAPER[n], "rel_diff_paper": r.energy / PAPER[n] - 1,
                "penalized_energy": r.penalized_energy, "lambda_volume": r.lambda_volume,
@@ -102,7 +87,7 @@ def case_rows(case: dict) -> list[dict]:
                "process_peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, **topo}
         if method == "exact":
             ex = r
-            row.update(_second_order(n, r))
+            row.update(_second_order(sc, r))
             np.savez_compressed(Path(case["fields"]) / f"phi-exact-{n}.npz", phi=r.phi)
         lam2 = ex.lambda_volume**2 + ex.lambda_area**2
         row["predicted_penalty_energy"] = ex.energy - lam2 / M_PAPER
@@ -115,8 +100,7 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False) -> int:
-    """Rows are appended per grid as it finishes (study_runner); a re-run skips finished grids."""
-    from vesicle_opt.studies.runner import run_cases
+    """Rows are appended per grid as it finishes (runner); a re-run skips finished grids."""
     out = Path(out)
     fields_dir = out / "fields"
     fields_dir.mkdir(parents=True, exist_ok=True)
@@ -134,9 +118,6 @@ def main(out: Path, quick: bool = False) -> int:
 
 
 def _plot(path, rows, fields, ns):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 4, figsize=(20, 4.5))
     ax = axes[1]
     fine = [n for n in ns if n >= 32]
@@ -160,7 +141,6 @@ def _plot(path, rows, fields, ns):
     ax.legend()
     n = ns[-1]
     F = fields[(n, "exact")].reshape(n, n, n)
-    from vesicle_opt.io.output import draw_cut
     for a, (cut, name) in zip(axes[2:], ((F[:, n // 2, :], "y = 0"), (F[:, :, n // 2], "z = 0"))):
         draw_cut(a, cut, (-np.pi, -np.pi), (np.pi, np.pi), f"exact, {n}^3 spectral: cut {name}")
     fig.tight_layout()
@@ -169,5 +149,4 @@ def _plot(path, rows, fields, ns):
 
 
 if __name__ == "__main__":
-    import sys
     sys.exit(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/table1"), quick="--quick" in sys.argv))

@@ -7,7 +7,7 @@ against a fine-k reference, in the lumped L^2 norm and in the energy (kappa E_h)
   k_ref = k_min / 4 (its error there is ~1/16 of the finest (18) error, and ~1e-3 of (23)'s);
 * (17) discretises (13) and gets its own reference at k_ref = k_min / 4.
 The observed order is the least-squares slope of log(error) against log(k) (np.polyfit).
-Rows go through ``study_runner`` (one case per reference and per (scheme, k); the references' fields
+Rows go through ``runner`` (one case per reference and per (scheme, k); the references' fields
 are npz files beside the CSV): ``time_step_convergence.csv`` (``row`` = reference | run), then
 ``time_step_orders.csv`` and ``time_step_convergence.png`` derived from the finished rows.
 """
@@ -22,7 +22,9 @@ import numpy as np
 from vesicle_opt.flows.stepper import StepperOptions, run
 from vesicle_opt.io.output import load_npz, save_npz
 
+from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup, write_derived_csv
+from vesicle_opt.studies.runner import run_cases
 
 SCHEMES = (("penalty", "(14)"), ("lagrange", "(13)"), ("backward-euler", "(14)"))
 REFERENCE = {"(14)": "penalty", "(13)": "lagrange"}  # the scheme whose fine-k run is each flow's reference
@@ -78,8 +80,7 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False) -> int:
-    """Cases through ``study_runner`` (a re-run skips the finished ones); orders and figure derived."""
-    from vesicle_opt.studies.runner import run_cases
+    """Cases through ``runner`` (a re-run skips the finished ones); orders and figure derived."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n, T, levels = (24, 0.01, 4) if quick else (48, 0.01, 5)
@@ -111,9 +112,6 @@ def main(out: Path, quick: bool = False) -> int:
 
 
 def _plot(path, rows, orders):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     for o in orders:
         r = [x for x in rows if x["scheme"] == o["scheme"]]

@@ -12,16 +12,18 @@ eps = 0.255254, rigidity 10, c0 = 0, penalty M = 1e4, Fourier-spectral grids n^3
    end well before T_END on every grid; afterwards the torus relaxes slowly (measured at t = 0.4:
    ||phi_t|| ~ 1.2 and E_M still 0.3 above the equilibrium), so
 2. **Equilibrium.** the penalised problem (11) at the same M is solved by Newton-Krylov from the
-   flow's last field (``newton_krylov.solve(phi0=...)``): the Table 1 column. The same problem is
+   flow's last field (the front door ``solve(scene, x0=phi)``): the Table 1 column. The same problem is
    also solved from the scene's torus start; equal energies mean the flow reached the same minimiser.
 3. **Start sensitivity** (16^3, reported, not part of the verdict): the wider disk ``WIDE_DISK``
    ends as a tube joined to its periodic image (wraps x, lower energy than the torus): not a
    vesicle, and the topology columns say so.
 4. **Topology of every frame** (``flow.frames`` snapshots): components of {phi > 0}, Euler
-   characteristic (2 for a disk/sphere, 0 for a torus), periodic wraps (a slab joined to its
-   images wraps two directions) and ``table1.torus_check``; ``path`` lists the distinct states.
+   characteristic (1 for a disk/ball, 0 for a solid torus), periodic wraps (a slab joined to its
+   images wraps two directions) and the torus check ``_common.torus_check`` (shared with
+   ``table1``: one component, chi 0, no wrap, phi < 0 on the centre axis); ``path`` lists the
+   distinct states.
 
-Rows (one CSV, appended per grid through ``study_runner``; a killed flow resumes from its
+Rows (one CSV, appended per grid through ``runner``; a killed flow resumes from its
 checkpoint in ``flow-<n>/``): ``row = "frame"`` per snapshot (t, energy, topology) and one
 ``row = "final"`` per grid (flow and equilibrium energies beside the paper's Table 1).
 ``main(out, quick)``: quick = 16^3 only; full = 16^3, 32^3, 48^3, 64^3 and the wide disk. Writes
@@ -32,11 +34,20 @@ step's law verified, ended a single torus, and every equilibrium solve converged
 
 from __future__ import annotations
 
+import csv
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.studies.table1 import M_PAPER, PAPER, torus_check
+from vesicle_opt import scene
+from vesicle_opt.api import solve
+from vesicle_opt.flows.run import flow
+from vesicle_opt.io.output import draw_cut
+from vesicle_opt.studies._common import TABLE1, TABLE1_M, pyplot as plt, torus_check
+from vesicle_opt.studies.runner import run_cases
+
+PAPER, M_PAPER = TABLE1, TABLE1_M  # the paper's Table 1 (``_common``)
 
 DISK = [2.5, 2.3, 0.94]
 WIDE_DISK = [2.6, 2.2, 0.95]  # 0.44 from the box face: its tanh tail meets its periodic image (16^3 only)
@@ -46,7 +57,7 @@ T_END = 0.4  # pinch-off is over by t ~ 0.35 at 16^3 and ~ 0.2 at 32^3 (measured
 FRAMES = 20
 
 EXTRA = ["row", "start", "t", "frame", "penalized_energy", "components", "euler_characteristic", "wraps",
-         "torus_ok", "paper_energy", "rel_diff_paper", "flow_energy", "flow_penalized_energy",
+         "axis_negative", "torus_ok", "paper_energy", "rel_diff_paper", "flow_energy", "flow_penalized_energy",
          "flow_steps", "flow_rejections", "flow_status", "max_law_residual", "flow_wall_s",
          "newton_iterations", "krylov_iterations", "equilibrium_energy", "equilibrium_penalized",
          "equilibrium_converged", "equilibrium_kkt_dual", "equilibrium_wall_s",
@@ -55,7 +66,6 @@ EXTRA = ["row", "start", "t", "frame", "penalized_energy", "components", "euler_
 
 def _scene(n: int, t_end: float, disk=DISK):
     """The flow's scene (from the disk) and the same problem from the scene's torus start."""
-    from vesicle_opt import scene
     sets = ["mesh.kind='spectral'", f"mesh.n={n}", "solver.backend='newton-krylov'", "solver.method='penalty'",
             f"solver.M={M_PAPER}", "flow.scheme='penalty'", "flow.initial='shape'", "flow.stepping='adaptive'",
             f"flow.dt={DT0}", f"flow.dt_max={DT_MAX}", f"flow.t_end={t_end}", f"flow.frames={FRAMES}",
@@ -66,18 +76,7 @@ def _scene(n: int, t_end: float, disk=DISK):
     return disk_start, torus_start
 
 
-def _topology(disc, phi, n) -> dict:
-    from vesicle_opt.verify.topology import analyse
-    tp = analyse(disc, phi)
-    return {"components": tp.components, "euler_characteristic": tp.euler_characteristic,
-            "wraps": "".join("xyz"[a] for a in tp.wraps) or "none", "torus_ok": torus_check(phi, (n,) * 3)["torus_ok"]}
-
-
 def case_rows(case: dict) -> list[dict]:
-    import csv
-
-    from vesicle_opt.nk import solve as newton_krylov
-    from vesicle_opt.flows.run import flow
     n, out = case["n"], Path(case["dir"])
     disk_scene, torus_scene = _scene(n, case["t_end"], case["disk"])
     fr = flow(disk_scene, out, frames=True)
@@ -88,7 +87,7 @@ def case_rows(case: dict) -> list[dict]:
     for snap in sorted((out / "snapshots").glob("phi_*.npz")):
         with np.load(snap) as z:
             phi, t = z["phi"], float(z["t"])
-        topo = _topology(md.disc, phi, n)
+        topo = torus_check(md.disc, phi)
         rows.append({"scene": "torus-table1-3d", "n": n, "method": "flow (18)", "row": "frame", "start": case["start"],
                      "frame": int(snap.stem.split("_")[1]), "t": t, "energy": md.E(phi),
                      "penalized_energy": md.E_M(phi), **topo})
@@ -96,9 +95,9 @@ def case_rows(case: dict) -> list[dict]:
         if not states or states[-1] != state:
             states.append(state)
     phi_flow = fr.outcome.phi
-    eq = newton_krylov.solve(torus_scene, md.disc, phi0=phi_flow)
-    ref = newton_krylov.solve(torus_scene, md.disc)
-    topo = _topology(md.disc, eq.phi, n)
+    eq = solve(torus_scene, x0=phi_flow)  # the front door, penalty form (11): no second-order check
+    ref = solve(torus_scene)
+    topo = torus_check(eq.disc, eq.phi, eq.extra)
     s = fr.summary
     rows.append({
         "scene": "torus-table1-3d", "n": n, "method": "flow (18) + newton-krylov", "row": "final",
@@ -121,7 +120,6 @@ def case_rows(case: dict) -> list[dict]:
 
 
 def main(out: Path, quick: bool = False) -> int:
-    from vesicle_opt.studies.runner import run_cases
     out = Path(out)
     ns = (16,) if quick else (16, 32, 48, 64)
     cases = [{"case": f"n={n}", "n": n, "dir": str(out / f"flow-{n}"), "t_end": T_END, "disk": DISK,
@@ -151,15 +149,11 @@ def _figure1_frames(frames: list[dict], count: int = 6) -> list[dict]:
 
 
 def _plot(path: Path, out: Path, ns, frames, finals) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     n = max(ns)
     shown = [r for r in frames if int(r["n"]) == n]
     shown = _figure1_frames(shown)
     cols = max(len(shown), len(ns), 1)
     fig, axes = plt.subplots(2, cols, figsize=(3.2 * cols, 6.6), squeeze=False)
-    from vesicle_opt.io.output import draw_cut
 
     def cut(ax, phi, k, title):
         draw_cut(ax, phi.reshape(k, k, k)[:, k // 2, :], (-np.pi, -np.pi), (np.pi, np.pi), title)
@@ -184,5 +178,4 @@ def _plot(path: Path, out: Path, ns, frames, finals) -> None:
 
 
 if __name__ == "__main__":
-    import sys
     sys.exit(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/torus_section5"), quick="--quick" in sys.argv))

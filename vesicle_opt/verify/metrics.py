@@ -7,12 +7,16 @@
   multiple of n_coarse, otherwise trigonometric (Fourier) interpolation per direction, exact for
   trigonometric polynomials and spectrally accurate for the smooth tanh profiles (width eps >> h).
   FD and periodic P1 grids share the C-order node numbering.
-* ``observed_order``: least-squares slope of log(error) against log(h) (``np.polyfit``).
+* ``observed_order``: least-squares slope of log(error) against log(h) (``np.polyfit``);
+* ``richardson``: the limit E_inf and order p of E = E_inf + C h^p through three meshes.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from scipy.optimize import brentq
 
 from vesicle_opt.mesh.base import Discretization
 
@@ -87,6 +91,20 @@ def observed_order(h, err) -> float:
     if ok.sum() < 2:
         return float("nan")
     return float(np.polyfit(np.log(h[ok]), np.log(err[ok]), 1)[0])
+
+
+def richardson(h, E) -> tuple[float, float]:
+    """(E_inf, p) with E = E_inf + C h^p through the three points of smallest h (the last three,
+    h decreasing); (nan, nan) when no p in [0.25, 8] fits (the differences not monotone)."""
+    (h1, h2, h3), (E1, E2, E3) = (np.asarray(h, float)[-3:], np.asarray(E, float)[-3:])
+    q = (E2 - E1) / (E3 - E2)
+    f = lambda p: (h1**p - h2**p) / (h2**p - h3**p) - q  # noqa: E731
+    try:
+        p = brentq(f, 0.25, 8.0)
+    except ValueError:
+        return math.nan, math.nan
+    C = (E3 - E2) / (h3**p - h2**p)
+    return float(E3 - C * h3**p), float(p)
 
 
 def translation(disc: Discretization, phi: np.ndarray, ref: np.ndarray) -> np.ndarray:
