@@ -3,8 +3,15 @@
 import numpy as np
 import pytest
 
+from vesicle_opt import scene as S
+from vesicle_opt.backends import SUPPORT
+from vesicle_opt.errors import NotSupported
+from vesicle_opt.flows.run import check_supported
 from vesicle_opt.mesh import fd
 from vesicle_opt.mesh import fem
+from vesicle_opt.mesh.base import LUMPED, require_lumped
+from vesicle_opt.nlp.exact import build_exact
+from vesicle_opt.nlp.scp import scp
 
 BOX2 = ((0.0, 2 * np.pi), (0.0, 2 * np.pi))
 
@@ -58,3 +65,33 @@ def test_natural_boundary_stiffness_kills_constants_and_is_symmetric():
     assert abs(d.K @ np.ones(d.n_nodes)).max() < 1e-12  # row sums vanish to round-off
     assert abs(d.K - d.K.T).max() < 1e-14
     assert np.isclose(d.volume, 2.0, rtol=1e-14)  # lumped weights integrate 1 exactly
+
+
+# --- the one lumped-only guard (mesh.base.require_lumped) and its users ------------------------
+
+def test_require_lumped_names_the_key_and_what_is_supported():
+    require_lumped("a feature", "lumped", "nodal")  # the supported setting passes
+    for mass, quad, key, supported in (("consistent", "nodal", "mesh.mass", "'lumped'"),
+                                       ("lumped", "gauss", "mesh.quadrature", "'nodal'")):
+        with pytest.raises(NotSupported) as info:
+            require_lumped("a feature", mass, quad, "a reason")
+        msg = str(info.value)
+        assert info.value.key == key and msg.startswith(key) and supported in msg
+        assert "a feature" in msg and "a reason" in msg and len(msg.splitlines()) == 1
+    assert fd.grid(BOX2, (6, 6)).quadrature == "nodal"
+    fd.grid(BOX2, (6, 6)).require_lumped("a feature")
+    for kwargs, key in (({"mass": "consistent"}, "mesh.mass"), ({"quadrature": "gauss"}, "mesh.quadrature")):
+        with pytest.raises(NotSupported, match=key):
+            fem.p1(BOX2, (6, 6), periodic=True, **kwargs).require_lumped("a feature")
+
+
+@pytest.mark.parametrize("sets, key", [(("mesh.mass='consistent'",), "mesh.mass"),
+                                       (("mesh.quadrature='gauss'",), "mesh.quadrature")])
+def test_every_lumped_only_feature_uses_the_guard(sets, key):
+    """Flows (on the scene, before any work), the SCP baseline, and the backend table's entries."""
+    sc = S.load("ellipse-2d", ["mesh.n=8", "mesh.kind='fem-p1'", *sets])
+    with pytest.raises(NotSupported, match=key):
+        check_supported(sc)
+    with pytest.raises(NotSupported, match=key):
+        scp(build_exact(sc, check=False))
+    assert SUPPORT["newton-krylov"][key] == (LUMPED[key],)

@@ -3,7 +3,8 @@
 * ``ipopt``: the exact-Hessian CasADi/IPOPT NLP (``vesicle_opt.nlp``); 2D and small 3D. A
   ``spectral`` mesh has a dense Laplacian, so it is not supported there.
 * ``newton-krylov``: the matrix-free backend (``vesicle_opt.nk``); needs lumped mass and nodal
-  quadrature (its products use Delta_h = -M_L^{-1} K).
+  quadrature (its products use Delta_h = -M_L^{-1} K): ``mesh.base.LUMPED``, the setting that
+  ``mesh.base.require_lumped`` guards in the matrix-free model itself.
 * ``auto``: newton-krylov for spectral meshes and for 3D lumped/nodal meshes above ``AUTO_3D_NODES``
   (the sparse factorisation of the bi-Laplacian fills in beyond that: ~24 s per IPOPT iteration
   at 32^3 was measured), IPOPT otherwise.
@@ -18,6 +19,7 @@ from __future__ import annotations
 import math
 
 from vesicle_opt.errors import NotSupported
+from vesicle_opt.mesh.base import LUMPED
 
 AUTO_3D_NODES = 20**3
 BACKENDS = ("ipopt", "newton-krylov")
@@ -25,8 +27,8 @@ METHODS = ("exact", "penalty", "continuation", "augmented")
 SUPPORT = {
     "ipopt": {"mesh.kind": ("fem-p1", "fd"), "mesh.mass": ("lumped", "consistent"),
               "mesh.quadrature": ("nodal", "gauss"), "solver.method": METHODS},
-    "newton-krylov": {"mesh.kind": ("fem-p1", "fd", "spectral"), "mesh.mass": ("lumped",),
-                      "mesh.quadrature": ("nodal",), "solver.method": METHODS},
+    "newton-krylov": {"mesh.kind": ("fem-p1", "fd", "spectral"), "mesh.mass": (LUMPED["mesh.mass"],),
+                      "mesh.quadrature": (LUMPED["mesh.quadrature"],), "solver.method": METHODS},
 }
 _WHY = {("ipopt", "mesh.kind"): "its Laplacian is dense; use 'newton-krylov' or 'auto'",
         ("newton-krylov", "mesh.mass"): "its products need Delta_h = -M_L^-1 K; use 'ipopt'",

@@ -7,7 +7,8 @@ Each step minimises the modified energy
 
 whose Euler-Lagrange equation is (23) (with the sign of the f term as in ``discrete``). The NLP is
 built once per run from the core's functionals (``functionals.energy``, ``volume_functional``,
-``area_functional`` through ``CasadiOps``), with phi^n and 1/(gamma k) as CasADi parameters, and
+``area_functional`` through ``CasadiOps``) and the one E_M (``penalty.penalised_energy``, which
+builds CasADi expressions as well as numbers), with phi^n and 1/(gamma k) as CasADi parameters, and
 scaled like the core's NLP (``nlp.py``): objective / (kappa m_bar G_ref), so IPOPT's tol means the
 same relative stationarity as in the equilibrium solves; the same ``solve.IpoptOptions``.
 The penalty terms would make the Hessian dense (rank-one M grad A grad A^T), so the NLP is lifted:
@@ -26,6 +27,7 @@ import casadi as ca
 import numpy as np
 
 from vesicle_opt.model import functionals as Fn
+from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.model.problem import objective_scale
 from vesicle_opt.nlp.ipopt import IpoptOptions
 from vesicle_opt.flows.base import Scheme, StepOutcome
@@ -49,11 +51,13 @@ class BackwardEulerScheme(Scheme):
         p = ca.MX.sym("p", n + 1)  # (phi^n, 1/(gamma k))
         phi_n, c = p[:n], p[n]
         lap = ca.mtimes(ca.DM(disc.laplacian.tocsc()), phi)
-        E = md.rigidity * Fn.energy(ops, phi, lap, md.epsilon, md.C)
+        E_h = Fn.energy(ops, phi, lap, md.epsilon, md.C)
         A = Fn.volume_functional(ops, phi)
         B = Fn.area_functional(ops, phi, md.epsilon)
         d = phi - phi_n
-        obj = E + md.M / 2 * ((a - md.alpha) ** 2 + (b - md.beta) ** 2) + c / 2 * ca.dot(ops.weights, d * d)
+        # E_M of the lifted unknowns (a, b) = (A, B): the same lines as FlowModel.E_M and the lifted NLP
+        E_M = penalised_energy(md.rigidity, E_h, (a - md.alpha, b - md.beta), md.M, md.M)
+        obj = E_M + c / 2 * ca.dot(ops.weights, d * d)
         g = ca.vertcat((A - a) / disc.volume, (B - b) / md.beta)
         self.f_scale = objective_scale(disc, md.rigidity, md.epsilon, md.alpha, md.beta)
         opts = IpoptOptions(tol=tol, max_iter=max_iter).as_dict()

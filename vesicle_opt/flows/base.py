@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.flows.discrete import FlowModel
 
 
@@ -31,11 +32,12 @@ class StepOutcome:
 
 
 def observe(model: FlowModel, phi: np.ndarray) -> dict:
-    """History columns of a field: energy (kappa E_h), penalized_energy (E_M), A - alpha, B - beta."""
-    E = model.E(phi)
-    dA, dB = model.A(phi) - model.alpha, model.B(phi) - model.beta
-    return {"energy": E, "penalized_energy": E + model.M / 2 * (dA * dA + dB * dB),
-            "volume_residual": dA, "area_residual": dB}
+    """History columns of a field: energy (kappa E_h), penalized_energy (E_M, as ``FlowModel.E_M``),
+    A - alpha, B - beta."""
+    E_h, res = model.E_h(phi), model.residuals(phi)
+    return {"energy": model.rigidity * E_h,
+            "penalized_energy": penalised_energy(model.rigidity, E_h, res, model.M, model.M),
+            "volume_residual": res[0], "area_residual": res[1]}
 
 
 class Scheme:

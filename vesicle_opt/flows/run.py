@@ -20,11 +20,12 @@ import numpy as np
 
 from vesicle_opt.io import output
 from vesicle_opt.mesh import Discretization, discretize
+from vesicle_opt.mesh.base import require_lumped
 from vesicle_opt.errors import InputError
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.flows.backward_euler import BackwardEulerScheme
-from vesicle_opt.flows.discrete import FlowModel
+from vesicle_opt.flows.discrete import FEATURE, WHY, FlowModel
 from vesicle_opt.flows.lagrange import LagrangeScheme
 from vesicle_opt.flows.penalty import PenaltyScheme
 from vesicle_opt.flows.projection import project
@@ -164,7 +165,4 @@ def check_supported(scene) -> None:
     if scene.mesh.kind == "spectral" and scene.flow.scheme == "backward-euler":
         raise InputError("flow.scheme", "'backward-euler' (23) goes through IPOPT, which needs assembled "
                                         "matrices: use 'penalty' or 'lagrange' on spectral grids")
-    if scene.mesh.mass != "lumped":
-        raise InputError("mesh.mass", "the gradient flows support 'lumped' only (exact discrete energy laws)")
-    if scene.mesh.quadrature != "nodal":
-        raise InputError("mesh.quadrature", "the gradient flows support 'nodal' only")
+    require_lumped(FEATURE, scene.mesh.mass, scene.mesh.quadrature, WHY)

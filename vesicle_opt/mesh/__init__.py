@@ -1,6 +1,7 @@
 """Spatial discretisations (Definition 2.2 and its FD special case): ``discretize(scene)``.
 
-* ``base``: the shared :class:`Discretization` interface (nodes, weights, K, M, quadrature);
+* ``base``: the shared :class:`Discretization` interface (nodes, weights, K, M, quadrature) and the
+  one lumped-only guard ``require_lumped``;
 * ``fd``: uniform periodic grids with the (2d+1)-point Laplacian (sparse);
 * ``fem``: P1 finite elements on triangles / tetrahedra (scikit-fem);
 * ``spectral``: periodic grids whose Laplacian is applied by FFT (pseudo-spectral, or FD by FFT).

@@ -10,6 +10,12 @@ quadrature that integrates nodal nonlinear terms:
 The discrete Laplacian of Definition 2.2 is ``-M^{-1} K`` (consistent) or ``-M_L^{-1} K`` (lumped).
 The consistent one is never formed: the NLP carries w = Delta_h phi with M w + K phi = 0 and numpy
 evaluation solves with a cached sparse LU of M.
+
+Several features need the lumped setting (Delta_h = -M_L^{-1} K and nodal quadrature): the
+matrix-free model (``model.lumped``, hence the newton-krylov backend), the gradient flows and the
+SCP baseline. :func:`require_lumped` is their one guard (on scene values, before any work) and
+:meth:`Discretization.require_lumped` the same on a built discretisation; ``LUMPED`` is the
+supported setting, which ``backends.SUPPORT`` reuses.
 """
 
 from __future__ import annotations
@@ -20,6 +26,21 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+from vesicle_opt.errors import NotSupported
+
+LUMPED = {"mesh.mass": "lumped", "mesh.quadrature": "nodal"}  # the setting of require_lumped
+
+
+def require_lumped(feature: str, mass: str, quadrature: str, why: str = "") -> None:
+    """NotSupported naming ``mesh.mass`` or ``mesh.quadrature`` unless they are ``LUMPED``'s values.
+
+    ``feature`` names what needs them ("the gradient flows"); ``why`` is appended as a reason/hint.
+    """
+    for key, value in (("mesh.mass", mass), ("mesh.quadrature", quadrature)):
+        if value != LUMPED[key]:
+            raise NotSupported(key, f"{feature} support {key} = {LUMPED[key]!r} only, got {value!r}"
+                                    f"{' (' + why + ')' if why else ''}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,6 +68,15 @@ class Discretization:
     @property
     def consistent(self) -> bool:
         return self.mass == "consistent"
+
+    @property
+    def quadrature(self) -> str:
+        """``nodal`` or ``gauss`` (the scene's ``mesh.quadrature``)."""
+        return "gauss" if self.quad_P is not None else "nodal"
+
+    def require_lumped(self, feature: str, why: str = "") -> None:
+        """:func:`require_lumped` on this discretisation's mass and quadrature."""
+        require_lumped(feature, self.mass, self.quadrature, why)
 
     @cached_property
     def laplacian(self) -> sp.csr_matrix:

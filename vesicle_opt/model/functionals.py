@@ -10,6 +10,13 @@ With f_c(phi) = eps Delta_h phi + (phi/eps + C)(1 - phi^2), C = sqrt(2) c0 (the 
 function takes an ``ops`` object: :class:`NumpyOps` evaluates, :class:`CasadiOps` builds MX
 expressions with sparse constant matrices, so the NLP and the numpy checks share these lines.
 Helpers: volume = (|Omega| + A)/2 and area = 3 sqrt(2) B / 4 (Section 3.1).
+
+The pointwise nonlinearities and their derivatives are defined here once, for every form (numpy,
+CasADi, the matrix-free ``lumped`` model, the flows' Jacobians, the SCP baseline):
+
+* the double well W(phi) = (phi^2 - 1)^2 / 4 of (8), W' = (phi^2 - 1) phi, W'' = 3 phi^2 - 1;
+* the reaction term g(phi) = (phi/eps + C)(1 - phi^2) of f_c = eps Delta_h phi + g(phi),
+  g' = (1 - 3 phi^2)/eps - 2 C phi, g'' = -6 phi/eps - 2 C (the flows write p = -g, p' = -g').
 """
 
 from __future__ import annotations
@@ -67,9 +74,39 @@ class CasadiOps:
         return ca.mtimes(A, v)
 
 
+def double_well(phi):
+    """W(phi) = (phi^2 - 1)^2 / 4: B's bulk term is 1/eps integral W(phi)."""
+    return (phi * phi - 1) ** 2 / 4
+
+
+def double_well_derivative(phi):
+    """W'(phi) = (phi^2 - 1) phi."""
+    return (phi * phi - 1) * phi
+
+
+def double_well_second_derivative(phi):
+    """W''(phi) = 3 phi^2 - 1."""
+    return 3 * phi * phi - 1
+
+
+def reaction(phi, epsilon: float, C: float):
+    """g(phi) = (phi/eps + C)(1 - phi^2), the nonlinear part of f_c."""
+    return (phi / epsilon + C) * (1 - phi * phi)
+
+
+def reaction_derivative(phi, epsilon: float, C: float):
+    """g'(phi) = (1 - 3 phi^2)/eps - 2 C phi: J = eps Delta_h + diag(g'(phi)) is the Jacobian of f_c."""
+    return (1 - 3 * (phi * phi)) / epsilon - 2 * C * phi
+
+
+def reaction_second_derivative(phi, epsilon: float, C: float):
+    """g''(phi) = -6 phi/eps - 2 C."""
+    return -6 * phi / epsilon - 2 * C
+
+
 def curvature_residual(phi, lap, epsilon: float, C: float):
     """f_c(phi) = eps Delta phi + (phi/eps + C)(1 - phi^2), the integrand of (3)/(6) (paper's (12))."""
-    return epsilon * lap + (phi / epsilon + C) * (1 - phi * phi)
+    return epsilon * lap + reaction(phi, epsilon, C)
 
 
 def energy(ops, phi, lap, epsilon: float, C: float):
@@ -86,7 +123,7 @@ def volume_functional(ops, phi):
 def area_functional(ops, phi, epsilon: float):
     """B of (8): eps/2 |grad phi|^2 (exact, via K) + 1/(4 eps) integral (phi^2 - 1)^2."""
     q = ops.at_quad(phi)
-    return epsilon / 2 * ops.dot(phi, ops.matvec(ops.K, phi)) + ops.integrate((q * q - 1) ** 2) / (4 * epsilon)
+    return epsilon / 2 * ops.dot(phi, ops.matvec(ops.K, phi)) + ops.integrate(double_well(q)) / epsilon
 
 
 # --- numpy evaluation with the scene's model ----------------------------------------------------
@@ -103,17 +140,30 @@ def evaluate(disc: Discretization, phi: np.ndarray, epsilon: float, C: float) ->
 def gradients(disc: Discretization, phi: np.ndarray, epsilon: float, C: float):
     """Euclidean gradients (dE_h, dA, dB) with respect to the nodal values, derived by hand.
 
-    dE = 1/eps [ eps Delta_h^T P^T W r + P^T W (r s) ],  r = f_c, s = (1 - 3 phi^2 - 2 C eps phi)/eps;
-    dA = m;  dB = eps K phi + 1/eps P^T W (phi^2 - 1) phi.
+    dE = 1/eps [ eps Delta_h^T P^T W r + P^T W (r g'(phi)) ],  r = f_c;
+    dA = m;  dB = eps K phi + 1/eps P^T W W'(phi).
     """
+    return energy_gradient(disc, phi, epsilon, C), volume_gradient(disc), area_gradient(disc, phi, epsilon)
+
+
+def energy_gradient(disc: Discretization, phi: np.ndarray, epsilon: float, C: float) -> np.ndarray:
+    """dE_h (see ``gradients``)."""
     lap = disc.apply_laplacian(phi)
     q = disc.at_quad(phi)
     r = curvature_residual(q, disc.at_quad(lap), epsilon, C)
-    s = (1 - 3 * q * q - 2 * C * epsilon * q) / epsilon
-    dE = disc.apply_laplacian_transpose(disc.quad_transpose(r)) + disc.quad_transpose(r * s) / epsilon
-    dA = disc.weights.copy()
-    dB = epsilon * (disc.K @ phi) + disc.quad_transpose((q * q - 1) * q) / epsilon
-    return dE, dA, dB
+    s = reaction_derivative(q, epsilon, C)
+    return disc.apply_laplacian_transpose(disc.quad_transpose(r)) + disc.quad_transpose(r * s) / epsilon
+
+
+def volume_gradient(disc: Discretization) -> np.ndarray:
+    """dA = m (A is linear)."""
+    return disc.weights.copy()
+
+
+def area_gradient(disc: Discretization, phi: np.ndarray, epsilon: float) -> np.ndarray:
+    """dB (see ``gradients``)."""
+    q = disc.at_quad(phi)
+    return epsilon * (disc.K @ phi) + disc.quad_transpose(double_well_derivative(q)) / epsilon
 
 
 def enclosed_volume(A: float, domain_volume: float) -> float:

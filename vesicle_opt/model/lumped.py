@@ -14,10 +14,17 @@ Euclidean gradients with respect to the nodal values, J = eps Delta_h + diag(g'(
     H_E v = (1/eps) [J^T (m J v) + m r g''(phi) v]   H_B v = eps K v + (1/eps) m (3 phi^2 - 1) v
 
 with g' = (1 - 3 phi^2)/eps - 2 C phi and g'' = -6 phi/eps - 2 C. On Fourier grids Delta_h costs
-one FFT pair, so an evaluation costs one pair and a Hessian-vector product two. These are
-independent of ``functionals.py`` (whose hand-derived gradients a test compares with these).
-The penalised energy (11) with the paper's convention (rigidity on E only, M on the constraints)
-and the augmented Lagrangian are assembled from these pieces in ``newton``.
+one FFT pair, so an evaluation costs one pair and a Hessian-vector product two. This is the one
+hand-written matrix-free form of the derivatives (the pointwise g, g', g'', W', W'' come from
+``functionals``; tests compare it with ``functionals``' numpy gradients, CasADi's AD gradient and
+Hessian, and finite differences). The penalised energy (11) and the augmented Lagrangian are
+assembled from these pieces with ``penalty.penalised_energy`` in ``nk.newton_cg``.
+
+The bulk model (``bulk_symbol``, ``bulk_stiffness``): in the bulk phi = +-1 with c0 = 0,
+g'(+-1) = -2/eps, so -J = -eps Delta_h + 2/eps = M_L^{-1} S, S = eps K + (2/eps) M_L; on a Fourier
+grid -J is diagonal with symbol q = eps sigma + 2/eps (sigma = -symbol of Delta_h >= 0). The
+Newton-Krylov preconditioner (``nk.precond``) and the flows' Jacobian model
+(``flows.discrete.FlowModel.jacobian_model_inverse``) are built on it.
 """
 
 from __future__ import annotations
@@ -25,19 +32,34 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
-from vesicle_opt.errors import InputError
+from vesicle_opt.model import functionals as F
+
+BULK_C = 0.0  # the bulk model linearises at phi = +-1 with c0 = 0 (where g'(+-1) = -2/eps)
+
+
+def bulk_shift(epsilon: float) -> float:
+    """-g'(+-1) = 2/eps at c0 = 0: the zeroth-order term of -J in the bulk (module docstring)."""
+    return -F.reaction_derivative(1.0, epsilon, BULK_C)
+
+
+def bulk_symbol(fourier, epsilon: float) -> np.ndarray:
+    """q = eps sigma + 2/eps: the Fourier symbol of -J = -eps Delta_h - g'(+-1) (module docstring)."""
+    return epsilon * -fourier.symbol + bulk_shift(epsilon)
+
+
+def bulk_stiffness(K, m: np.ndarray, epsilon: float) -> sp.csr_matrix:
+    """S = eps K + (2/eps) M_L = -M_L J in the bulk (module docstring), sparse."""
+    return sp.csr_matrix(epsilon * K + sp.diags(bulk_shift(epsilon) * m))
 
 
 class LumpedOperators:
     """Delta_h, Delta_h^T and K of a lumped discretisation as callables (FFT or sparse)."""
 
     def __init__(self, disc):
-        if getattr(disc, "consistent", False):
-            raise InputError("mesh.mass", "the newton-krylov backend needs 'lumped' (consistent mass "
-                             "would need M^{-1} inside every product); use lumped or the ipopt backend")
-        if getattr(disc, "gauss", False):
-            raise InputError("mesh.quadrature", "the newton-krylov backend needs 'nodal' quadrature")
+        disc.require_lumped("the matrix-free model (newton-krylov backend)",
+                            "its products use Delta_h = -M_L^-1 K; use the ipopt backend")
         self.disc = disc
         self.m = np.asarray(disc.weights, float)
         self.fourier = getattr(disc, "fourier", None)
@@ -81,25 +103,26 @@ class PhaseField:
     def state(self, phi: np.ndarray) -> State:
         eps, C, m = self.eps, self.C, self.m
         lap = self.ops.lap(phi)
-        p2 = phi * phi
-        r = eps * lap + (phi / eps + C) * (1 - p2)
-        s = (1 - 3 * p2) / eps - 2 * C * phi
+        r = F.curvature_residual(phi, lap, eps, C)
+        s = F.reaction_derivative(phi, eps, C)
         E = float(m @ (r * r)) / (2 * eps)
         A = float(m @ phi)
-        B = -eps / 2 * float(m @ (phi * lap)) + float(m @ ((p2 - 1) ** 2)) / (4 * eps)
+        # phi^T K phi = -m . (phi lap): B from the same Laplacian (functionals.area_functional uses K)
+        B = -eps / 2 * float(m @ (phi * lap)) + float(m @ F.double_well(phi)) / eps
         return State(phi, lap, r, s, E, A, B)
 
     def gradients(self, st: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         eps, m, phi = self.eps, self.m, st.phi
         mr = m * st.r
         dE = (eps * self.ops.lapT(mr) + st.s * mr) / eps
-        dB = m * (-eps * st.lap + (phi * phi - 1) * phi / eps)
+        dB = m * (-eps * st.lap + F.double_well_derivative(phi) / eps)
         return dE, m.copy(), dB
 
     def hessian_parts(self, st: State) -> tuple[np.ndarray, np.ndarray]:
-        """Diagonal coefficients reused by every product: m r g''/eps and m (3 phi^2 - 1)/eps."""
+        """Diagonal coefficients reused by every product: m r g''/eps and m W''/eps."""
         eps, m, phi = self.eps, self.m, st.phi
-        return m * st.r * (-6 * phi / eps - 2 * self.C) / eps, m * (3 * phi * phi - 1) / eps
+        return (m * st.r * F.reaction_second_derivative(phi, eps, self.C) / eps,
+                m * F.double_well_second_derivative(phi) / eps)
 
     def hvp(self, st: State, parts, v: np.ndarray, cE: float, cB: float) -> np.ndarray:
         """(cE H_E + cB H_B) v with two Laplacian applications."""

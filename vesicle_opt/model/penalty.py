@@ -3,10 +3,15 @@
 Section 5's convention (the rigidity multiplies the bending energy only):
 
     E_{M,h}(phi) = rigidity E_h(phi) + M1/2 (A - alpha)^2 + M2/2 (B - beta)^2
+                   [ - mu_A (A - alpha) - mu_B (B - beta) ]
 
-(``penalised_energy``; the paper's M1 = M2 = M). ``residuals`` evaluates (A - alpha, B - beta) with
-compensated sums, and ``roundoff_floor`` is the least stationarity residual double precision permits
-at a given M (why the penalty cannot be pushed to M -> infinity).
+(``penalised_energy``; the paper's M1 = M2 = M; with multiplier shifts mu it is the augmented
+Lagrangian, mu = lam, rho = (M1, M2)). It is plain arithmetic on its arguments, so the same lines
+evaluate numbers (certification, the flows' E_M and history, the Newton-Krylov objective) and
+build CasADi expressions (the lifted penalty NLP, the minimising movement (23)); ``penalty_terms``
+is its constraint part. ``residuals`` evaluates (A - alpha, B - beta) with compensated sums, and
+``roundoff_floor`` is the least stationarity residual double precision permits at a given M (why
+the penalty cannot be pushed to M -> infinity).
 """
 
 from __future__ import annotations
@@ -20,9 +25,28 @@ from vesicle_opt.model import functionals as F
 AL_REDUCTION = 0.25  # augmented Lagrangian: increase M when a residual did not drop by this factor
 
 
-def penalised_energy(rigidity: float, E: float, res: tuple[float, float], M1: float, M2: float) -> float:
-    """E_{M,h} of (11) (rigidity times E_h plus the penalty terms; no multiplier shift)."""
-    return rigidity * E + M1 / 2 * res[0] ** 2 + M2 / 2 * res[1] ** 2
+def penalised_energy(rigidity, E, res, M1, M2, mu=None):
+    """E_{M,h} of (11): rigidity times E_h plus ``penalty_terms`` (floats or CasADi expressions).
+
+    ``res`` = (A - alpha, B - beta); ``mu`` = (mu_A, mu_B) shifts it into the augmented Lagrangian.
+    """
+    return rigidity * E + penalty_terms(res, M1, M2, mu)
+
+
+def penalty_terms(res, M1, M2, mu=None, scale=(1.0, 1.0)):
+    """M1/2 res_A^2 + M2/2 res_B^2 [- mu_A res_A - mu_B res_B]: the constraint part of (11).
+
+    With ``scale`` = (s_A, s_B) the residuals are given in those units, (A - alpha, B - beta) =
+    (s_A res_A, s_B res_B) (the lifted NLP's scaled unknowns u); a scale of 1 changes no digit.
+    The operations are in the order the lifted NLP always used: its IPOPT paths are sensitive to
+    round-off (ellipse-2d n = 16 continuation: another order ends at another KKT point, E 2.66
+    against 2.08), so a reordering here is a change of results there.
+    """
+    s0, s1 = scale
+    out = M1 * s0**2 / 2 * res[0] ** 2 + M2 * s1**2 / 2 * res[1] ** 2
+    if mu is not None:
+        out = out - mu[0] * s0 * res[0] - mu[1] * s1 * res[1]
+    return out
 
 
 def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) -> tuple[float, float]:
@@ -35,7 +59,7 @@ def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) 
     w = disc.quad_w if disc.gauss else disc.weights
     A = math.fsum(np.concatenate([disc.weights * phi, [-alpha]]))
     grad = epsilon / 2 * phi * (disc.K @ phi)
-    well = w * (q * q - 1) ** 2 / (4 * epsilon)
+    well = w * F.double_well(q) / epsilon
     B = math.fsum(np.concatenate([grad, well, [-beta]]))
     return A, B
 

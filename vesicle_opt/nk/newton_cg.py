@@ -3,7 +3,8 @@
     f(phi) = rigidity E_h(phi) - lam . c(phi) + 1/2 sum_i rho_i c_i(phi)^2,   c = (A - alpha, B - beta).
 
 lam = 0, rho = (M, M) is the paper's penalised energy (11) (rigidity on E only, M on the constraint
-terms); otherwise it is the augmented Lagrangian of the exact-constraint problem. With
+terms); otherwise it is the augmented Lagrangian of the exact-constraint problem. Its value is
+``model.penalty.penalised_energy`` with the multiplier shift mu = lam. With
 mu = lam - rho c, grad f = rig dE - mu_A dA - mu_B dB and
 
     Hess f = rig H_E - mu_B H_B + rho_A dA dA^T + rho_B dB dB^T        (A is linear: H_A = 0).
@@ -21,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.nk.krylov import SubspacePreconditioner, projected_pcg
 
 ARMIJO = 1e-4  # sufficient-decrease constant (the usual textbook value)
@@ -67,7 +69,7 @@ class Objective:
     def value(self, phi) -> tuple[float, object]:
         st = self.pf.state(phi)
         c = np.array([st.A, st.B]) - self.target
-        return self.rig * st.E - self.lam @ c + 0.5 * float(self.rho @ (c * c)), st
+        return penalised_energy(self.rig, st.E, c, self.rho[0], self.rho[1], self.lam), st
 
     def point(self, phi, f=None, st=None) -> Point:
         t0 = time.perf_counter()

@@ -1,7 +1,8 @@
 """Preconditioners for cE H_E + cB H_B (+ rho_A dA dA^T): a constant-coefficient model of the Hessian.
 
 In the bulk phi = +-1, so g'(phi) = -2/eps (c0 = 0) and J = eps Delta_h + g' ~ eps Delta_h - 2/eps
-= -M_L^{-1} S with S = eps K + (2/eps) M_L; the model is
+= -M_L^{-1} S with S = eps K + (2/eps) M_L (``model.lumped.bulk_stiffness``, Fourier symbol
+``model.lumped.bulk_symbol``); the model is
 
     P = (cE/eps) S M_L^{-1} S + cB S + rho_A m m^T.
 
@@ -48,6 +49,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from vesicle_opt.model.lumped import bulk_shift, bulk_stiffness, bulk_symbol
+
 FLOOR = 0.1  # the model never drops below 10% of its (positive) bending part
 LU_MAX_NODES = {2: 100_000, 3: 0}  # exact S^{-1} by LU up to here; in 3D the LU fills in (24^3: 6 s
 # and 23 ms a solve against 5 ms for Chebyshev; 32^3: 91 s, 200 ms, 2.4 GB), so it never wins there
@@ -65,8 +68,7 @@ class FourierPreconditioner:
         self.f = fourier
         self.m = float(m)
         self.eps = float(epsilon)
-        sigma = -fourier.symbol
-        self._q = self.eps * sigma + 2 / self.eps  # symbol of M_L^{-1} S
+        self._q = bulk_symbol(fourier, self.eps)  # symbol of M_L^{-1} S
         self._p0 = self.m / self.eps * self._q**2
         self._p0_inv = 1.0 / self._p0
 
@@ -96,7 +98,7 @@ class FourierPreconditioner:
 def chebyshev_bounds(K: sp.spmatrix, m: np.ndarray, epsilon: float) -> tuple[float, float]:
     """[lo, hi] containing spec(M^{-1} S), S = eps K + (2/eps) M, M = diag(m): K >= 0 gives lo = 2/eps,
     Gershgorin's discs of M^{-1} K give hi."""
-    lo = 2 / epsilon
+    lo = bulk_shift(epsilon)
     row = np.asarray(abs(sp.csr_matrix(K)).sum(axis=1)).ravel()
     return lo, lo + epsilon * float(np.max(row / m))
 
@@ -157,7 +159,7 @@ class SparsePreconditioner:
                  kind: str | None = None):
         self.m = np.asarray(m, float)
         self.eps = float(epsilon)
-        S = sp.csr_matrix(self.eps * K + sp.diags(2 / self.eps * self.m))
+        S = bulk_stiffness(K, self.m, self.eps)
         self.S = S
         lo, hi = chebyshev_bounds(K, self.m, self.eps)
         self.steps = chebyshev_steps(lo, hi, CHEB_TOL)

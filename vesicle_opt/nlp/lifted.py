@@ -12,7 +12,8 @@ equality rows of the exact NLP shifted by them,
 
     g_A = (A(phi) - alpha)/|Omega| - u_A = 0,   g_B = (B(phi) - beta)/beta - u_B = 0,
 
-so the penalty is a diagonal 2 x 2 block in u and the Hessian keeps the bi-Laplacian stencil
+so the penalty (``model.penalty.penalty_terms`` in these units, the lines that evaluate E_M
+everywhere else) is a diagonal 2 x 2 block in u and the Hessian keeps the bi-Laplacian stencil
 (``hessian_nnz_per_row`` grows by 2/N). The scaling is the exact NLP's (``nlp.py``): the same
 f_scale and g_scale, and x = (phi [, w], u). Parameters p = (M1, M2, mu_A, mu_B), so one solver
 serves every M of a continuation. At a stationary point IPOPT's lam_g of the two lifted rows give,
@@ -32,7 +33,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from vesicle_opt.model.penalty import residuals
+from vesicle_opt.model.penalty import penalty_terms, residuals
 from vesicle_opt.nlp.exact import NLP
 
 
@@ -91,8 +92,7 @@ def build_penalty_nlp(exact: NLP) -> PenaltyNLP:
     p = ca.MX.sym("p", 4)  # (M1, M2, mu_A, mu_B)
     s0, s1 = (float(v) for v in exact.g_scale)
     k = exact.f_scale
-    pen = (p[0] * s0**2 / 2 * u[0] ** 2 + p[1] * s1**2 / 2 * u[1] ** 2
-           - p[2] * s0 * u[0] - p[3] * s1 * u[1]) / k
+    pen = penalty_terms((u[0], u[1]), p[0], p[1], (p[2], p[3]), scale=(s0, s1)) / k  # the one E_M
     g = ca.vertcat(exact.g[0] - u[0], exact.g[1] - u[1], exact.g[2:])
     x0 = np.concatenate([exact.x0, np.zeros(2)])
     inf = np.full(2, np.inf)

@@ -6,7 +6,7 @@ r = eps Delta_h phi + (phi/eps + C)(1 - phi^2) (lumped mass / FD only). Each ste
     min_d  1/(2 eps) sum_i m_i (r_i + (J d)_i)^2 + nu (|A(phi + d) - alpha| + |B + dB.d - beta|)
     s.t.   |d|_inf <= Delta,
 
-J = eps Delta_h + diag((1 - 3 phi^2)/eps - 2 C phi): the residual and B linearised, A exact (linear),
+J = eps Delta_h + diag(g'(phi)) (``functionals.reaction_derivative``): the residual and B linearised, A exact (linear),
 the constraints as an exact l1 penalty (nu > |lambda| makes it exact; nu = NU). The step is taken if
 the actual reduction of the merit E + nu(|A - alpha| + |B - beta|) is at least RHO_ACCEPT of the
 model's; the trust radius Delta halves or doubles accordingly. Gauss-Newton converges linearly on
@@ -35,10 +35,9 @@ def _merit(disc, phi, eps, C, alpha, beta):
 
 def scp(nlp: NLP, *, max_iter: int = 50, tol: float = 1e-6, delta0: float = 0.5, record=None) -> dict:
     """Run SCP from nlp.x0; ``record(k, phi, info)`` is called after every iteration."""
-    import cvxpy as cp
     disc, sc = nlp.disc, nlp.scene
-    if disc.consistent or disc.gauss:
-        raise ValueError("the SCP baseline needs lumped mass and nodal quadrature")
+    disc.require_lumped("the SCP baseline", "its residual is nodal: E_h = 1/(2 eps) sum_i m_i r_i^2")
+    import cvxpy as cp  # optional dependency (the SCP baseline only)
     eps, C = sc.model.epsilon, sc.model.C
     L, m = disc.laplacian, disc.weights
     phi = nlp.split(nlp.x0)[0].copy()
@@ -49,7 +48,7 @@ def scp(nlp: NLP, *, max_iter: int = 50, tol: float = 1e-6, delta0: float = 0.5,
     status = "max_iter"
     for k in range(max_iter):
         r = F.curvature_residual(phi, L @ phi, eps, C)
-        J = eps * L + sp.diags((1 - 3 * phi**2) / eps - 2 * C * phi)
+        J = eps * L + sp.diags(F.reaction_derivative(phi, eps, C))  # Jacobian of f_c
         _, dA, dB = F.gradients(disc, phi, eps, C)
         d = cp.Variable(phi.size)
         res_lin = sqrtw * r + sp.diags(sqrtw) @ J @ d

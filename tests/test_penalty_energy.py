@@ -1,0 +1,94 @@
+"""The one E_M (model/penalty.penalised_energy, (11) in Section 5's convention) is what every place
+evaluates: numbers and CasADi expressions, the lifted penalty NLP, the flows (FlowModel.E_M,
+the history columns, the minimising movement (23)) and the Newton-Krylov objective."""
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from vesicle_opt import scene as S
+from vesicle_opt.flows.backward_euler import BackwardEulerScheme
+from vesicle_opt.flows.base import observe
+from vesicle_opt.flows.run import build_model, initial_field
+from vesicle_opt.mesh.spectral import fourier_grid
+from vesicle_opt.model import functionals as F
+from vesicle_opt.model.lumped import LumpedOperators, PhaseField
+from vesicle_opt.model.penalty import penalised_energy, penalty_terms, residuals
+from vesicle_opt.nk.newton_cg import Counters, Objective
+from vesicle_opt.nk.precond import FourierPreconditioner
+from vesicle_opt.flows.discrete import FlowModel
+from vesicle_opt.nlp import build_nlp
+
+RIG, E, RES, M1, M2, MU = 2.5, 3.1, (1e-3, -2e-2), 1e4, 3e3, (0.7, -1.9)
+
+
+def test_formula_scale_and_symbolic_form():
+    ref = RIG * E + M1 / 2 * RES[0] ** 2 + M2 / 2 * RES[1] ** 2 - MU[0] * RES[0] - MU[1] * RES[1]
+    # one formula written out: a few roundings apart (measured 0)
+    assert penalised_energy(RIG, E, RES, M1, M2, MU) == pytest.approx(ref, rel=1e-15)
+    assert penalised_energy(RIG, E, RES, M1, M2) == RIG * E + penalty_terms(RES, M1, M2)
+    s = (40.0, 7.0)  # residuals in units s: the lifted NLP's u = (A - alpha, B - beta) / s
+    scaled = penalty_terms((RES[0] / s[0], RES[1] / s[1]), M1, M2, MU, scale=s)
+    assert scaled == pytest.approx(penalty_terms(RES, M1, M2, MU), rel=1e-14)  # (r/s) s: round-off
+    # the same lines build a CasADi expression, whose value is the float one
+    x = ca.SX.sym("x", 7)
+    sym = ca.Function("E_M", [x], [penalised_energy(x[0], x[1], (x[2], x[3]), x[4], x[5], (x[6], MU[1]))])
+    val = float(sym([RIG, E, RES[0], RES[1], M1, M2, MU[0]]))
+    assert val == pytest.approx(penalised_energy(RIG, E, RES, M1, M2, MU), rel=1e-15)  # same ops
+
+
+@pytest.mark.parametrize("mu", [None, (0.4, -1.3)])
+def test_lifted_nlp_objective_is_penalised_energy(mu, rng):
+    sc = S.load("ellipse-2d", ["mesh.n=16", "solver.method='penalty'", "model.rigidity=2.0", "model.c0=0.3"])
+    nlp = build_nlp(sc)
+    disc, eps, C = nlp.disc, sc.model.epsilon, sc.model.C
+    phi = nlp.split(nlp.x0)[0] + 0.01 * rng.standard_normal(disc.n_nodes)
+    p = nlp.parameters(1e3, 2e2, (0.0, 0.0) if mu is None else mu)
+    f = float(ca.Function("f", [nlp.x, nlp.p], [nlp.f])(nlp.from_phi(phi), p))
+    res = residuals(disc, phi, eps, nlp.alpha, nlp.beta)
+    ref = penalised_energy(sc.model.rigidity, F.evaluate(disc, phi, eps, C)["E"], res, 1e3, 2e2, mu)
+    # CasADi's sums against numpy's, through the lift u = res / g_scale: round-off (measured 3e-16)
+    assert f * nlp.f_scale == pytest.approx(ref, rel=1e-12)
+
+
+def _flow_model():
+    sc = S.load("ellipse-2d", ["mesh.n=24", "solver.M=100", "model.rigidity=2.0", "model.c0=0.3",
+                               'flow.scheme="backward-euler"'])
+    md = build_model(sc)
+    return sc, md, initial_field(sc, md)
+
+
+def test_flow_model_history_and_minimising_movement_use_it():
+    sc, md, phi_n = _flow_model()
+    phi = 0.9 * phi_n + 0.05
+    vals = F.evaluate(md.disc, phi, md.epsilon, md.C)
+    res = (vals["A"] - md.alpha, vals["B"] - md.beta)
+    E_M = md.E_M(phi)
+    assert E_M == penalised_energy(md.rigidity, vals["E"], res, md.M, md.M)  # the same lines: exact
+    obs = observe(md, phi)
+    assert obs["penalized_energy"] == E_M and obs["energy"] == md.E(phi)
+    assert (obs["volume_residual"], obs["area_residual"]) == res
+    # (23)'s IPOPT objective at the lifted point (phi, A(phi), B(phi)), p = (phi^n, 1/(gamma k))
+    be = BackwardEulerScheme(md, law_tol=1e-11)
+    c = 1.0 / (md.gamma * 1e-3)
+    f = be.solver.oracle()(x=np.concatenate([phi, [vals["A"], vals["B"]]]), p=np.concatenate([phi_n, [c]]))["f"]
+    ref = E_M + c / 2 * md.norm2(phi - phi_n)
+    assert float(f) * be.f_scale == pytest.approx(ref, rel=1e-12)  # CasADi's sums: round-off (measured 0)
+
+
+@pytest.mark.parametrize("lam", [(0.0, 0.0), (0.4, -1.3)])
+def test_newton_krylov_objective_is_penalised_energy_and_the_flows(lam, rng):
+    disc = fourier_grid(((-2.0, 2.0), (-1.5, 1.5)), (16, 12), "spectral")
+    eps, C, rig, M = 0.4, 0.2, 3.0, 1e3
+    x = disc.nodes
+    phi = np.tanh(1.2 - np.hypot(x[:, 0] / 1.4, x[:, 1])) + 0.05 * rng.standard_normal(disc.n_nodes)
+    pf = PhaseField(LumpedOperators(disc), eps, C)
+    st = pf.state(phi)
+    alpha, beta = st.A + 0.3, st.B - 0.2
+    obj = Objective(pf, FourierPreconditioner(disc.fourier, disc.weights[0], eps), lambda p: None,
+                    rig, alpha, beta, lam, (M, M), Counters())
+    f = obj.value(phi)[0]
+    assert f == penalised_energy(rig, st.E, (st.A - alpha, st.B - beta), M, M, lam)  # exact: same call
+    if lam == (0.0, 0.0):  # the matrix-free E_M against the flows' (numpy functionals) on one grid
+        md = FlowModel(disc, eps, C, rig, alpha, beta, M, 1.0)
+        assert f == pytest.approx(md.E_M(phi), rel=1e-12)  # two summation orders (measured 0)
