@@ -114,11 +114,6 @@ def function_local_imports() -> list[tuple[I.Import, str | None]]:
     return sorted(out, key=lambda pair: (str(pair[0].path), pair[0].line))
 
 
-@pytest.mark.xfail(strict=True, reason="41 function-local imports, all in vesicle_opt/studies/ "
-                   "(bench_3d, bench_equilibrium, bench_overhead, energy_decay, flow_vs_nlp, "
-                   "penalty_vs_exact, stress, table1, time_step_convergence, torus_section5), carry no "
-                   "reason comment at main 6e1c74d; the studies branch is removing them. Remove this "
-                   "marker when that lands (strict: an XPASS fails)")
 def test_function_local_imports_give_a_reason():
     missing = [f"{i.where()}: {i.path.read_text().splitlines()[i.line - 1].strip()}"
                for i, why in function_local_imports() if why is None]
