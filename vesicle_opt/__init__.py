@@ -5,17 +5,23 @@ minimisation (energy (3)/(6), constraints (4)-(5)/(7)-(8) of the reference paper
     scene = vo.load_scene("ellipse-2d", ["mesh.n=64"])     # a bundled scene, or a TOML path
     result = vo.solve(scene)                               # the one front door; certified Result
     print(result.converged, result.outcome, result.energy)
+    run = vo.flow(scene)                                   # a gradient flow (17)/(18)/(23) in memory
+    print(run.status, run.steps, run.t, run.energy)
 
 ``solve`` dispatches to the IPOPT backend (``vesicle_opt.nlp``) or the matrix-free Newton-Krylov
-backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi NLP.
+backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi NLP. ``flow`` runs
+``scene.flow`` with trackers for output, progress, checkpoints and stop criteria
+(``vesicle_opt.flows.trackers``).
 """
 
 from vesicle_opt.api import solve
+from vesicle_opt.flows.api import FlowResult, flow
 from vesicle_opt.errors import InfeasibleError, InputError, NotSupported, SolverError, VesicleError
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp
 from vesicle_opt.result import Result, Status
 from vesicle_opt.scene import Scene, load as load_scene
 
-__all__ = ["solve", "load_scene", "Scene", "build_nlp", "NLP", "IpoptOptions", "NewtonKrylovOptions",
-           "Result", "Status", "VesicleError", "InputError", "InfeasibleError", "NotSupported", "SolverError"]
+__all__ = ["solve", "flow", "FlowResult", "load_scene", "Scene", "build_nlp", "NLP", "IpoptOptions",
+           "NewtonKrylovOptions", "Result", "Status", "VesicleError", "InputError", "InfeasibleError",
+           "NotSupported", "SolverError"]

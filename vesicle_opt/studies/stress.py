@@ -95,15 +95,16 @@ def _scene(case: dict, extra=()):
 def run_flow_case(case: dict) -> dict:
     """Three steps of the flow with constant k and rejection (halving) down to the default dt_min."""
     import numpy as np
-    from vesicle_opt.flows.run import build_model, initial_field, make_scheme
+    from vesicle_opt.flows.api import build_model, initial_field, make_scheme
     from vesicle_opt.flows.stepper import StepperOptions, run
+    from vesicle_opt.flows.trackers import HistoryTracker
     sc = _scene(case)
     md = build_model(sc)
     scheme = make_scheme(sc, md)
-    laws: list[float] = []
     k = sc.flow.dt
-    outcome = run(scheme, initial_field(sc, md), StepperOptions(dt=k, t_end=1e6 * k, max_steps=3),
-                  on_accept=lambda step, t, phi, row: laws.append(abs(float(row["energy_law_residual"]))))
+    history = HistoryTracker()
+    outcome = run(scheme, initial_field(sc, md), StepperOptions(dt=k, t_end=1e6 * k, max_steps=3), [history])
+    laws = [abs(float(r["energy_law_residual"])) for r in history.rows]
     obs = scheme.observe(outcome.phi)
     finite = bool(np.all(np.isfinite(outcome.phi)))
     ok = outcome.status in ("t_end", "max_steps", "steady") and finite

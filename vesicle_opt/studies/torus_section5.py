@@ -12,7 +12,7 @@ eps = 0.255254, rigidity 10, c0 = 0, penalty M = 1e4, Fourier-spectral grids n^3
    end well before T_END on every grid; afterwards the torus relaxes slowly (measured at t = 0.4:
    ||phi_t|| ~ 1.2 and E_M still 0.3 above the equilibrium), so
 2. **Equilibrium.** the penalised problem (11) at the same M is solved by Newton-Krylov from the
-   flow's last field (``newton_krylov.solve(phi0=...)``): the Table 1 column. The same problem is
+   flow's last field (``newton_krylov.solve(x0=...)``): the Table 1 column. The same problem is
    also solved from the scene's torus start; equal energies mean the flow reached the same minimiser.
 3. **Start sensitivity** (16^3, reported, not part of the verdict): the wider disk ``WIDE_DISK``
    ends as a tube joined to its periodic image (wraps x, lower energy than the torus): not a
@@ -77,11 +77,11 @@ def case_rows(case: dict) -> list[dict]:
     import csv
 
     from vesicle_opt.nk import solve as newton_krylov
-    from vesicle_opt.flows.run import flow
+    from vesicle_opt.flows.run import write_flow
     n, out = case["n"], Path(case["dir"])
     disk_scene, torus_scene = _scene(n, case["t_end"], case["disk"])
-    fr = flow(disk_scene, out, frames=True)
-    md = fr.model
+    fr = write_flow(disk_scene, out, frames=True)
+    md = fr.result.model
     with open(out / "history.csv", newline="") as fh:
         hist = list(csv.DictReader(fh))
     rows, states = [], []
@@ -95,8 +95,8 @@ def case_rows(case: dict) -> list[dict]:
         state = f"{topo['components']} comp, chi {topo['euler_characteristic']}, wraps {topo['wraps']}"
         if not states or states[-1] != state:
             states.append(state)
-    phi_flow = fr.outcome.phi
-    eq = newton_krylov.solve(torus_scene, md.disc, phi0=phi_flow)
+    phi_flow = fr.result.phi
+    eq = newton_krylov.solve(torus_scene, md.disc, x0=phi_flow)
     ref = newton_krylov.solve(torus_scene, md.disc)
     topo = _topology(md.disc, eq.phi, n)
     s = fr.summary
