@@ -6,7 +6,7 @@ import pytest
 from vesicle_opt import scene as S
 from vesicle_opt.backends import SUPPORT
 from vesicle_opt.errors import NotSupported
-from vesicle_opt.flows.run import check_supported
+from vesicle_opt.flows.api import check_supported
 from vesicle_opt.mesh import fd
 from vesicle_opt.mesh import fem
 from vesicle_opt.mesh.base import LUMPED, require_lumped

@@ -12,8 +12,10 @@ from vesicle_opt import cli
 from vesicle_opt import scene as S
 from vesicle_opt.flows.discrete import FlowModel
 from vesicle_opt.flows.projection import project
-from vesicle_opt.flows.run import build_model, flow, initial_field, make_scheme
+from vesicle_opt.flows.api import build_model, initial_field, make_scheme
+from vesicle_opt.flows.run import write_flow
 from vesicle_opt.flows.stepper import StepperOptions, run
+from vesicle_opt.flows.trackers import CallbackTracker
 
 # Round-off yardstick: E ~ 10 and its terms reach eps^2 |L|^2 |phi| ~ 1e3..1e4 per node on these
 # grids, so sums over ~1e3 nodes carry ~1e-13 relative error; the laws were measured at 1e-15..3e-13.
@@ -77,7 +79,7 @@ def test_energy_law_round_off(scheme, mesh):
     A0, B0 = md.A(phi), md.B(phi)
     rows = []
     run(sch, phi, StepperOptions(dt=1e-3, t_end=5e-3, max_steps=100),
-        on_accept=lambda s, t, p, row: rows.append((row, p)))
+        [CallbackTracker(lambda state, row: rows.append((row, state.phi)))])
     assert len(rows) == 5
     for row, p in rows:
         assert abs(row["energy_law_residual"]) <= LAW_TOL, row
@@ -160,7 +162,7 @@ def test_rejection_on_oversized_step():
     sch = make_scheme(sc, md)
     rows = []
     o = run(sch, initial_field(sc, md), StepperOptions(dt=1.0, t_end=2.0, max_steps=3, adaptive=True),
-            on_accept=lambda s, t, p, row: rows.append(row))
+            [CallbackTracker(lambda state, row: rows.append(row))])
     assert o.rejections >= 3 and o.step == 3
     assert all(np.isfinite(r["penalized_energy"]) and abs(r["energy_law_residual"]) <= LAW_TOL for r in rows)
     assert np.all(np.isfinite(o.phi))
@@ -176,7 +178,7 @@ def test_resume_from_checkpoint(tmp_path, monkeypatch):
     from vesicle_opt.flows.lagrange import LagrangeScheme
     sc = _scene('flow.scheme="lagrange"', "flow.dt=1e-3", "flow.t_end=1.0", "flow.frames=2",
                 "flow.checkpoint_every=2", "flow.steps=8")
-    full = flow(sc, tmp_path / "a", frames=False)
+    full = write_flow(sc, tmp_path / "a", frames=False)
     real_step, calls = LagrangeScheme.step, []
 
     def killed_at_6(self, *args):
@@ -187,11 +189,11 @@ def test_resume_from_checkpoint(tmp_path, monkeypatch):
 
     monkeypatch.setattr(LagrangeScheme, "step", killed_at_6)
     with pytest.raises(KeyboardInterrupt):
-        flow(sc, tmp_path / "b", frames=False)
+        write_flow(sc, tmp_path / "b", frames=False)
     monkeypatch.setattr(LagrangeScheme, "step", real_step)
-    rest = flow(sc, tmp_path / "b", frames=False)
-    assert rest.summary["resumed_from_step"] == 4 and rest.outcome.step == 8
-    assert np.array_equal(full.outcome.phi, rest.outcome.phi)
+    rest = write_flow(sc, tmp_path / "b", frames=False)
+    assert rest.summary["resumed_from_step"] == 4 and rest.result.steps == 8
+    assert np.array_equal(full.result.phi, rest.result.phi)
     with open(tmp_path / "b" / "history.csv") as fh:
         steps = [int(r["step"]) for r in csv.DictReader(fh)]
     assert steps == list(range(1, 9))

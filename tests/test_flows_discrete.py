@@ -9,7 +9,7 @@ import pytest
 from vesicle_opt import scene as S
 from vesicle_opt.errors import NotSupported
 from vesicle_opt.flows.discrete import FlowModel
-from vesicle_opt.flows.run import build_model
+from vesicle_opt.flows.api import build_model
 from vesicle_opt.mesh import fem
 from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.model import functionals as F

@@ -15,8 +15,9 @@ import scipy.sparse as sp
 from vesicle_opt import cli
 from vesicle_opt import scene as S
 from vesicle_opt.flows.discrete import FlowModel
-from vesicle_opt.flows.run import build_model, initial_field, make_scheme
+from vesicle_opt.flows.api import build_model, initial_field, make_scheme
 from vesicle_opt.flows.stepper import StepperOptions, run
+from vesicle_opt.flows.trackers import CallbackTracker
 from vesicle_opt.mesh.spectral import fourier_grid
 
 LAW_TOL = 1e-11  # as test_flows: laws measured at 1e-15..3e-13 relative on these grids
@@ -76,7 +77,7 @@ def test_spectral_flow_laws_round_off(scheme):
     A0, B0 = md.A(phi), md.B(phi)
     rows = []
     out = run(make_scheme(sc, md), phi, StepperOptions(dt=1e-3, t_end=5e-3, max_steps=100),
-              on_accept=lambda s, t, p, row: rows.append((row, p)))
+              [CallbackTracker(lambda state, row: rows.append((row, state.phi)))])
     assert out.status == "t_end" and len(rows) == 5
     for row, p in rows:
         assert abs(row["energy_law_residual"]) <= LAW_TOL, row

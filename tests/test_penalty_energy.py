@@ -9,7 +9,7 @@ import pytest
 from vesicle_opt import scene as S
 from vesicle_opt.flows.backward_euler import BackwardEulerScheme
 from vesicle_opt.flows.base import observe
-from vesicle_opt.flows.run import build_model, initial_field
+from vesicle_opt.flows.api import build_model, initial_field
 from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.model import functionals as F
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField

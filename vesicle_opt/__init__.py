@@ -5,13 +5,18 @@ minimisation (energy (3)/(6), constraints (4)-(5)/(7)-(8) of the reference paper
     scene = vo.load_scene("ellipse-2d", ["mesh.n=64"])     # a bundled scene, or a TOML path
     result = vo.solve(scene)                               # the one front door; certified Result
     print(result.converged, result.outcome, result.energy)
+    run = vo.flow(scene)                                   # a gradient flow (17)/(18)/(23) in memory
+    print(run.status, run.steps, run.t, run.energy)
 
 ``solve`` dispatches to the IPOPT backend (``vesicle_opt.nlp``) or the matrix-free Newton-Krylov
-backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi NLP;
-``run_study(name, out, quick)`` runs one of the studies (``vesicle_opt.studies.STUDIES``).
+backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi NLP. ``flow`` runs
+``scene.flow`` with trackers for output, progress, checkpoints and stop criteria
+(``vesicle_opt.flows.trackers``); ``run_study(name, out, quick)`` runs one of the studies
+(``vesicle_opt.studies.STUDIES``).
 """
 
 from vesicle_opt.api import solve
+from vesicle_opt.flows.api import FlowResult, flow
 from vesicle_opt.errors import InfeasibleError, InputError, NotSupported, SolverError, VesicleError
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp
@@ -19,6 +24,6 @@ from vesicle_opt.result import Result, Status
 from vesicle_opt.scene import Scene, load as load_scene
 from vesicle_opt.studies import run_study
 
-__all__ = ["solve", "load_scene", "Scene", "build_nlp", "NLP", "IpoptOptions", "NewtonKrylovOptions",
-           "Result", "Status", "VesicleError", "InputError", "InfeasibleError", "NotSupported", "SolverError",
-           "run_study"]
+__all__ = ["solve", "flow", "FlowResult", "run_study", "load_scene", "Scene", "build_nlp", "NLP",
+           "IpoptOptions", "NewtonKrylovOptions", "Result", "Status", "VesicleError", "InputError",
+           "InfeasibleError", "NotSupported", "SolverError"]

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from vesicle_opt.api import solve
 from vesicle_opt.errors import InputError, VesicleError
-from vesicle_opt.flows.run import flow
+from vesicle_opt.flows.run import write_flow
 from vesicle_opt.io import output
 from vesicle_opt.scene import load as load_scene
 from vesicle_opt.studies import STUDIES, run_study
@@ -66,7 +66,7 @@ def cmd_flow(args) -> int:
     if args.adaptive:
         overrides.append('flow.stepping="adaptive"')
     sc = load_scene(args.scene, overrides)
-    run = flow(sc, Path(args.out), restart=args.restart, progress=not args.quiet)
+    run = write_flow(sc, Path(args.out), restart=args.restart, progress=not args.quiet)
     s = run.summary
     print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "
           f"energy = {s['energy']:.10g}, rejections = {s['rejections']}, wall = {s['wall_time_s']:.2f}s "

@@ -1,39 +1,41 @@
-"""The time loop, physics-free: constant or adaptive k, rejection, steady state, checkpoints.
+"""The time loop, physics-free and I/O-free: constant or adaptive k, rejection, steady state.
 
 A scheme supplies ``step(phi_n, k, guess) -> StepOutcome`` and ``observe(phi) -> dict``; the stepper
-never looks inside. Rules:
+never looks inside. Output, progress, checkpoints and caller's stop criteria are **trackers**
+(``flows.trackers``, py-pde style) handed to ``run``. Rules:
 
 * a step is **rejected** when the nonlinear solve fails, the field is not finite, or the scheme's
   energy law is violated (``StepOutcome.law_ok``); k is halved and the step retried. Below ``dt_min``
-  the run stops with status ``"failed"`` and the last accepted field (never a NaN field);
+  the run stops with status ``failed`` and the last accepted field (never a NaN field);
 * **constant** k: after a rejection the next step returns to the nominal k; the last step is cut to
   land on t_end exactly;
 * **adaptive** k ("dynamically adjusted", Section 5): after an accepted step, k grows by ``grow``
   when the solve took <= ``easy_iters`` iterations, shrinks by ``shrink`` when it took more than
   ``hard_iters``, capped by ``dt_max``;
+* **trackers**: ``start(state)`` before the first step, ``handle(state, row)`` after every accepted
+  step (every tracker, in order; the state is the one a resumed run would start from), ``finish(state)``
+  when the loop ends normally (not when an exception escapes: a killed run keeps its last periodic
+  checkpoint). A ``handle`` returning True ends the run with status ``stopped``;
 * **steady state**: ||phi_t|| = ||phi^{n+1} - phi^n|| / k below ``steady_tol`` times its value at the
-  first step of the run stops the run with status ``"steady"``. Note: (17) and (18) are symmetric
-  (midpoint-like) and not L-stable: at k far above the stiff time scale (~ h^4 / (gamma kappa eps))
-  stiff modes flip sign each step and decay slowly, so ||phi_t|| may stall while the energy still
-  decreases monotonically; cap ``dt_max`` or use (23), which damps them, to reach the criterion;
-* ``stop(row)``, if given, ends the run with status ``"stopped"`` when it returns True;
-* **checkpoints**: every ``checkpoint_every`` accepted steps (and at the end) the state is written
-  atomically to ``checkpoint.npz``; ``resume=True`` restarts from it bit-for-bit (the schemes are
-  stateless given phi^n, the previous field and k).
+  first step of the run stops the run with status ``steady``. It stays here, not in a tracker, because
+  its reference value (``rate0``) is part of the resumable ``FlowState``. Note: (17) and (18) are
+  symmetric (midpoint-like) and not L-stable: at k far above the stiff time scale
+  (~ h^4 / (gamma kappa eps)) stiff modes flip sign each step and decay slowly, so ||phi_t|| may stall
+  while the energy still decreases monotonically; cap ``dt_max`` or use (23), which damps them;
+* **resume**: ``run(..., start=state)`` continues from a ``FlowState`` (e.g. one a
+  ``CheckpointTracker`` saved) bit-for-bit: the schemes are stateless given phi^n, the previous field
+  and k.
 """
 
 from __future__ import annotations
 
 import math
-import sys
 import time
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
-from vesicle_opt.io.output import load_npz, save_npz
+from vesicle_opt.result import Status
 
 
 @dataclass(frozen=True)
@@ -49,52 +51,77 @@ class StepperOptions:
     shrink: float = 0.7
     easy_iters: int = 4
     hard_iters: int = 10
-    checkpoint_every: int = 50
-    progress: bool = False
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
+class FlowState:
+    """Everything the loop needs to continue exactly: the field, the previous field (extrapolated
+    Newton guess), t, the accepted-step count, the next trial k, the last accepted k, ||phi_t|| of the
+    run's first step (steady-state reference), rejections so far and the wall time spent."""
+
+    phi: np.ndarray
+    phi_prev: np.ndarray | None
+    t: float
+    step: int
+    k_try: float
+    k_last: float
+    rate0: float
+    rejections: int
+    wall_time_s: float
+
+    def as_arrays(self) -> dict:
+        """The npz form (``phi_prev`` None as an empty array), as checkpoint.npz stores it."""
+        return {"phi": self.phi, "phi_prev": self.phi_prev if self.phi_prev is not None else np.zeros(0),
+                "t": self.t, "step": self.step, "k_try": self.k_try, "k_last": self.k_last,
+                "rate0": self.rate0, "rejections": self.rejections, "wall_time_s": self.wall_time_s}
+
+    @classmethod
+    def from_arrays(cls, st: dict) -> FlowState:
+        prev = np.asarray(st["phi_prev"])
+        return cls(np.asarray(st["phi"]), prev if prev.size else None, float(st["t"]), int(st["step"]),
+                   float(st["k_try"]), float(st["k_last"]), float(st["rate0"]), int(st["rejections"]),
+                   float(st["wall_time_s"]))
+
+
+@dataclass(frozen=True, eq=False)
 class RunOutcome:
     phi: np.ndarray
     t: float
     step: int
-    status: str  # "t_end" | "steady" | "max_steps" | "stopped" | "failed"
+    status: Status  # T_END | STEADY | MAX_STEPS | STOPPED | FAILED (a str enum: == "t_end" holds)
     message: str
     rejections: int
     wall_time_s: float
+    state: FlowState  # the final state: ``run(..., start=outcome.state)`` continues the run
 
 
-def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | None = None,
-        resume: bool = False, on_accept: Callable[[int, float, np.ndarray, dict], None] | None = None,
-        stop: Callable[[dict], bool] | None = None) -> RunOutcome:
-    """Advance ``phi0`` from t = 0 (or the checkpoint) to ``opts.t_end``; see the module docstring."""
-    phi, phi_prev, t, step, k_try, rate0, rejections, wall0 = phi0.copy(), None, 0.0, 0, opts.dt, math.nan, 0, 0.0
-    if resume and checkpoint is not None and checkpoint.exists():
-        st = load_npz(checkpoint)
-        phi, t, step = st["phi"], float(st["t"]), int(st["step"])
-        phi_prev = st["phi_prev"] if st["phi_prev"].size else None
-        k_try, rate0 = float(st["k_try"]), float(st["rate0"])
-        rejections, wall0 = int(st["rejections"]), float(st["wall_time_s"])
-        k_last = float(st["k_last"])
+def run(scheme, phi0: np.ndarray, opts: StepperOptions, trackers=(), *,
+        start: FlowState | None = None) -> RunOutcome:
+    """Advance ``phi0`` (or the state ``start``) to ``opts.t_end``; see the module docstring.
+    ``trackers``: objects with ``start(state)``, ``handle(state, row) -> bool | None``, ``finish(state)``."""
+    if start is None:
+        phi, phi_prev, t, step, k_try, k_last = phi0.copy(), None, 0.0, 0, opts.dt, math.nan
+        rate0, rejections, wall0 = math.nan, 0, 0.0
     else:
-        k_last = float("nan")
+        phi, phi_prev, t, step = start.phi.copy(), start.phi_prev, start.t, start.step
+        k_try, k_last, rate0, rejections, wall0 = start.k_try, start.k_last, start.rate0, start.rejections, \
+            start.wall_time_s
     t_start = time.perf_counter()
-    last_print = -math.inf
 
     def wall():
         return wall0 + time.perf_counter() - t_start
 
-    def save():
-        if checkpoint is not None:
-            save_npz(checkpoint, phi=phi, phi_prev=phi_prev if phi_prev is not None else np.zeros(0), t=t,
-                     step=step, k_try=k_try, k_last=k_last, rate0=rate0, rejections=rejections,
-                     wall_time_s=wall())
+    def state():
+        return FlowState(phi, phi_prev, t, step, k_try, k_last, rate0, rejections, wall())
 
-    status, message = "max_steps", f"reached {opts.max_steps} steps"
+    trackers = tuple(trackers)
+    for tr in trackers:
+        tr.start(state())
+    status, message = Status.MAX_STEPS, f"reached {opts.max_steps} steps"
     while step < opts.max_steps:
         remaining = opts.t_end - t
         if remaining <= 1e-12 * max(opts.t_end, opts.dt):  # round-off of the accumulated t
-            status, message = "t_end", f"reached t = {t:.6g}"
+            status, message = Status.T_END, f"reached t = {t:.6g}"
             break
         k = min(k_try, remaining)
         guess = phi if phi_prev is None or not math.isfinite(k_last) else phi + (k / k_last) * (phi - phi_prev)
@@ -104,7 +131,7 @@ def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | No
             rejections += 1
             k_try = k / 2
             if k_try < opts.dt_min:
-                status = "failed"
+                status = Status.FAILED
                 message = f"step {step + 1} rejected down to k = {k:.3g} < dt_min: {out.message}"
                 break
             continue
@@ -118,8 +145,6 @@ def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | No
                "newton_iterations": out.iterations, "krylov_iterations": out.linear_iterations,
                "wall_time_s": wall(), "rejections": rejections,
                "phi_t_norm": out.rate, **out.extra}
-        if on_accept is not None:
-            on_accept(step, t, phi, row)
         if opts.adaptive:
             if out.iterations <= opts.easy_iters:
                 k_try = min(k * opts.grow, opts.dt_max)
@@ -129,19 +154,15 @@ def run(scheme, phi0: np.ndarray, opts: StepperOptions, *, checkpoint: Path | No
                 k_try = k
         else:
             k_try = opts.dt
-        if opts.progress and time.perf_counter() - last_print > 2.0:
-            last_print = time.perf_counter()
-            print(f"\r  step {step}  t = {t:.4g}/{opts.t_end:.4g}  dt = {k:.3g}  E = {row['energy']:.8g}  "
-                  f"law = {out.law_residual:.1e}  rejected = {rejections}", end="", file=sys.stderr, flush=True)
-        if stop is not None and stop(row):
-            status, message = "stopped", "the caller's stop criterion was met"
+        now = state()
+        stop = [bool(tr.handle(now, row)) for tr in trackers]  # every tracker sees every accepted step
+        if any(stop):
+            status, message = Status.STOPPED, "the caller's stop criterion was met"
             break
         if opts.steady_tol > 0 and out.rate <= opts.steady_tol * rate0:
-            status, message = "steady", f"||phi_t|| fell to {out.rate / rate0:.3g} of its first value"
+            status, message = Status.STEADY, f"||phi_t|| fell to {out.rate / rate0:.3g} of its first value"
             break
-        if opts.checkpoint_every and step % opts.checkpoint_every == 0:
-            save()
-    save()
-    if opts.progress:
-        print(file=sys.stderr)
-    return RunOutcome(phi, t, step, status, message, rejections, wall())
+    final = state()
+    for tr in trackers:
+        tr.finish(final)
+    return RunOutcome(phi, t, step, status, message, rejections, final.wall_time_s, final)

@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 
 from vesicle_opt import scene as S
-from vesicle_opt.flows.run import build_model, initial_field, make_scheme
+from vesicle_opt.flows.api import build_model, initial_field, make_scheme
 
 
 def setup(name: str, sets: list[str]):

@@ -20,6 +20,7 @@ import numpy as np
 
 from vesicle_opt.flows.backward_euler import BackwardEulerScheme
 from vesicle_opt.flows.stepper import StepperOptions, run
+from vesicle_opt.flows.trackers import HistoryTracker
 from vesicle_opt.io.output import load_npz, save_npz
 from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup
@@ -70,13 +71,12 @@ def case_rows(case: dict) -> list[dict]:
     sc, md, sch, phi0 = setup("ellipse-2d", _base(case["n"]))
     kk = case["k"]
     E0 = md.E_M(phi0)
+    history = HistoryTracker()
+    o = run(sch, phi0, StepperOptions(dt=kk, t_end=case["T"], max_steps=10**6), [history])
     rows = [{"row": "step", "k": kk, "step": 0, "t": 0.0, "penalized_energy": E0, "excess": E0 - E_min}]
-
-    def on_accept(step, t, phi, row):
-        rows.append({"row": "step", "k": kk, "step": step, "t": t, "penalized_energy": row["penalized_energy"],
-                     "excess": row["penalized_energy"] - E_min, "energy_law_residual": row["energy_law_residual"]})
-
-    o = run(sch, phi0, StepperOptions(dt=kk, t_end=case["T"], max_steps=10**6), on_accept=on_accept)
+    rows += [{"row": "step", "k": kk, "step": r["step"], "t": r["t"], "penalized_energy": r["penalized_energy"],
+              "excess": r["penalized_energy"] - E_min, "energy_law_residual": r["energy_law_residual"]}
+             for r in history.rows]
     law = max(abs(r.get("energy_law_residual", 0.0)) for r in rows)
     print(f"k = {kk:.3g}: {o.status}, {o.step} steps, rejections {o.rejections}, "
           f"E_M(T) - E_min = {rows[-1]['excess']:.4e}, max |law (22)| = {law:.2e}", flush=True)

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.flows.stepper import StepperOptions, run
+from vesicle_opt.flows.trackers import CallbackTracker
 from vesicle_opt.io.output import load_npz, save_npz
 from vesicle_opt.api import solve
 
@@ -72,11 +73,12 @@ def _flow_rows(case: dict, nlp: dict) -> list[dict]:
     rows, hit, best = [], {"t": None, "t_energy": None}, [np.inf]
     t0 = time.perf_counter()
 
-    def on_accept(step, t, phi, row):
+    def record(state, row):
+        """The study's row of the step; stop at the target (energy and field) or at the wall-time cap."""
         eE = abs(row["energy"] - E_star) / E_star
-        dphi = float(np.sqrt(md.norm2(phi - phi_star)))
+        dphi = float(np.sqrt(md.norm2(state.phi - phi_star)))
         best[0] = min(best[0], eE)
-        rows.append({"row": "step", "method": scheme, "step": step, "t": t, "dt": row["dt"],
+        rows.append({"row": "step", "method": scheme, "step": state.step, "t": state.t, "dt": row["dt"],
                      "wall_time_s": row["wall_time_s"], "energy": row["energy"], "energy_rel_error": eE,
                      "phi_distance": dphi, "volume_residual": row["volume_residual"],
                      "area_residual": row["area_residual"]})
@@ -84,13 +86,10 @@ def _flow_rows(case: dict, nlp: dict) -> list[dict]:
             hit["t_energy"] = row["wall_time_s"]
         if hit["t"] is None and eE <= TARGET and dphi <= PHI_TOL:
             hit["t"] = row["wall_time_s"]
-
-    def stop(row):
         return hit["t"] is not None or time.perf_counter() - t0 > cap
 
     o = run(sch, phi0, StepperOptions(dt=sc.flow.dt, t_end=sc.flow.t_end, max_steps=10**6, adaptive=True,
-                                       dt_max=sc.flow.dt_max, steady_tol=sc.flow.steady_tol), on_accept=on_accept,
-            stop=stop)
+                                       dt_max=sc.flow.dt_max, steady_tol=sc.flow.steady_tol), [CallbackTracker(record)])
     last = rows[-1]
     save_npz(_end_path(case, scheme), phi=o.phi)
     print(f"{scheme:15s}: {o.status}, {o.step} steps, t = {o.t:.4g}, wall {o.wall_time_s:.1f}s, "

@@ -39,7 +39,8 @@ from vesicle_opt import scene
 from vesicle_opt.api import solve
 from vesicle_opt.errors import InputError
 from vesicle_opt.flows import stepper
-from vesicle_opt.flows.run import build_model, initial_field, make_scheme
+from vesicle_opt.flows.api import build_model, initial_field, make_scheme
+from vesicle_opt.flows.trackers import HistoryTracker
 from vesicle_opt.mesh import discretize
 from vesicle_opt.model import feasibility
 from vesicle_opt.model.problem import constraint_data
@@ -110,10 +111,11 @@ def run_flow_case(case: dict) -> dict:
     sc = _scene(case)
     md = build_model(sc)
     scheme = make_scheme(sc, md)
-    laws: list[float] = []
     k = sc.flow.dt
-    outcome = stepper.run(scheme, initial_field(sc, md), stepper.StepperOptions(dt=k, t_end=1e6 * k, max_steps=3),
-                          on_accept=lambda step, t, phi, row: laws.append(abs(float(row["energy_law_residual"]))))
+    history = HistoryTracker()
+    opts = stepper.StepperOptions(dt=k, t_end=1e6 * k, max_steps=3)
+    outcome = stepper.run(scheme, initial_field(sc, md), opts, [history])
+    laws = [abs(float(r["energy_law_residual"])) for r in history.rows]
     obs = scheme.observe(outcome.phi)
     finite = bool(np.all(np.isfinite(outcome.phi)))
     ok = outcome.status in ("t_end", "max_steps", "steady") and finite

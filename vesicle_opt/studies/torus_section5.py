@@ -42,7 +42,7 @@ import numpy as np
 
 from vesicle_opt import scene
 from vesicle_opt.api import solve
-from vesicle_opt.flows.run import flow
+from vesicle_opt.flows.run import write_flow
 from vesicle_opt.io.output import draw_cut
 from vesicle_opt.studies._common import TABLE1, TABLE1_M, pyplot as plt, torus_check
 from vesicle_opt.studies.runner import run_cases
@@ -79,8 +79,8 @@ def _scene(n: int, t_end: float, disk=DISK):
 def case_rows(case: dict) -> list[dict]:
     n, out = case["n"], Path(case["dir"])
     disk_scene, torus_scene = _scene(n, case["t_end"], case["disk"])
-    fr = flow(disk_scene, out, frames=True)
-    md = fr.model
+    fr = write_flow(disk_scene, out, frames=True)
+    md = fr.result.model
     with open(out / "history.csv", newline="") as fh:
         hist = list(csv.DictReader(fh))
     rows, states = [], []
@@ -94,7 +94,7 @@ def case_rows(case: dict) -> list[dict]:
         state = f"{topo['components']} comp, chi {topo['euler_characteristic']}, wraps {topo['wraps']}"
         if not states or states[-1] != state:
             states.append(state)
-    phi_flow = fr.outcome.phi
+    phi_flow = fr.result.phi
     eq = solve(torus_scene, x0=phi_flow)  # the front door, penalty form (11): no second-order check
     ref = solve(torus_scene)
     topo = torus_check(eq.disc, eq.phi, eq.extra)

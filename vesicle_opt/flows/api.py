@@ -1,0 +1,149 @@
+"""The gradient flow of a scene in memory: ``vesicle_opt.flow(scene, trackers=...)`` (py-pde style).
+
+    import vesicle_opt as vo
+    from vesicle_opt.flows.trackers import HistoryTracker, StopTracker
+    sc = vo.load_scene("ellipse-2d", ["mesh.n=32", "flow.t_end=0.1"])
+    res = vo.flow(sc, trackers=[HistoryTracker(), StopTracker(lambda row: row["energy"] < 8.0)])
+    print(res.status, res.steps, res.t, res.energy, len(res.history))
+
+No directory is needed: output, progress, checkpoints and stop criteria are trackers
+(``flows.trackers``); ``flows.run.write_flow`` is this plus the directory trackers (the CLI verb).
+``FlowResult.history`` holds the rows of the first ``HistoryTracker(keep=True)`` among the trackers
+(empty without one: a long run keeps no rows unless asked to). Also here: the scene's flow pieces
+(``build_model``, ``initial_field``, ``make_scheme``, ``stepper_options``) for callers that drive
+``flows.stepper.run`` themselves with their own options (the flow studies).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vesicle_opt.errors import InputError, SolverError
+from vesicle_opt.mesh import Discretization, discretize
+from vesicle_opt.mesh.base import require_lumped
+from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.result import Status
+from vesicle_opt.scene.shapes import phase_field
+from vesicle_opt.flows.backward_euler import BackwardEulerScheme
+from vesicle_opt.flows.discrete import FEATURE, WHY, FlowModel
+from vesicle_opt.flows.lagrange import LagrangeScheme
+from vesicle_opt.flows.penalty import PenaltyScheme
+from vesicle_opt.flows.projection import project
+from vesicle_opt.flows.stepper import FlowState, StepperOptions, run
+from vesicle_opt.flows.trackers import CheckpointTracker, HistoryTracker, as_tracker
+
+SCHEMES = {"penalty": PenaltyScheme, "lagrange": LagrangeScheme, "backward-euler": BackwardEulerScheme}
+
+
+def check_supported(scene) -> None:
+    """Refuse what the flows do not support, before any work (one-line InputError)."""
+    if scene.mesh.kind not in ("fd", "fem-p1", "spectral"):
+        raise InputError("mesh.kind", f"the gradient flows support 'fd', 'fem-p1' and 'spectral', "
+                                      f"got {scene.mesh.kind!r}")
+    if scene.mesh.kind == "spectral" and scene.flow.scheme == "backward-euler":
+        raise InputError("flow.scheme", "'backward-euler' (23) goes through IPOPT, which needs assembled "
+                                        "matrices: use 'penalty' or 'lagrange' on spectral grids")
+    require_lumped(FEATURE, scene.mesh.mass, scene.mesh.quadrature, WHY)
+
+
+def build_model(scene, disc: Discretization | None = None) -> FlowModel:
+    disc = disc or discretize(scene)
+    alpha, beta = constraint_data(scene, disc)
+    return FlowModel(disc, scene.model.epsilon, scene.model.C, scene.model.rigidity, alpha, beta,
+                     scene.solver.M, scene.flow.gamma)
+
+
+def initial_field(scene, md: FlowModel) -> np.ndarray:
+    """The scene's initial shape, projected onto A = alpha, B = beta (``projection``) unless
+    ``flow.initial = "shape"`` (penalty and backward Euler only; (17) must start on the set)."""
+    phi0 = phase_field(scene.initial, md.disc.nodes, md.disc.box, scene.model.epsilon)
+    if scene.flow.initial == "projected" or scene.flow.scheme == "lagrange":
+        phi0 = project(md, phi0, md.alpha, md.beta)
+    return phi0
+
+
+def make_scheme(scene, md: FlowModel):
+    return SCHEMES[scene.flow.scheme](md, law_tol=scene.flow.law_tol)
+
+
+def stepper_options(scene) -> StepperOptions:
+    fl = scene.flow
+    return StepperOptions(dt=fl.dt, t_end=fl.t_end, max_steps=fl.steps, adaptive=fl.stepping == "adaptive",
+                          dt_min=fl.dt_min, dt_max=fl.dt_max, steady_tol=fl.steady_tol)
+
+
+@dataclass(frozen=True, eq=False)
+class FlowResult:
+    """The end of a flow run. ``status`` is a ``Status`` (T_END, STEADY, MAX_STEPS, STOPPED, FAILED);
+    on FAILED, ``phi`` is the last accepted field. ``observed`` holds the scheme's columns of the final
+    field (energy = kappa E_h, penalized_energy = E_M, volume_residual, area_residual);
+    ``flow(scene, resume_from=result.state)`` continues the run."""
+
+    phi: np.ndarray
+    t: float
+    steps: int
+    status: Status
+    message: str
+    rejections: int
+    wall_time_s: float
+    model: FlowModel
+    scheme: str
+    law: str
+    observed: dict
+    history: tuple
+    state: FlowState
+    resumed_from_step: int = 0
+
+    @property
+    def energy(self) -> float:
+        return float(self.observed["energy"])
+
+    @property
+    def failed(self) -> bool:
+        return self.status is Status.FAILED
+
+
+def _field(md: FlowModel, phi, key: str) -> np.ndarray:
+    phi = np.asarray(phi, dtype=float)
+    if phi.shape != (md.disc.n_nodes,):
+        raise InputError(key, f"expected a field of shape ({md.disc.n_nodes},), got {phi.shape}")
+    if not np.all(np.isfinite(phi)):
+        raise InputError(key, "the field has non-finite entries")
+    return phi
+
+
+def flow(scene, *, trackers=(), phi0=None, resume_from: FlowState | str | Path | None = None,
+         throw: bool = False, model: FlowModel | None = None) -> FlowResult:
+    """Run ``scene.flow`` in memory and return a frozen ``FlowResult``.
+
+    trackers: ``flows.trackers`` objects, or callables ``fn(state, row)`` (a True return stops the run).
+    phi0: the start field, used as given (default: ``initial_field(scene, model)``; (17) needs it on
+    A = alpha, B = beta: ``flows.projection.project``). resume_from: a ``FlowState`` (e.g.
+    ``result.state``) or a checkpoint file a ``CheckpointTracker`` wrote; the run continues from it
+    bit-for-bit. throw: raise ``SolverError`` (carrying the result) when the run failed.
+    model: a ``build_model(scene)`` to reuse (e.g. the one a tracker evaluates energies with)."""
+    check_supported(scene)
+    md = model if model is not None else build_model(scene)
+    scheme = make_scheme(scene, md)
+    trackers = tuple(as_tracker(tr) for tr in trackers)
+    start = None
+    if resume_from is not None:
+        if phi0 is not None:
+            raise InputError("phi0", "give phi0 or resume_from, not both")
+        start = resume_from if isinstance(resume_from, FlowState) else CheckpointTracker.load(resume_from)
+        if start is None:
+            raise InputError("resume_from", f"no checkpoint at {resume_from}")
+        phi_start = _field(md, start.phi, "resume_from")
+    else:
+        phi_start = initial_field(scene, md) if phi0 is None else _field(md, phi0, "phi0")
+    out = run(scheme, phi_start, stepper_options(scene), trackers, start=start)
+    history = next((tuple(tr.rows) for tr in trackers if isinstance(tr, HistoryTracker) and tr.keep), ())
+    result = FlowResult(out.phi, out.t, out.step, out.status, out.message, out.rejections, out.wall_time_s,
+                        md, scene.flow.scheme, scheme.law, scheme.observe(out.phi), history, out.state,
+                        start.step if start is not None else 0)
+    if throw and result.failed:
+        raise SolverError(f"flow failed: {out.message}", result)
+    return result
