@@ -34,8 +34,9 @@ def cmd_solve(args) -> int:
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
     if result.converged and summary.get("second_order") == "saddle":
         print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser (smallest tangent "
-              f"Hessian eigenvalue {summary['second_order_min_eigenvalue']:.3g} mu_ref); try another "
-              f"initial shape", file=sys.stderr)
+              f"Hessian eigenvalue {summary['second_order_min_eigenvalue']:.3g} mu_ref, mass metric, "
+              f"{summary.get('second_order_excluded', 'none')} excluded); try another initial shape",
+              file=sys.stderr)
     if summary.get("wraps"):
         print(f"vesicle-opt: warning: the inside {summary['topology']}: a slab or tube joined to its "
               f"periodic image, not a closed vesicle", file=sys.stderr)

@@ -2,6 +2,7 @@
 
 * ``kkt``: the relative L2 KKT residual from hand-derived gradients; ``certify``: the one rule that
   decides ``converged`` for every backend and method, and the one ``Result`` builder;
-* ``second_order`` (assembled, shift-invert Lanczos) and ``lobpcg`` (matrix-free): minimum or saddle;
+* ``second_order`` (assembled, shift-invert Lanczos) and ``lobpcg`` (matrix-free): minimum or saddle,
+  one quantity and one rule (``verdict``);
 * ``topology``: components, Euler characteristic, periodic wraps; ``metrics``: error norms, orders.
 """
