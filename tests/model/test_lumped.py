@@ -13,8 +13,8 @@ from vesicle_opt.model import functionals as F
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField, bulk_stiffness, bulk_symbol
 from vesicle_opt.nk.precond import FourierPreconditioner, SparsePreconditioner
 from vesicle_opt.nlp.exact import build_exact
+from vesicle_opt import load_scene
 
-from _scenes import bundled
 
 # sparse lumped discretisations with nodal quadrature (the Fourier grids: test_spectral)
 SCENES = {
@@ -25,7 +25,7 @@ SCENES = {
 
 
 def _nlp(name):
-    sc = bundled("ellipse-2d", "model.epsilon=0.5", "model.c0=0.4", "model.rigidity=2.0", *SCENES[name])
+    sc = load_scene("ellipse-2d", ["model.epsilon=0.5", "model.c0=0.4", "model.rigidity=2.0", *SCENES[name]])
     return build_exact(sc, check=False)
 
 

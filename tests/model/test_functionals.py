@@ -11,8 +11,8 @@ from vesicle_opt.model import functionals as F
 from vesicle_opt.nlp import build_nlp
 from vesicle_opt.scene.shape_spec import Shape
 from vesicle_opt.scene.shapes import phase_field
+from vesicle_opt import load_scene
 
-from _scenes import bundled
 
 BOX = ((-2.0, 2.0), (-2.0, 2.0))
 DISCS = {
@@ -92,7 +92,7 @@ def test_numpy_values_and_hand_gradients_equal_casadi_ad(name, rng):
                          ids=["fd", "fem-consistent", "fem-gauss"])
 def test_casadi_graph_equals_numpy(overrides):
     """The NLP's f, g and grad f (CasADi) against the numpy definitions and hand gradients."""
-    sc = bundled("ellipse-2d", "mesh.n=16", "model.c0=0.4", *overrides)
+    sc = load_scene("ellipse-2d", ["mesh.n=16", "model.c0=0.4", *overrides])
     nlp = build_nlp(sc)
     disc, x0 = nlp.disc, nlp.x0
     phi, _ = nlp.split(x0)

@@ -22,7 +22,7 @@ from vesicle_opt.errors import InputError
 from vesicle_opt.studies import NOT_STUDIES, STUDIES, run_study, study
 from vesicle_opt.studies.runner import CsvLog, run_cases
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]  # the repository (tests/studies/ -> root)
 
 
 def square_rows(case):

@@ -17,8 +17,8 @@ import pytest
 from vesicle_opt.api import solve
 from vesicle_opt.result import Status
 from vesicle_opt.verify.certify import KKT_FACTOR
+from vesicle_opt import load_scene
 
-from _scenes import bundled
 
 TOL = 1e-8  # the bundled scenes' tol
 N_FOR_EPS = {0.4: 32, 0.2: 64, 0.1: 128}  # h = 8/n: eps/h = 1.6 on every mesh
@@ -36,7 +36,7 @@ def _solve(eps: float, M, *over):
         sets += ["solver.method='penalty'", f"solver.M={M}"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return solve(bundled("ellipse-2d", *sets))
+        return solve(load_scene("ellipse-2d", sets))
 
 
 @pytest.mark.parametrize("eps, M", CASES)
@@ -76,7 +76,7 @@ def _similar(s: float, dim: int):
         name = "sphere-3d"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return solve(bundled(name, *sets, f"solver.tol={TOL}", "solver.second_order=false"))
+        return solve(load_scene(name, [*sets, f"solver.tol={TOL}", "solver.second_order=false"]))
 
 
 @pytest.mark.parametrize("dim", [2, 3])

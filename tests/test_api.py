@@ -11,15 +11,15 @@ import vesicle_opt as S
 from vesicle_opt.errors import SolverError
 from vesicle_opt.verify.certify import KKT_FACTOR
 from vesicle_opt.nlp import build_nlp
+from vesicle_opt import load_scene
 
-from _scenes import bundled
 
 TOL = 1e-8  # the scenes' solver.tol
 
 
 @pytest.fixture(scope="module")
 def ellipse64():
-    nlp = build_nlp(bundled("ellipse-2d", "mesh.n=64"))
+    nlp = build_nlp(load_scene("ellipse-2d", ["mesh.n=64"]))
     return nlp, S.solve(nlp)
 
 
@@ -32,9 +32,9 @@ def ellipse64():
 ], ids=["fd", "fem-consistent", "fem-gauss", "fem-natural", "fd-c0"])
 def test_exact_solution_is_kkt_point(overrides):
     """Problem x discretisation matrix: constraints and recomputed KKT residual to the tolerance."""
-    res = S.solve(bundled("ellipse-2d", *overrides))
+    res = S.solve(load_scene("ellipse-2d", overrides))
     assert res.converged, res.status
-    nlp = build_nlp(bundled("ellipse-2d", *overrides))
+    nlp = build_nlp(load_scene("ellipse-2d", overrides))
     assert abs(res.volume_residual) <= TOL * nlp.disc.volume  # g_A = (A - alpha)/|Omega| <= tol
     assert abs(res.area_residual) <= TOL * nlp.beta  # g_B = (B - beta)/beta <= tol
     # relative L2 stationarity; KKT_FACTOR = 100 is the documented slack over IPOPT's max-norm test
@@ -61,14 +61,14 @@ def test_multipliers_are_energy_sensitivities(ellipse64):
 
 def test_energy_converges_at_second_order_in_h():
     """FD energies on ellipse-2d at n, 2n, 4n: Richardson's observed order (theory: 2)."""
-    energies = [S.solve(bundled("ellipse-2d", f"mesh.n={n}")).energy for n in (48, 96, 192)]
+    energies = [S.solve(load_scene("ellipse-2d", [f"mesh.n={n}"])).energy for n in (48, 96, 192)]
     order = np.log2((energies[1] - energies[0]) / (energies[2] - energies[1]))
     assert 1.8 < order < 2.3, f"observed order {order:.3f}, energies {energies}"
 
 
 def test_circle_stays_a_circle():
     """The circle-2d minimiser: isotropic second moments of (phi + 1) about its centroid."""
-    sc = bundled("circle-2d")
+    sc = load_scene("circle-2d")
     with pytest.warns(UserWarning, match="beta_min"):  # circle data sit near the feasibility bound
         res = S.solve(sc)
     assert res.converged
@@ -82,7 +82,7 @@ def test_circle_stays_a_circle():
 
 
 def test_failure_is_reported_not_returned(tmp_path):
-    sc = bundled("ellipse-2d", "mesh.n=32", "solver.max_iter=3")
+    sc = load_scene("ellipse-2d", ["mesh.n=32", "solver.max_iter=3"])
     res = S.solve(sc)
     assert not res.converged and not res.success and res.status == "Maximum_Iterations_Exceeded"
     with pytest.raises(SolverError, match="Maximum_Iterations_Exceeded"):

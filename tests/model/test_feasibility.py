@@ -12,8 +12,8 @@ from vesicle_opt.model import functionals as F
 from vesicle_opt.errors import InfeasibleError
 from vesicle_opt.scene.shape_spec import Shape
 from vesicle_opt.scene.shapes import phase_field
+from vesicle_opt import load_scene
 
-from _scenes import bundled
 
 PAPER_BOX = ((-math.pi, math.pi),) * 3
 
@@ -41,15 +41,14 @@ def test_bound_lies_between_sharp_limit_corrections_and_the_tanh_ball():
 
 
 def test_infeasible_beta_is_refused_before_solving(tmp_path, capsys):
-    sc = bundled("ellipse-2d", "mesh.n=32")
+    sc = load_scene("ellipse-2d", ["mesh.n=32"])
     from vesicle_opt.nlp import build_nlp
     from vesicle_opt.model.problem import constraint_data
     from vesicle_opt.mesh import discretize
     alpha, _ = constraint_data(sc, discretize(sc))
     bound = feasibility.beta_min(alpha, sc.model.epsilon, sc.domain.box, sc.domain.boundary)
     with pytest.raises(InfeasibleError, match="beta_min"):
-        build_nlp(bundled("ellipse-2d", "mesh.n=32", f"constraints.alpha={alpha!r}",
-                          f"constraints.beta={0.98 * bound!r}"))
+        build_nlp(load_scene("ellipse-2d", ["mesh.n=32", f"constraints.alpha={alpha!r}", f"constraints.beta={0.98 * bound!r}"]))
     rc = cli.main(["solve", "ellipse-2d", "--out", str(tmp_path), "--set", "mesh.n=32",
                    "--set", f"constraints.alpha={alpha!r}", "--set", f"constraints.beta={0.98 * bound!r}"])
     err = capsys.readouterr().err.strip().splitlines()

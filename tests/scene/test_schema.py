@@ -7,8 +7,8 @@ import pytest
 import vesicle_opt
 from vesicle_opt import scene
 from vesicle_opt.errors import InputError
+from vesicle_opt import load_scene
 
-from _scenes import bundled
 
 FOLDER = Path(vesicle_opt.__file__).parent / "problems"
 
@@ -27,7 +27,7 @@ def test_bundled_scene_loads_by_name_as_from_its_file(name, tmp_path, monkeypatc
 
 
 def test_override_parses_toml_values():
-    sc = bundled("ellipse-2d", "mesh.n=[32, 16]", "model.c0=0.5", "mesh.kind=fem-p1", 'initial.center=[0.5, 0.0]')
+    sc = load_scene("ellipse-2d", ["mesh.n=[32, 16]", "model.c0=0.5", "mesh.kind=fem-p1", 'initial.center=[0.5, 0.0]'])
     assert sc.mesh.n == (32, 16) and sc.model.c0 == 0.5 and sc.mesh.kind == "fem-p1"
     assert sc.initial.center == (0.5, 0.0)
 
@@ -51,7 +51,7 @@ def test_override_parses_toml_values():
 ])
 def test_bad_input_names_the_key(override, key):
     with pytest.raises(InputError) as info:
-        bundled("ellipse-2d", override)
+        load_scene("ellipse-2d", [override])
     assert info.value.key == key and "\n" not in str(info.value)
 
 
@@ -65,7 +65,7 @@ def test_warm_start_file_restarts_at_the_solution(tmp_path):
     from vesicle_opt import cli
     assert cli.main(["solve", "ellipse-2d", "--out", str(tmp_path / "a"), "--set", "mesh.n=32"]) == 0
     from vesicle_opt.api import solve
-    res = solve(bundled("ellipse-2d", "mesh.n=32", "initial.shape='file'", f"initial.file='{tmp_path / 'a' / 'phi.npz'}'"))
+    res = solve(load_scene("ellipse-2d", ["mesh.n=32", "initial.shape='file'", f"initial.file='{tmp_path / 'a' / 'phi.npz'}'"]))
     assert res.converged and res.iterations <= 3  # already optimal: IPOPT only confirms it
 
 
@@ -79,5 +79,5 @@ def test_bad_warm_start_file_is_bad_input(tmp_path, content):
     elif content is not None:
         path.write_bytes(content)
     with pytest.raises(InputError) as info:
-        build_nlp(bundled("ellipse-2d", "mesh.n=32", "initial.shape='file'", f"initial.file='{path}'"))
+        build_nlp(load_scene("ellipse-2d", ["mesh.n=32", "initial.shape='file'", f"initial.file='{path}'"]))
     assert info.value.key == "initial.file" and "\n" not in str(info.value)

@@ -6,17 +6,15 @@ import skfem
 import vesicle_opt as S
 from vesicle_opt.verify.certify import KKT_FACTOR
 from vesicle_opt.errors import InputError
+from vesicle_opt import load_scene
 
-from _scenes import bundled
 
 
 def test_solve_on_unstructured_mesh_file(tmp_path):
     mesh = skfem.MeshTri.init_circle(5).scaled(3.0)  # unstructured disk of radius 3
     path = tmp_path / "disk.vtk"
     mesh.save(str(path))
-    sc = bundled("ellipse-2d", "mesh.kind='fem-p1'", "domain.boundary='natural'", f"mesh.file='{path}'",
-                 "mesh.n=8", "model.epsilon=0.25", "initial.semi_axes=[1.5, 1.0]",
-                 "constraints.target.semi_axes=[1.6, 0.9]")
+    sc = load_scene("ellipse-2d", ["mesh.kind='fem-p1'", "domain.boundary='natural'", f"mesh.file='{path}'", "mesh.n=8", "model.epsilon=0.25", "initial.semi_axes=[1.5, 1.0]", "constraints.target.semi_axes=[1.6, 0.9]"])
     res = S.solve(sc)
     assert res.converged, res.status
     assert res.n_nodes == mesh.p.shape[1]
@@ -27,7 +25,7 @@ def test_corrupt_mesh_file_is_bad_input(tmp_path):
     path = tmp_path / "broken.vtk"
     path.write_text("not a mesh")
     try:
-        S.solve(bundled("ellipse-2d", "mesh.kind='fem-p1'", "domain.boundary='natural'", f"mesh.file='{path}'"))
+        S.solve(load_scene("ellipse-2d", ["mesh.kind='fem-p1'", "domain.boundary='natural'", f"mesh.file='{path}'"]))
     except InputError as exc:
         assert exc.key == "mesh.file" and "\n" not in str(exc)
     else:
@@ -37,6 +35,5 @@ def test_corrupt_mesh_file_is_bad_input(tmp_path):
 def test_missing_mesh_file_is_bad_input(tmp_path):
     import pytest
     with pytest.raises(InputError) as info:
-        S.solve(bundled("ellipse-2d", "mesh.kind='fem-p1'", "domain.boundary='natural'",
-                        f"mesh.file='{tmp_path / 'absent.msh'}'"))
+        S.solve(load_scene("ellipse-2d", ["mesh.kind='fem-p1'", "domain.boundary='natural'", f"mesh.file='{tmp_path / 'absent.msh'}'"]))
     assert info.value.key == "mesh.file"

@@ -10,12 +10,12 @@ import scipy.sparse as sp
 from vesicle_opt.nk import solve as nk
 from vesicle_opt.nk import precond
 from vesicle_opt.mesh import discretize
+from vesicle_opt import load_scene
 
-from _scenes import bundled
 
 
 def _mesh(n, *sets):
-    sc = bundled("ellipse-2d", "mesh.kind='fem-p1'", f"mesh.n={n}", "mesh.mass='lumped'", *sets)
+    sc = load_scene("ellipse-2d", ["mesh.kind='fem-p1'", f"mesh.n={n}", "mesh.mass='lumped'", *sets])
     return sc, discretize(sc)
 
 
@@ -89,8 +89,8 @@ def test_3d_fem_takes_chebyshev_and_matches_fd():
     """The lumped P1 tensor mesh has the FD 7-point operator, so the 16^3 torus on it (S^{-1} by
     the Chebyshev polynomial, the default in 3D) must end at the FD/FFT solution (measured 4e-12)."""
     sets = ("mesh.n=16", "mesh.mass='lumped'")
-    fem = bundled("torus-table1-3d", "mesh.kind='fem-p1'", *sets)
+    fem = load_scene("torus-table1-3d", ["mesh.kind='fem-p1'", *sets])
     assert nk.prepare(fem)[2].kind == "chebyshev"
-    r_fem, r_fd = nk.solve(fem), nk.solve(bundled("torus-table1-3d", "mesh.kind='fd'", *sets))
+    r_fem, r_fd = nk.solve(fem), nk.solve(load_scene("torus-table1-3d", ["mesh.kind='fd'", *sets]))
     assert r_fem.converged and r_fd.converged
     assert abs(r_fem.energy / r_fd.energy - 1) <= 1e-8  # both solved to tol 1e-8 (issue 6's agreement)
