@@ -55,7 +55,8 @@ def test_wheel_ships_the_package_and_solves_a_bundled_scene(tmp_path):
     sources = {p.relative_to(ROOT).as_posix() for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts}
     assert {n for n in names if n.endswith(".py")} == sources  # every module and subpackage, nothing stale
     assert f"{dist_info}/licenses/LICENSE" in names or f"{dist_info}/LICENSE" in names
-    assert "License: MIT" in zipfile.ZipFile(wheel).read(f"{dist_info}/METADATA").decode()
+    metadata = zipfile.ZipFile(wheel).read(f"{dist_info}/METADATA").decode()
+    assert "License-Expression: MIT" in metadata  # PEP 639 (setuptools >= 77, Metadata 2.4)
 
     site = tmp_path / "site"
     p = _run([sys.executable, "-m", "pip", "install", "--no-deps", "--target", str(site), str(wheel)])
