@@ -1,11 +1,12 @@
 """Every bad input of the issue list through the CLI: exit 2, one line naming the key, no
 traceback, and nothing already in the output directory lost; in 2D and in 3D."""
 
+import subprocess
+import sys
+
 import pytest
 
 from vesicle_opt import cli
-
-
 
 SOLVE = ["solve", "ellipse-2d", "--set", "mesh.n=16"]
 SPHERE = ["solve", "sphere-3d"]
@@ -119,3 +120,13 @@ def _run(argv) -> int:
         return cli.main(argv)
     except SystemExit as exc:
         return int(exc.code)
+
+
+def test_output_into_a_closed_pipe_is_not_an_error():
+    """`vesicle-opt study --list | head -1`: the reader may leave before the writer is done."""
+    p = subprocess.Popen([sys.executable, "-m", "vesicle_opt.cli", "study", "--list"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()  # gone before the child writes (its imports take ~1 s)
+    err = p.stderr.read().decode()
+    p.wait(timeout=60)
+    assert p.returncode == 0 and "Traceback" not in err, err

@@ -8,6 +8,7 @@ Exit codes: 0 converged; 1 the solver did not converge (results still written); 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -126,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
     except VesicleError as exc:
         print(f"vesicle-opt: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except BrokenPipeError:  # stdout piped into a reader that closed early (`| head`): not an error
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 0
 
 
 if __name__ == "__main__":
