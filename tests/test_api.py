@@ -179,3 +179,43 @@ def test_options_replace_the_scene_settings_per_backend():
     with pytest.raises(SolverError) as info:
         S.solve(sc, options=IpoptOptions(tol=TOL, max_iter=2), throw=True)
     assert info.value.result is not None and info.value.result.outcome == Status.MAX_ITERATIONS
+
+
+def test_a_method_override_is_checked_before_any_work():
+    sc = load_scene("ellipse-2d", ["mesh.n=32"])
+    for backend in (None, "auto", "newton-krylov"):
+        with pytest.raises(NotSupported, match="solver.method"):
+            S.solve(sc, backend=backend, method="penlaty")
+
+
+def test_nk_refuses_a_warm_start_of_another_mesh():
+    small = S.solve(load_scene("ellipse-2d", ["mesh.n=32", "solver.second_order=false"]), backend="newton-krylov")
+    sc = load_scene("ellipse-2d", ["mesh.n=24", "solver.second_order=false"])
+    for x0 in (small, small.phi):
+        with pytest.raises(InputError, match="x0"):
+            S.solve(sc, backend="newton-krylov", x0=x0)
+
+
+@pytest.mark.parametrize("backend", ["ipopt", "newton-krylov"])
+def test_both_backends_start_from_an_earlier_solves_file(backend, tmp_path):
+    """initial.shape = 'file' (a phi.npz of an earlier solve on the same mesh) on either backend."""
+    sets = ["mesh.n=32", "solver.second_order=false"]
+    first = S.solve(load_scene("ellipse-2d", sets), throw=True)
+    np.savez(tmp_path / "phi.npz", phi=first.phi)
+    again = S.solve(load_scene("ellipse-2d", [*sets, f"initial={{shape='file', file='{tmp_path / 'phi.npz'}'}}"]),
+                    backend=backend, throw=True)
+    assert abs(again.energy - first.energy) <= TOL * first.energy  # the same KKT point, to the certified tol
+    assert again.iterations <= 3  # started at it (measured 0 on IPOPT, 1 on NK)
+
+
+def test_nk_continuation_stages_carry_their_own_counts():
+    """history['stages'] holds each stage's Newton steps and times; the run's are their sums here
+    (32^2, eps 0.4: no coarse level, so every Newton step belongs to a stage)."""
+    sc = load_scene("ellipse-2d", ["mesh.n=32", "model.epsilon=0.4", "solver.method='continuation'",
+                                   "solver.M_max=1e3", "solver.second_order=false"])
+    r = S.solve(sc, backend="newton-krylov", throw=True)
+    stages = r.history["stages"]
+    assert [s["M"] for s in stages] == [10.0, 100.0, 1000.0]
+    assert sum(s["iterations"] for s in stages) == r.iterations == r.extra["newton_iterations"]
+    assert all(s["iterations"] < r.iterations for s in stages)  # not the run's totals
+    assert sum(s["wall_time_s"] for s in stages) <= r.wall_time_s

@@ -1,6 +1,7 @@
 """Every bad input of the issue list through the CLI: exit 2, one line naming the key, no
 traceback, and nothing already in the output directory lost; in 2D and in 3D."""
 
+import os
 import subprocess
 import sys
 
@@ -124,9 +125,21 @@ def _run(argv) -> int:
 
 def test_output_into_a_closed_pipe_is_not_an_error():
     """`vesicle-opt study --list | head -1`: the reader may leave before the writer is done."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}  # buffered, as a plain shell
     p = subprocess.Popen([sys.executable, "-m", "vesicle_opt.cli", "study", "--list"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     p.stdout.close()  # gone before the child writes (its imports take ~1 s)
     err = p.stderr.read().decode()
     p.wait(timeout=60)
     assert p.returncode == 0 and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("verb", [["solve", "ellipse-2d", "--set", "mesh.n=16"], ["flow", "ellipse-2d"],
+                                  ["study", "table1", "--quick"]])
+def test_an_output_path_that_is_a_file_is_bad_input(verb, tmp_path, capsys):
+    target = tmp_path / "taken"
+    target.write_text("keep me\n")
+    rc = cli.main([*verb, "--out", str(target)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "--out" in err[0] and "Traceback" not in err[0]
+    assert target.read_text() == "keep me\n"  # nothing already there lost

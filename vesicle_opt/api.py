@@ -22,12 +22,11 @@ import dataclasses
 
 import numpy as np
 
-from vesicle_opt.backends import choose_backend
+from vesicle_opt.backends import METHODS, choose_backend
 from vesicle_opt.errors import InputError, NotSupported, SolverError
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
-from vesicle_opt.nk.setup import on_fourier_grid, prepare
-from vesicle_opt.mesh import discretize
+from vesicle_opt.nk.setup import prepare
 from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp, solve_nlp
 from vesicle_opt.result import Result
 from vesicle_opt.scene import Scene
@@ -57,12 +56,15 @@ def _ipopt_start(nlp: NLP, x0) -> dict:
 
 
 def _phi_start(x0, n_nodes: int) -> np.ndarray | None:
+    """phi for the matrix-free backend from any accepted warm start: a Result, a field, or an IPOPT
+    vector of a lumped NLP (phi, or phi with the penalty's two lifted unknowns)."""
     if x0 is None:
         return None
     phi = np.asarray(x0.phi if isinstance(x0, Result) else x0, float).ravel()
-    if phi.size < n_nodes:
-        raise InputError("x0", f"a warm start needs {n_nodes} nodal values, got {phi.size}")
-    return phi[:n_nodes]  # an IPOPT vector starts with phi
+    if phi.size not in (n_nodes, n_nodes + 2):
+        raise InputError("x0", f"a warm start needs {n_nodes} nodal values (or a lifted NLP vector of "
+                         f"{n_nodes + 2}), got {phi.size}")
+    return phi[:n_nodes]
 
 
 def _check_options(options, kind, backend: str):
@@ -70,21 +72,14 @@ def _check_options(options, kind, backend: str):
         raise NotSupported("options", f"the {backend} backend takes {kind.__name__}, got {type(options).__name__}")
 
 
-def _second_order_ipopt(scene, nlp, result: Result) -> Result:
-    """The assembled check (``verify.second_order``; quantity and rule: ``verify.verdict``):
-    translations excluded on periodic grids."""
-    so = second_order.check(nlp, result)
+def _second_order(result: Result, so) -> Result:
+    """The second-order keys of ``extra``, the same on both backends (``so`` None: not checked)."""
+    if so is None:
+        return _replace_extra(result, second_order="not checked", second_order_min_eigenvalue=None,
+                              second_order_excluded=None)
+    extra = {"second_order_reason": so.reason} if so.reason else {}
     return _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue,
-                          second_order_excluded=so.excluded)
-
-
-def _second_order_nk(scene, setup, result: Result) -> Result:
-    """The matrix-free check (``verify.lobpcg``; the same quantity and rule, ``verify.verdict``): on
-    Fourier grids translations and rotations, the continuum's symmetries, excluded. ``setup`` is the
-    solve's own (``nk.setup.prepare``)."""
-    so = lobpcg.check(scene, result, setup, rotations=True)
-    return _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue,
-                          second_order_excluded=so.excluded)
+                          second_order_excluded=so.excluded, **extra)
 
 
 def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | None = None, x0=None,
@@ -104,27 +99,28 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     elif isinstance(problem, Scene):
         nlp, scene = None, problem
         if method is not None:
+            if method not in METHODS:
+                raise NotSupported("solver.method", f"must be one of {', '.join(METHODS)}, got {method!r}")
             scene = scene.replace(solver=dataclasses.replace(scene.solver, method=method))
         chosen = choose_backend(scene, backend)
     else:
         raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
-    exact = scene.solver.method == "exact"
+    check_second_order = scene.solver.method == "exact" and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)
         nlp = nlp or build_nlp(scene)
-        disc = nlp.disc
         result = solve_nlp(nlp, options=options, **_ipopt_start(nlp, x0))
-        checked = result.converged and exact and scene.solver.second_order
-        result = _second_order_ipopt(scene, nlp, result) if checked else _replace_extra(result, second_order="not checked")
+        # the assembled check (verify.second_order): translations excluded on periodic grids
+        so = second_order.check(nlp, result) if check_second_order and result.converged else None
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
-        setup = prepare(scene, on_fourier_grid(discretize(scene)))  # built once: solve and check
-        disc = setup[0]
-        result = nk_solve.solve(scene, x0=_phi_start(x0, disc.n_nodes), options=options, setup=setup)
-        checked = result.converged and exact and scene.solver.second_order
-        result = _second_order_nk(scene, setup, result) if checked else \
-            _replace_extra(result, second_order="not checked", second_order_min_eigenvalue=None)
-    result = _replace_extra(result, **topology.report(disc, result.phi))
+        setup = prepare(scene)  # built once: the solve and its second-order check
+        result = nk_solve.solve(scene, x0=_phi_start(x0, setup[0].n_nodes), options=options, setup=setup)
+        # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
+        # continuum's symmetries, excluded (second_order_excluded says which)
+        so = lobpcg.check(scene, result, setup, rotations=True) if check_second_order and result.converged else None
+    result = _second_order(result, so)
+    result = _replace_extra(result, **topology.report(result.disc, result.phi))
     if throw and not result.converged:
         raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
                           f"{result.kkt_residual:.3g}, A-alpha {result.volume_residual:.3g}, "

@@ -40,18 +40,24 @@ def _value(scene, key: str) -> str:
     return getattr(getattr(scene, section), name)
 
 
+def _unsupported(scene, backend: str):
+    """The first (key, value, allowed) of the scene that ``backend`` does not support, or None."""
+    return next(((key, _value(scene, key), allowed) for key, allowed in SUPPORT[backend].items()
+                 if _value(scene, key) not in allowed), None)
+
+
 def supports(scene, backend: str) -> bool:
-    return all(_value(scene, key) in allowed for key, allowed in SUPPORT[backend].items())
+    return _unsupported(scene, backend) is None
 
 
 def check_supported(scene, backend: str) -> None:
     """NotSupported (key ``solver.backend``, one line) when ``backend`` cannot run ``scene``."""
-    for key, allowed in SUPPORT[backend].items():
-        value = _value(scene, key)
-        if value not in allowed:
-            why = _WHY.get((backend, key), "")
-            raise NotSupported("solver.backend", f"'{backend}' does not support {key} = {value!r} "
-                               f"(supported: {', '.join(allowed)}){'; ' + why if why else ''}")
+    bad = _unsupported(scene, backend)
+    if bad is not None:
+        key, value, allowed = bad
+        why = _WHY.get((backend, key), "")
+        raise NotSupported("solver.backend", f"'{backend}' does not support {key} = {value!r} "
+                           f"(supported: {', '.join(allowed)}){'; ' + why if why else ''}")
 
 
 def choose_backend(scene, backend: str | None = None) -> str:
@@ -60,7 +66,9 @@ def choose_backend(scene, backend: str | None = None) -> str:
     if b == "auto":
         n_nodes = math.prod(scene.mesh.n)
         big_3d = scene.dim == 3 and n_nodes > AUTO_3D_NODES and supports(scene, "newton-krylov")
-        return "newton-krylov" if scene.mesh.kind == "spectral" or big_3d else "ipopt"
+        chosen = "newton-krylov" if scene.mesh.kind == "spectral" or big_3d else "ipopt"
+        check_supported(scene, chosen)  # e.g. a method the chosen backend does not run
+        return chosen
     if b not in BACKENDS:
         raise NotSupported("solver.backend", f"must be one of {', '.join(BACKENDS)}, auto; got {b!r}")
     check_supported(scene, b)

@@ -1,4 +1,5 @@
-"""Command line: ``vesicle-opt solve SCENE.toml [--out DIR] [--set KEY=VALUE ...]`` and
+"""Command line: ``vesicle-opt solve SCENE [--out DIR] [--set KEY=VALUE ...]`` (SCENE: a TOML path
+or a bundled name), ``vesicle-opt flow SCENE --scheme ... [--out DIR]`` (a gradient flow) and
 ``vesicle-opt study NAME --out DIR [--quick]`` (``vesicle-opt study --list``: the names).
 
 Exit codes: 0 converged; 1 the solver did not converge (results still written); 2 bad input
@@ -18,7 +19,7 @@ from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.flows.run import write_flow
 from vesicle_opt.io import output
 from vesicle_opt.scene import load as load_scene
-from vesicle_opt.studies import STUDIES, run_study
+from vesicle_opt.studies import STUDIES, run_study, study
 
 
 class _Parser(argparse.ArgumentParser):
@@ -27,10 +28,22 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+def out_dir(arg: str) -> Path:
+    """The output directory, created now: a one-line InputError (``--out``) before any work when it
+    cannot be (a file of that name, no permission)."""
+    path = Path(arg)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError("--out", f"cannot use {arg!r} as the output directory ({exc.strerror or exc})") from None
+    return path
+
+
 def cmd_solve(args) -> int:
     sc = load_scene(args.scene, args.set)
+    out = out_dir(args.out)
     result = solve(sc)
-    summary = output.write_result(Path(args.out), sc, result.disc, result)
+    summary = output.write_result(out, sc, result.disc, result)
     print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
     if result.converged and summary.get("second_order") == "saddle":
@@ -56,7 +69,8 @@ def cmd_study(args) -> int:
         return 0
     if args.name is None:
         raise InputError("study", f"give a study name or --list; one of {', '.join(STUDIES)}")
-    return run_study(args.name, Path(args.out), quick=args.quick)
+    study(args.name)  # an unknown name is refused before the directory is made
+    return run_study(args.name, out_dir(args.out), quick=args.quick)
 
 
 def cmd_flow(args) -> int:
@@ -68,7 +82,7 @@ def cmd_flow(args) -> int:
     if args.adaptive:
         overrides.append('flow.stepping="adaptive"')
     sc = load_scene(args.scene, overrides)
-    run = write_flow(sc, Path(args.out), restart=args.restart, progress=not args.quiet)
+    run = write_flow(sc, out_dir(args.out), restart=args.restart, progress=not args.quiet)
     s = run.summary
     print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "
           f"energy = {s['energy']:.10g}, rejections = {s['rejections']}, wall = {s['wall_time_s']:.2f}s "
@@ -123,7 +137,9 @@ def main(argv: list[str] | None = None) -> int:
 
     warnings.showwarning = one_line_warning
     try:
-        return args.func(args)
+        code = args.func(args)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at interpreter exit
+        return code
     except VesicleError as exc:
         print(f"vesicle-opt: error: {exc}", file=sys.stderr)
         return exc.exit_code

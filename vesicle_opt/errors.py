@@ -24,7 +24,7 @@ class InputError(VesicleError, ValueError):
 
 
 class InfeasibleError(InputError):
-    """The constraint data (alpha, beta) admit no phase field (see ``vesicle_opt.feasibility``)."""
+    """The constraint data (alpha, beta) admit no phase field (see ``vesicle_opt.model.feasibility``)."""
 
 
 class SolverError(VesicleError, RuntimeError):

@@ -56,7 +56,7 @@ class Result:
     area_residual: float  # B - beta
     lambda_volume: float
     lambda_area: float
-    kkt_residual: float  # relative L2 norm of the Lagrangian gradient (see verify/kkt.py)
+    kkt_residual: float  # relative L2 norm of the Lagrangian gradient (see verify.kkt)
     status: str  # the solver's own status string
     success: bool
     converged: bool
@@ -124,14 +124,17 @@ def stage_record(r: Result) -> dict:
 
 
 def combine_stages(last: Result, stages: list[Result], method: str, t_wall: float,
-                   extra: dict | None = None) -> Result:
+                   extra: dict | None = None, iterations: int | None = None,
+                   derivative_time_s: float | None = None) -> Result:
     """The last stage's result with the whole run's counts, times and stage history; its certificate
-    is the last stage's (nothing here changes ``converged``)."""
+    is the last stage's (nothing here changes ``converged``). The run's iterations and derivative
+    time are the stages' sums unless given (a run with work outside its stages: coarse levels)."""
     history = dict(last.history)
     history["stages"] = [stage_record(r) for r in stages]
     info = dict(last.extra)
     info.update({"stages": len(stages)}, **(extra or {}))
-    deriv = sum(r.derivative_time_s for r in stages)
+    deriv = sum(r.derivative_time_s for r in stages) if derivative_time_s is None else derivative_time_s
+    its = sum(r.iterations for r in stages) if iterations is None else iterations
     return dataclasses.replace(
-        last, method=method, iterations=sum(r.iterations for r in stages), wall_time_s=t_wall,
+        last, method=method, iterations=int(its), wall_time_s=t_wall,
         derivative_time_s=deriv, other_time_s=t_wall - deriv, history=history, extra=info)

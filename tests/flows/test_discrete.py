@@ -1,7 +1,7 @@
 """flows/discrete.FlowModel against the model: its one-argument quantities are the model's
 (functionals, penalised_energy), its two-argument difference quotients reduce to the model's
 gradients and (differentiated) to the one matrix-free Hessian (model.lumped), and its Fourier
-Jacobian model is exact in the bulk. (The exact discrete chain rules: test_flows.)"""
+Jacobian model is exact in the bulk. (The exact discrete chain rules: tests/flows/test_schemes.py.)"""
 
 import numpy as np
 import pytest

@@ -20,7 +20,7 @@ from vesicle_opt.flows.stepper import StepperOptions, run
 from vesicle_opt.flows.trackers import CallbackTracker
 from vesicle_opt.mesh.spectral import fourier_grid
 
-LAW_TOL = 1e-11  # as test_flows: laws measured at 1e-15..3e-13 relative on these grids
+LAW_TOL = 1e-11  # as tests/flows/test_schemes.py: laws measured at 1e-15..3e-13 relative on these grids
 
 
 def _scene(*sets, n=24):

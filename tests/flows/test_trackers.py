@@ -15,7 +15,7 @@ from vesicle_opt.flows.stepper import run
 from vesicle_opt.flows.trackers import (CallbackTracker, CheckpointTracker, HistoryTracker, ProgressTracker,
                                         StopTracker)
 
-# Round-off yardstick of the laws on these grids (same as test_flows.py: measured 1e-15..3e-13)
+# Round-off yardstick of the laws on these grids (same as tests/flows/test_schemes.py: measured 1e-15..3e-13)
 LAW_TOL = 1e-11
 
 
@@ -109,12 +109,25 @@ def test_throw_raises_on_a_failed_run():
 
 def test_bad_inputs_are_one_line_input_errors(tmp_path):
     sc = _scene()
-    with pytest.raises(vo.InputError, match="phi0"):
-        vo.flow(sc, phi0=np.zeros(7))
+    for kwargs, key in (({"phi0": np.zeros(7)}, "phi0"), ({"resume_from": tmp_path / "missing.npz"}, "resume_from"),
+                        ({"trackers": [42]}, "trackers")):
+        with pytest.raises(vo.InputError, match=key) as info:
+            vo.flow(sc, **kwargs)
+        assert "\n" not in str(info.value)  # one line
+
+
+def test_a_checkpoint_is_not_resumed_under_another_problem(tmp_path):
+    """The flow writes its problem's fingerprint into the checkpoint; another scene (or scheme) is refused."""
+    ckpt = tmp_path / "checkpoint.npz"
+    vo.flow(_scene("flow.t_end=2e-3"), trackers=[CheckpointTracker(ckpt)])
+    other = vo.load_scene("circle-2d", ["mesh.n=16", "solver.M=100", 'flow.scheme="lagrange"', "flow.dt=1e-3",
+                                        "flow.steady_tol=0"])
     with pytest.raises(vo.InputError, match="resume_from"):
-        vo.flow(sc, resume_from=tmp_path / "missing.npz")
-    with pytest.raises(vo.InputError, match="trackers"):
-        vo.flow(sc, trackers=[42])
+        vo.flow(other, resume_from=ckpt)
+    with pytest.raises(vo.InputError, match="resume_from"):
+        vo.flow(_scene("flow.t_end=2e-3", "solver.M=1000"), resume_from=ckpt)  # the model changed
+    again = vo.flow(_scene("flow.t_end=4e-3"), resume_from=ckpt)  # the same problem, a later t_end: fine
+    assert again.resumed_from_step == 2 and again.steps == 4
 
 
 def test_history_tracker_csv_and_callback(tmp_path):

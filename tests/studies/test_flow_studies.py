@@ -1,15 +1,16 @@
 """The flow studies (time_step_convergence, energy_decay, flow_vs_nlp) in quick mode: their outputs'
-columns, and resume through ``study_runner``: a second run recomputes nothing, a killed run
+columns, and resume through ``studies.runner``: a second run recomputes nothing, a killed run
 recomputes only its unfinished case and ends with every row once."""
 
 from __future__ import annotations
 
 import csv
-import importlib
 
 import pytest
 
-COLUMNS = {  # the columns each study wrote before it went through study_runner
+from vesicle_opt.studies import study as study_module
+
+COLUMNS = {  # the columns each study wrote before it went through studies.runner
     "time_step_convergence.csv": ["scheme", "flow", "n", "T", "k", "steps", "l2_error", "energy_rel_error",
                                   "rejections", "wall_time_s"],
     "energy_decay.csv": ["k", "step", "t", "penalized_energy", "excess", "energy_law_residual"],
@@ -61,7 +62,7 @@ def _rerun_recomputes_nothing(mod, out, monkeypatch, **kw):
 @pytest.mark.slow
 @pytest.mark.parametrize("study", ["time_step_convergence", "energy_decay"])
 def test_study_quick_runs(tmp_path, study, monkeypatch):
-    mod = importlib.import_module(f"studies.{study}")
+    mod = study_module(study)
     assert mod.main(tmp_path, quick=True) == 0
     _check_outputs(tmp_path, f"{study}.csv")
     if study == "time_step_convergence":

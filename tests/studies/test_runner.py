@@ -1,7 +1,6 @@
 """The study runner (resume, one writer, executors) and each study's quick mode."""
 
 import csv
-import importlib
 import inspect
 import struct
 import subprocess
@@ -158,7 +157,7 @@ FIGURE_PX = {"penalty_continuation": (660, 495), "diagonal": (1320, 495), "h_ref
                                   pytest.param("h_refinement", marks=pytest.mark.slow),
                                   pytest.param("penalty_vs_exact", marks=pytest.mark.slow)])
 def test_quick_study_runs(name, tmp_path):
-    mod = importlib.import_module(f"studies.{name}")
+    mod = study(name)
     status = mod.main(tmp_path, quick=True)
     assert status == 0
     rows = _read(tmp_path / f"{name}.csv")

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from vesicle_opt.mesh.fd import grid
+from vesicle_opt.studies import study
 from vesicle_opt.studies._common import torus_check
 
 BOX = [(-np.pi, np.pi)] * 3
@@ -39,8 +40,7 @@ def test_torus_check_accepts_a_torus_and_rejects_others():
 @pytest.mark.parametrize("name", ["table1", "bench_3d"])
 def test_quick_3d_study_appends_and_resumes(tmp_path, name):
     import csv
-    import importlib
-    module = importlib.import_module(f"studies.{name}")
+    module = study(name)
     module.main(tmp_path, quick=True)
     rows = list(csv.DictReader((tmp_path / f"{name}.csv").open()))
     assert rows and all(r["status"] in ("converged", "Solve_Succeeded") for r in rows)
@@ -61,6 +61,6 @@ def test_torus_section5_quick_pinches_a_disk_into_a_torus(tmp_path):
     final = next(r for r in rows if r["row"] == "final" and r["start"] == "disk")
     assert frames[0]["euler_characteristic"] == "1" and frames[-1]["euler_characteristic"] == "0"
     assert final["path"].endswith("chi 0, wraps none") and final["torus_ok"] == "True"
-    assert float(final["max_law_residual"]) <= 1e-11  # as test_flows.LAW_TOL (measured 7e-14)
+    assert float(final["max_law_residual"]) <= 1e-11  # as test_schemes.LAW_TOL (measured 7e-14)
     assert T.main(tmp_path, quick=True) == 0  # resume: nothing runs twice
     assert len(list(csv.DictReader((tmp_path / "torus_section5.csv").open()))) == len(rows)

@@ -1,4 +1,4 @@
-"""The stopping test means the same at every eps, M, mesh and size (nlp.py scaling contract).
+"""The stopping test means the same at every eps, M, mesh and size (nlp.exact scaling contract).
 
 One fixed tol for every case of ellipse-2d over eps in {0.1, 0.2, 0.4} (FD, eps/h = 1.6 each) and the
 exact constraints or the penalty (11) at M = 1e2 ... 1e10. Each case must end converged exactly when

@@ -16,7 +16,8 @@ No directory is needed: output, progress, checkpoints and stop criteria are trac
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import hashlib
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -115,6 +116,13 @@ def _field(md: FlowModel, phi, key: str) -> np.ndarray:
     return phi
 
 
+def fingerprint(scene) -> str:
+    """Identifies the problem a checkpoint belongs to (not t_end, steps, frames: those may change)."""
+    key = replace(scene, name="", flow=replace(scene.flow, t_end=0.0, steps=1, frames=1, dt=0.0,
+                                                stepping="constant", checkpoint_every=1))
+    return hashlib.sha256(repr(key).encode()).hexdigest()[:16]
+
+
 def flow(scene, *, trackers=(), phi0=None, resume_from: FlowState | str | Path | None = None,
          throw: bool = False, model: FlowModel | None = None) -> FlowResult:
     """Run ``scene.flow`` in memory and return a frozen ``FlowResult``.
@@ -129,11 +137,15 @@ def flow(scene, *, trackers=(), phi0=None, resume_from: FlowState | str | Path |
     md = model if model is not None else build_model(scene)
     scheme = make_scheme(scene, md)
     trackers = tuple(as_tracker(tr) for tr in trackers)
+    tag = fingerprint(scene)
+    for tr in trackers:  # checkpoints say which problem they belong to
+        if isinstance(tr, CheckpointTracker) and tr.fingerprint is None:
+            tr.fingerprint = tag
     start = None
     if resume_from is not None:
         if phi0 is not None:
             raise InputError("phi0", "give phi0 or resume_from, not both")
-        start = resume_from if isinstance(resume_from, FlowState) else CheckpointTracker.load(resume_from)
+        start = resume_from if isinstance(resume_from, FlowState) else CheckpointTracker.load(resume_from, tag)
         if start is None:
             raise InputError("resume_from", f"no checkpoint at {resume_from}")
         phi_start = _field(md, start.phi, "resume_from")

@@ -9,8 +9,8 @@ whose Euler-Lagrange equation is (23) (with the sign of the f term as in ``discr
 built once per run from the core's functionals (``functionals.energy``, ``volume_functional``,
 ``area_functional`` through ``CasadiOps``) and the one E_M (``penalty.penalised_energy``, which
 builds CasADi expressions as well as numbers), with phi^n and 1/(gamma k) as CasADi parameters, and
-scaled like the core's NLP (``nlp.py``): objective / (kappa m_bar G_ref), so IPOPT's tol means the
-same relative stationarity as in the equilibrium solves; the same ``solve.IpoptOptions``.
+scaled like the core's NLP (``nlp.exact``): objective / (kappa m_bar G_ref), so IPOPT's tol means the
+same relative stationarity as in the equilibrium solves; the same ``nlp.ipopt.IpoptOptions``.
 The penalty terms would make the Hessian dense (rank-one M grad A grad A^T), so the NLP is lifted:
 unknowns (phi, a, b), objective kappa E_h + M/2 (a - alpha)^2 + M/2 (b - beta)^2 + 1/(2 gamma k)||.||^2,
 equality constraints (A(phi) - a)/|Omega| = 0, (B(phi) - b)/beta = 0 (same minimisers, sparse Hessian).

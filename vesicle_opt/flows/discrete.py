@@ -48,7 +48,7 @@ import scipy.sparse as sp
 from vesicle_opt.mesh.base import Discretization
 from vesicle_opt.model import functionals
 from vesicle_opt.model.lumped import bulk_symbol
-from vesicle_opt.model.penalty import penalised_energy, penalty_terms
+from vesicle_opt.model.penalty import penalised_energy
 
 FEATURE = "the gradient flows"
 WHY = "their exact discrete energy laws need Delta_h = -M_L^-1 K and nodal sums: FD, spectral or P1 lumped"
@@ -123,9 +123,6 @@ class FlowModel:
     def residuals(self, phi: np.ndarray) -> tuple[float, float]:
         """(A - alpha, B - beta)."""
         return self.A(phi) - self.alpha, self.B(phi) - self.beta
-
-    def penalty(self, phi: np.ndarray) -> float:
-        return penalty_terms(self.residuals(phi), self.M, self.M)
 
     def E_M(self, phi: np.ndarray) -> float:
         """kappa E_h + M/2 (A - alpha)^2 + M/2 (B - beta)^2 (``penalty.penalised_energy``)."""

@@ -12,27 +12,19 @@ t = t_end * j / flow.frames, and at the end ``phi.npz``, ``phi.vtu``, ``phi.png`
 from __future__ import annotations
 
 import csv
-import hashlib
 import shutil
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.io import output
-from vesicle_opt.flows.api import FlowResult, build_model, check_supported, flow
+from vesicle_opt.io import files, output
+from vesicle_opt.flows.api import FlowResult, build_model, check_supported, fingerprint, flow
 from vesicle_opt.flows.trackers import CheckpointTracker, HistoryTracker, ProgressTracker, SnapshotTracker
 
 COLUMNS = ["step", "t", "dt", "energy", "penalized_energy", "volume_residual", "area_residual",
            "energy_law_residual", "newton_iterations", "krylov_iterations", "wall_time_s", "rejections", "phi_t_norm"]
 EXTRA = {"penalty": [], "lagrange": ["lambda_1", "lambda_2"], "backward-euler": ["equality_law_defect"]}
-
-
-def fingerprint(scene) -> str:
-    """Identifies the problem a checkpoint belongs to (not t_end, steps, frames: those may change)."""
-    key = replace(scene, name="", flow=replace(scene.flow, t_end=0.0, steps=1, frames=1, dt=0.0,
-                                                stepping="constant", checkpoint_every=1))
-    return hashlib.sha256(repr(key).encode()).hexdigest()[:16]
 
 
 @dataclass(frozen=True)
@@ -89,5 +81,5 @@ def write_flow(scene, out: Path, *, restart: bool = False, progress: bool = Fals
     output.write_vtk(out / "phi.vtu", md.disc, phi)
     output.write_png(out / "phi.png", md.disc, phi,
                      title=f"{scene.name} {fl.scheme}: t = {res.t:.4g}, E = {res.energy:.6g}")
-    output.write_json(out / "summary.json", summary)
+    files.write_json(out / "summary.json", summary)
     return FlowRun(res, summary)

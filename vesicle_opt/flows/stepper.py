@@ -129,11 +129,11 @@ def run(scheme, phi0: np.ndarray, opts: StepperOptions, trackers=(), *,
         ok = out.converged and out.law_ok and bool(np.all(np.isfinite(out.phi)))
         if not ok:
             rejections += 1
-            k_try = k / 2
-            if k_try < opts.dt_min:
-                status = Status.FAILED
+            if k / 2 < opts.dt_min:  # the saved state keeps k (>= dt_min): a resume retries it and
+                status = Status.FAILED  # fails the same way, never below dt_min
                 message = f"step {step + 1} rejected down to k = {k:.3g} < dt_min: {out.message}"
                 break
+            k_try = k / 2
             continue
         phi_prev, phi = phi, out.phi
         t += k

@@ -12,7 +12,7 @@ Ready trackers:
 * ``HistoryTracker``: rows in memory (``keep``) and/or appended to a CSV, flushed row by row;
 * ``SnapshotTracker``: ``snapshots/phi_JJJ.npz`` and ``frames/frame_JJJ.png`` at t = t_end j / frames;
 * ``CheckpointTracker``: ``checkpoint.npz`` every ``every`` steps and at the end (atomic,
-  ``io.output.save_npz``); ``CheckpointTracker.load(path)`` gives the state to resume from;
+  ``io.files.save_npz``); ``CheckpointTracker.load(path)`` gives the state to resume from;
 * ``ProgressTracker``: one refreshed progress line on a stream (stderr by default);
 * ``StopTracker``: stop when ``criterion(row)`` is true; ``CallbackTracker``: any ``fn(state, row)``.
 """
@@ -29,7 +29,7 @@ from typing import Callable
 import numpy as np
 
 from vesicle_opt.errors import InputError
-from vesicle_opt.io.output import load_npz, save_npz, write_png
+from vesicle_opt.io.files import load_npz, save_npz
 from vesicle_opt.flows.stepper import FlowState
 
 
@@ -134,6 +134,8 @@ class SnapshotTracker(Tracker):
     def _snapshot(self, j: int, t: float, phi: np.ndarray, E: float | None) -> None:
         np.savez_compressed(self.dir / "snapshots" / f"phi_{j:03d}.npz", phi=phi, t=t)
         if self.png:
+            # matplotlib only when frames are drawn: ``import vesicle_opt`` does not load it
+            from vesicle_opt.io.output import write_png
             label = f"{self.title}: t = {t:.4g}" + ("" if E is None else f", E = {E:.6g}")
             write_png(self.dir / "frames" / f"frame_{j:03d}.png", self.disc, phi, title=label)
 
@@ -154,13 +156,15 @@ class SnapshotTracker(Tracker):
 class CheckpointTracker(Tracker):
     """The resumable state in ``path`` (npz, written atomically) every ``every`` accepted steps
     (0: never) and at the end of the run; ``run(..., start=CheckpointTracker.load(path))`` continues
-    it bit-for-bit."""
+    it bit-for-bit. ``fingerprint`` (``flows.api.fingerprint(scene)``; ``vesicle_opt.flow`` sets it)
+    is stored beside the state, so that a checkpoint is never resumed under another problem."""
 
-    def __init__(self, path: Path, every: int = 50):
-        self.path, self.every = Path(path), every
+    def __init__(self, path: Path, every: int = 50, fingerprint: str | None = None):
+        self.path, self.every, self.fingerprint = Path(path), every, fingerprint
 
     def save(self, state: FlowState) -> None:
-        save_npz(self.path, **state.as_arrays())
+        tag = {} if self.fingerprint is None else {"fingerprint": np.array(self.fingerprint)}
+        save_npz(self.path, **state.as_arrays(), **tag)
 
     def handle(self, state, row):
         if self.every and state.step % self.every == 0:
@@ -170,10 +174,17 @@ class CheckpointTracker(Tracker):
         self.save(state)
 
     @staticmethod
-    def load(path: Path) -> FlowState | None:
-        """The state saved in ``path``, or None when there is no such file."""
+    def load(path: Path, fingerprint: str | None = None) -> FlowState | None:
+        """The state saved in ``path``, or None when there is no such file; with ``fingerprint``, an
+        InputError (key resume_from) when the checkpoint was written for another problem."""
         st = load_npz(path)
-        return None if st is None else FlowState.from_arrays(st)
+        if st is None:
+            return None
+        saved = st.get("fingerprint")
+        if fingerprint is not None and saved is not None and str(saved) != fingerprint:
+            raise InputError("resume_from", f"{path} is a checkpoint of another problem (scene, scheme or "
+                             "model changed); start afresh or give that scene")
+        return FlowState.from_arrays(st)
 
 
 class ProgressTracker(Tracker):

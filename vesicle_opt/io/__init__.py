@@ -1,1 +1,2 @@
-"""Writers: summary.json, phi.npz, VTK (meshio) and PNG (matplotlib); atomic npz files."""
+"""Writers: ``files`` (atomic summary.json and npz, numpy only) and ``output`` (a result's files:
+phi.npz, VTK via meshio, PNG via matplotlib, loaded only when this module is)."""

@@ -66,7 +66,7 @@ def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) 
 
 def roundoff_floor(disc, phi, epsilon: float, C: float, rigidity: float, lam: tuple[float, float],
                    M: tuple[float, float]) -> float:
-    """Least relative stationarity residual (kkt.py) that double precision permits at penalty M.
+    """Least relative stationarity residual (verify.kkt) that double precision permits at penalty M.
 
     The estimates lambda = mu - M (A - alpha) inherit the evaluation error of A and B inside the
     NLP (CasADi sums N nodal terms in order: error ~ sqrt(N) u_mach sum|terms|), multiplied by M:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 class NewtonKrylovOptions:
     tol: float  # relative stationarity in the dual norm, and the certificate's tol
     max_iter: int = 500  # Newton steps over all outer iterations and levels
-    max_outer: int = 30  # augmented-Lagrangian outer iterations of the method 'exact'
+    exact_max_outer: int = 30  # outer iterations of the method 'exact' (its own augmented Lagrangian with
+    # dual Newton steps); solver.max_outer caps the method 'augmented', on both backends
     rho_hat: float = 10.0  # initial rho_i = rho_hat / (G_i^T P^{-1} G_i): the penalty dominates the model
     nested: bool = True  # nested iteration on Fourier grids (coarse levels first)
     coarse_min_n: int = 16  # nested iteration: coarsest grid side

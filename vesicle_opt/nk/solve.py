@@ -2,7 +2,7 @@
 
 Methods (``solver.method``):
 
-* ``exact``: an augmented Lagrangian around ``newton.newton_minimize``. After each inner solve the
+* ``exact``: an augmented Lagrangian around ``nk.newton_cg.newton_minimize``. After each inner solve the
   multipliers take a Newton step on the dual function, lam <- lam - W^{-1} c with
   W = G^T H_rho^{-1} G (G = [dA, dB], two extra CG solves), which is the Newton-KKT step in the
   multipliers (and lam - rho c, the classical update, when rho is large); rho grows 10x when |c|
@@ -23,7 +23,7 @@ symmetric torus start both backends end at the axisymmetric one; so does the P1 
 lumped operator equals FD) with a preconditioner that keeps the mesh symmetries, while three plain
 pyamg V-cycles, which break them at ~3e-5, led to a lower, slightly non-axisymmetric one (330.02 vs
 330.53 at 16^3, 406.41 vs 407.21 at 24^3; see ``precond``). Neither backend certifies a minimiser;
-``verify.lobpcg.reduced_hessian_eigenvalues`` checks one.
+``verify.lobpcg.check`` (the front door's second-order report) checks one.
 
 Nested iteration (``NewtonKrylovOptions.nested``, the default on Fourier grids): coarser grids first, each
 level started from the trigonometric interpolant of the last; see ``coarse_levels``.
@@ -39,7 +39,6 @@ exact and augmented, the L2 residual, and the floor below tol).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -50,7 +49,7 @@ from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.penalty import AL_REDUCTION, schedule
-from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters, Objective, hessian_solve, newton_minimize
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import coarse_levels, on_fourier_grid, prepare, resample
@@ -101,7 +100,7 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
     cscale = np.array([volume, abs(beta)])
     prev_c = np.inf
     status = "max_iter"
-    for outer in range(1, opts.max_outer + 1):
+    for outer in range(1, opts.exact_max_outer + 1):
         crel = float(np.max(np.abs(pt.c) / cscale))
         inner_tol = max(0.1 * tol, min(1e-3, crel))
         budget = opts.max_iter - obj.cnt.newton
@@ -111,11 +110,11 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
         dual = _dual_kkt(prec, rig, pt.dE, pt.dA, pt.dB, lam_ls)
         log.append({"outer": outer, "inner": inner, "newton": obj.cnt.newton, "c_rel": crel,
                     "dual": dual, "rho": obj.rho.tolist(), "lam": lam_ls.tolist()})
+        if crel <= opts.constraint_margin * tol and dual <= tol:  # the outer test first: an inner solve
+            status = "converged"  # that stalls at round-off on a point that meets it (a start at a
+            break  # solution, e.g. an earlier solve's file) has converged
         if inner not in ("converged", "max_iter"):
             status = f"inner_{inner}"
-            break
-        if crel <= opts.constraint_margin * tol and dual <= tol:
-            status = "converged"
             break
         if obj.cnt.newton >= opts.max_iter:
             break
@@ -136,20 +135,30 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
 
 @dataclass
 class Stage:
-    """One inner solve of a level: its point, status, multiplier data and dual test."""
+    """One inner solve of a level: its point, status, multiplier data, dual test and own counts."""
 
     pt: object
     status: str
     M: tuple[float, float] | None  # None for 'exact'
     mu: tuple[float, float]
-    lam: np.ndarray  # lambda of 'exact' (least squares); mu - M c otherwise
+    lam: np.ndarray | None  # the least-squares multipliers of 'exact' (penalty: mu - M c, recomputed)
     dual: float
     newton: int
     wall_s: float
+    deriv_s: float
+
+
+def _timed_stage(obj: Objective, solve_inner) -> tuple:
+    cnt = obj.cnt
+    t0, n0, d0 = time.perf_counter(), cnt.newton, cnt.deriv_time
+    out = solve_inner()
+    return out, cnt.newton - n0, time.perf_counter() - t0, cnt.deriv_time - d0
 
 
 def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> list[Stage]:
-    """penalty (one M), continuation (the schedule M0 ... M_max) or augmented (mu updates)."""
+    """penalty (one M), continuation (the schedule M0 ... M_max, every stage warm-started from the
+    last, as on IPOPT) or augmented (mu updates; stops at the first stage that converged and holds
+    the constraints to tol, at most solver.max_outer stages)."""
     stages: list[Stage] = []
     if method == "augmented":
         M, mu, prev = float(s.M), np.zeros(2), (math.inf, math.inf)
@@ -160,16 +169,15 @@ def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> 
         if method != "augmented":
             M, mu = float(item), np.zeros(2)
         obj.lam, obj.rho = mu.copy(), np.array([M, M], float)
-        t0, n0 = time.perf_counter(), obj.cnt.newton
-        pt, status = newton_minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg)
-        stages.append(Stage(pt, status, (M, M), tuple(mu), mu - M * pt.c, pt.rel, obj.cnt.newton - n0,
-                            time.perf_counter() - t0))
-        phi = pt.phi
-        if status != "converged":
+        (pt, status), n, wall, deriv = _timed_stage(
+            obj, lambda: newton_minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg))
+        stages.append(Stage(pt, status, (M, M), tuple(mu), None, pt.rel, n, wall, deriv))
+        if not np.all(np.isfinite(pt.phi)):
             break
+        phi = pt.phi
         if method == "augmented":
             res = (abs(pt.c[0]) / volume, abs(pt.c[1]) / abs(beta))
-            if res[0] <= tol and res[1] <= tol:
+            if status == "converged" and res[0] <= tol and res[1] <= tol:
                 break
             mu = mu - M * pt.c  # the first-order multiplier update
             if any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
@@ -178,17 +186,15 @@ def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> 
     return stages
 
 
-def _run_level(scene, disc, phi, cnt, log, tol, opts, check, W=None, setup=None):
+def _run_level(scene, disc, phi, cnt, log, tol, opts, W=None, setup=None):
     disc, pf, prec, translations = setup or prepare(scene, disc)
     alpha, beta = constraint_data(scene, disc)
-    if check:
-        check_feasible(alpha, beta, scene, disc)
     method = scene.solver.method
     obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt)
     if method == "exact":
-        t0, n0 = time.perf_counter(), cnt.newton
-        pt, status, lam, dual, W = _exact(obj, phi, tol, opts, disc.volume, beta, log, W)
-        stages = [Stage(pt, status, None, (0.0, 0.0), lam, dual, cnt.newton - n0, time.perf_counter() - t0)]
+        (pt, status, lam, dual, W), n, wall, deriv = _timed_stage(
+            obj, lambda: _exact(obj, phi, tol, opts, disc.volume, beta, log, W))
+        stages = [Stage(pt, status, None, (0.0, 0.0), lam, dual, n, wall, deriv)]
     else:
         stages = _penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta)
     return disc, stages, alpha, beta, W
@@ -202,7 +208,7 @@ def l2_floor(disc, rig, dE, eps) -> float:
     if fourier is None:
         return 0.0
     smax = float(np.max(-fourier.symbol))
-    dn = math.sqrt(max(dE @ (dE / disc.weights), np.finfo(float).tiny))
+    dn = max(disc.dual_norm(dE), np.finfo(float).tiny)
     return np.finfo(float).eps * eps * smax**2 * math.sqrt(disc.volume) / dn
 
 
@@ -210,17 +216,22 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
           check: bool = True, setup=None) -> Result:
     """Solve a scene with the Newton-Krylov backend; the same certified Result as the IPOPT path.
 
-    ``x0``: a start phi (nodal values) instead of the scene's initial shape. With
-    ``options.nested`` and no ``x0``, Fourier grids are first solved on the ``coarse_levels`` (to
-    ``coarse_tol``) from the same initial shape, each finer level started from the Fourier
-    interpolant (the reported wall time and counts include the coarse levels). ``setup``: the
-    fine level's ``nk.setup.prepare(scene, disc)``, when the caller reuses it (the second-order check).
+    ``x0``: a start phi (nodal values) instead of the scene's initial field (its shape, or the
+    ``initial.file`` of an earlier solve: ``model.problem.initial_guess``). With ``options.nested``
+    and a shape start, Fourier grids are first solved on the ``coarse_levels`` (to ``coarse_tol``)
+    from the same shape, each finer level started from the Fourier interpolant (the reported wall
+    time and counts include the coarse levels). ``check``: refuse infeasible (alpha, beta) before
+    any solve. ``setup``: the fine level's ``nk.setup.prepare(scene, disc)``, when the caller
+    reuses it (the second-order check).
     """
     opts = options or NewtonKrylovOptions.from_scene(scene)
     t0, cpu0 = time.perf_counter(), time.process_time()
     disc = setup[0] if setup is not None else on_fourier_grid(disc or discretize(scene))
     rig, eps, tol = scene.model.rigidity, scene.model.epsilon, opts.tol
-    levels = coarse_levels(disc, eps, opts.coarse_min_n) if (opts.nested and x0 is None) else []
+    if check:  # the fine level's data, before any (coarse) solve
+        check_feasible(*constraint_data(scene, disc), scene, disc)
+    shape_start = x0 is None and scene.initial.shape != "file"
+    levels = coarse_levels(disc, eps, opts.coarse_min_n) if (opts.nested and shape_start) else []
     cnt = Counters()
     log: list = []
     level_log = []
@@ -230,45 +241,45 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
         start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \
             resample(phi, prev_shape, shape)
         n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
-        _, cstages, *_, W = _run_level(scene, cdisc, start, cnt, log, max(tol, opts.coarse_tol), opts,
-                                       check=False, W=W)
+        _, cstages, *_, W = _run_level(scene, cdisc, start, cnt, log, max(tol, opts.coarse_tol), opts, W=W)
         level_log.append({"n": list(shape), "status": cstages[-1].status, "newton": cnt.newton - n0,
                           "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
         phi, prev_shape = cstages[-1].pt.phi, shape
     if phi is None:
-        phi = phase_field(scene.initial, disc.nodes, disc.box, eps) if x0 is None else np.array(x0, float)
+        phi = initial_guess(scene, disc) if x0 is None else np.array(x0, float)
     else:
         phi = resample(phi, prev_shape, disc.grid_shape)
     n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
-    disc, stages, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol, opts, check, W, setup)
+    disc, stages, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol, opts, W, setup)
     level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": stages[-1].status,
                       "newton": cnt.newton - n0, "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     method = scene.solver.method
 
-    def pack(st: Stage, wall_s: float, iterations: int, history=None, extra=None) -> Result:
+    def pack(st: Stage, iterations: int, wall_s: float, deriv_s: float, history=None, extra=None) -> Result:
         penalty = st.M is not None
+        floor = l2_floor(disc, rig, st.pt.dE, eps)
         return build_result(
             scene=scene, disc=disc, alpha=alpha, beta=beta, phi=st.pt.phi, tol=tol,
             solver_status=st.status, solver_success=st.status == "converged", method=method,
             lam=None if penalty else tuple(st.lam), M=st.M, mu=st.mu,
-            exact_constraints=method in ("exact", "augmented"), floor=l2_floor(disc, rig, st.pt.dE, eps),
-            iterations=iterations, wall_time_s=wall_s, derivative_time_s=cnt.deriv_time,
-            history=history, extra={"backend": "newton-krylov", "mesh_kind": disc.kind,
-                                    "kkt_dual": float(st.dual), **(extra or {})})
+            exact_constraints=method in ("exact", "augmented"), floor=floor,
+            iterations=iterations, wall_time_s=wall_s, derivative_time_s=deriv_s, history=history,
+            extra={"backend": "newton-krylov", "mesh_kind": disc.kind, "kkt_dual": float(st.dual),
+                   "kkt_l2_floor": floor, **(extra or {})})
 
     hist = dict(cnt.history)
     hist["outer"] = log
     hist["levels"] = level_log
-    last = pack(stages[-1], wall, cnt.newton, hist, {
-        "kkt_l2_floor": l2_floor(disc, rig, stages[-1].pt.dE, eps), "cpu_time_s": cpu,
-        "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
-        "outer_iterations": len(log) if method == "exact" else len(stages),
-        "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
-        "fine_newton_iterations": level_log[-1]["newton"]})
-    if method in ("continuation", "augmented"):
-        records = [pack(st, st.wall_s, st.newton) for st in stages[:-1]] + [last]
-        last = combine_stages(last, records, method, wall)
-        last = dataclasses.replace(last, iterations=cnt.newton, derivative_time_s=cnt.deriv_time,
-                                   other_time_s=wall - cnt.deriv_time)
-    return last
+    totals = {"cpu_time_s": cpu, "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
+              "outer_iterations": len(log) if method == "exact" else len(stages),
+              "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
+              "fine_newton_iterations": level_log[-1]["newton"]}
+    if method not in ("continuation", "augmented"):  # one stage: the run's totals are its counts
+        return pack(stages[-1], cnt.newton, wall, cnt.deriv_time, hist, totals)
+    records = [pack(st, st.newton, st.wall_s, st.deriv_s) for st in stages[:-1]]
+    st = stages[-1]
+    records.append(pack(st, st.newton, st.wall_s, st.deriv_s, hist, totals))
+    failed = sum(not r.success for r in records)
+    return combine_stages(records[-1], records, method, wall, {"failed_stages": failed},
+                          iterations=cnt.newton, derivative_time_s=cnt.deriv_time)

@@ -1,6 +1,6 @@
 """Penalty continuation M_k = M0 r^k -> M_max and the augmented-Lagrangian variant, on ONE solver.
 
-Both drive the lifted penalty NLP of ``penalty.py`` (E_{M,h} of (11), M a CasADi parameter), so
+Both drive the lifted penalty NLP of ``nlp.lifted`` (E_{M,h} of (11), M a CasADi parameter), so
 the IPOPT solver is built once and every stage is warm-started from the previous one: primal x,
 lam_g, lam_x, and IPOPT's ``warm_start_init_point`` (options in ``WARM_OPTIONS``).
 
@@ -31,7 +31,7 @@ from vesicle_opt.result import Result, combine_stages
 
 WARM_OPTIONS = (("ipopt.warm_start_init_point", "yes"), ("ipopt.warm_start_bound_push", 1e-9),
                 ("ipopt.warm_start_mult_bound_push", 1e-9), ("ipopt.mu_init", 1e-6))
-# The NLP is scaled by design (nlp.py; IpoptOptions sets this for every solve, repeated here as the
+# The NLP is scaled by design (nlp.exact; IpoptOptions sets this for every solve, repeated here as the
 # penalty's own reason): IPOPT's gradient-based rescaling of f would loosen the
 # dual tolerance by the large u-gradient at a warm start with a 10x larger M (measured on 64^2:
 # stationarity 5e-6 instead of 6e-8 at M = 1e6, and cold solves at M >= 1e8 ending off the minimiser).
@@ -45,14 +45,14 @@ PENALTY_OPTIONS = (("ipopt.nlp_scaling_method", "none"), ("ipopt.constr_viol_tol
 
 def penalty_options(nlp: PenaltyNLP, options: IpoptOptions | None = None, warm: bool = False) -> IpoptOptions:
     """The scene's IPOPT options plus PENALTY_OPTIONS (and WARM_OPTIONS); user extras win."""
-    s = nlp.scene.solver
-    options = options or IpoptOptions(tol=s.tol, max_iter=s.max_iter)
+    options = options or IpoptOptions.from_scene(nlp.scene)
     extra = PENALTY_OPTIONS + (WARM_OPTIONS if warm else ()) + tuple(options.extra)
     return dataclasses.replace(options, extra=extra)
 
 
 def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: IpoptOptions | None = None,
-                 warm: bool = True, x0=None, solver=None, stage_callback=None) -> Result:
+                 warm: bool = True, x0=None, lam_x0=None, lam_g0=None, solver=None,
+                 stage_callback=None) -> Result:
     """Penalty stages at increasing M on one solver; the result is the last stage's (see module doc).
 
     warm=False restarts every stage from the initial guess (for measuring what warm starts buy).
@@ -61,7 +61,7 @@ def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: Ipo
     Ms = Ms or schedule(s.M0, s.M_factor, s.M_max)
     options = penalty_options(nlp, options, warm)
     solver = solver or make_solver(nlp, options)
-    x, lam_x, lam_g = (nlp.x0 if x0 is None else x0), None, None
+    x, lam_x, lam_g = (nlp.x0 if x0 is None else x0), lam_x0, lam_g0
     stages: list[Result] = []
     t0 = time.perf_counter()
     for k, M in enumerate(Ms):
@@ -75,13 +75,14 @@ def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: Ipo
             stage_callback(k, r)
         if np.all(np.isfinite(r.x)):
             x, lam_x, lam_g = r.x, r.lam_x, r.lam_g
-    failed = [i for i, r in enumerate(stages) if not r.success]
+    failed = sum(not r.success for r in stages)
     return combine_stages(stages[-1], stages, "continuation", time.perf_counter() - t0,
-                   {"failed_stages": len(failed)})
+                   {"failed_stages": failed})
 
 
 def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: IpoptOptions | None = None,
-                         max_outer: int | None = None, x0=None, solver=None, stage_callback=None) -> Result:
+                         max_outer: int | None = None, x0=None, lam_x0=None, lam_g0=None, solver=None,
+                         stage_callback=None) -> Result:
     """Multiplier updates mu <- mu - M (A - alpha, B - beta) between warm-started stages. Every stage is
     certified with the exact constraints (the method's promise), so the first converged stage ends it."""
     s = nlp.scene.solver
@@ -91,7 +92,7 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
     solver = solver or make_solver(nlp, options)
     tol, vol, beta = options.tol, nlp.disc.volume, abs(nlp.beta)
     mu = (0.0, 0.0)
-    x, lam_x, lam_g = (nlp.x0 if x0 is None else x0), None, None
+    x, lam_x, lam_g = (nlp.x0 if x0 is None else x0), lam_x0, lam_g0
     prev = (math.inf, math.inf)
     stages: list[Result] = []
     t0 = time.perf_counter()
@@ -110,18 +111,18 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
             M = min(M * s.M_factor, s.M_max)
         prev = res
     last = stages[-1]
-    return combine_stages(last, stages, "augmented", time.perf_counter() - t0,
-                   {"mu_volume": last.extra["mu_volume"], "mu_area": last.extra["mu_area"]})
+    return combine_stages(last, stages, "augmented", time.perf_counter() - t0)
 
 
 def solve_penalised(nlp: PenaltyNLP, *, x0=None, lam_x0=None, lam_g0=None, solver=None,
                     options: IpoptOptions | None = None) -> Result:
     """The methods penalty (one solve at solver.M), continuation and augmented on IPOPT."""
     s = nlp.scene.solver
+    start = {"x0": x0, "lam_x0": lam_x0, "lam_g0": lam_g0}
     if s.method == "continuation":
-        return continuation(nlp, options=options, x0=x0, solver=solver)
+        return continuation(nlp, options=options, solver=solver, **start)
     if s.method == "augmented":
-        return augmented_lagrangian(nlp, options=options, x0=x0, solver=solver)
+        return augmented_lagrangian(nlp, options=options, solver=solver, **start)
     options = penalty_options(nlp, options)
     solver = solver or make_solver(nlp, options)
     return solve_stage(nlp, solver, nlp.parameters(s.M), x0=x0, lam_x0=lam_x0, lam_g0=lam_g0, tol=options.tol)

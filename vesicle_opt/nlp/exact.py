@@ -12,7 +12,7 @@ E_ref: sharp circle/sphere energy of area beta; V = (|Omega| + alpha)/2 the encl
 |Gamma| = 3 sqrt2 beta / 4. Why: IPOPT's dual test is a max-norm over nodal components of
 grad f + J^T lam_g, i.e. max_i (m_i / m_bar) |r(x_i)| / (rigidity G_ref) <= tol with r the L2
 representative of the Lagrangian gradient rigidity dE - lambda_A dA - lambda_B dB. The independent
-test (``kkt.py``) is the relative L2 norm |r| / D with D = |rigidity dE| + |lambda_A dA| +
+test (``verify.kkt``) is the relative L2 norm |r| / D with D = |rigidity dE| + |lambda_A dA| +
 |lambda_B dB|. At a solution D is dominated by the volume pressure lambda_A ~ E / V acting on all of
 Omega, D ~ 2 (E / V) sqrt|Omega|, while r lives on the interface band, |r|_L2 ~ |r|_max
 sqrt(eps |Gamma|). G_ref = D_ref / sqrt(eps |Gamma|) is that conversion, so IPOPT's tol and
@@ -21,9 +21,9 @@ infeasibility: 0.19 - 0.55 for exact solves of ellipse-2d over eps = 0.1 - 0.4, 
 1.3 for the penalty at M = 1e4; 7 - 12 for a sphere, whose gradient terms nearly vanish). Every factor has the units of
 rigidity dE / dphi per volume, so a geometrically similar problem (box, shape, eps scaled by s)
 takes the same iterations to the same relative residuals. The constraint rows are relative to
-|Omega| and beta, as in ``solve``'s feasibility test. IPOPT's own gradient-based rescaling is off
+|Omega| and beta, as in the certificate's feasibility test (``verify.certify``). IPOPT's own gradient-based rescaling is off
 (``IpoptOptions``): it would rescale f by 100 / |grad f(x0)|, a test that depends on the start.
-The penalty NLP (``penalty.py``) reuses k and the g scales, so the test is the same at every M.
+The penalty NLP (``nlp.lifted``) reuses k and the g scales, so the test is the same at every M.
 IPOPT's multipliers lam_g of these scaled rows convert to the physical convention
     rigidity * grad E_h = lambda_A grad A + lambda_B grad B
 by lambda_A = -k lam_g[0] / |Omega|, lambda_B = -k lam_g[1] / beta (``NLP.multipliers``).

@@ -14,7 +14,7 @@ equality rows of the exact NLP shifted by them,
 
 so the penalty (``model.penalty.penalty_terms`` in these units, the lines that evaluate E_M
 everywhere else) is a diagonal 2 x 2 block in u and the Hessian keeps the bi-Laplacian stencil
-(``hessian_nnz_per_row`` grows by 2/N). The scaling is the exact NLP's (``nlp.py``): the same
+(``hessian_nnz_per_row`` grows by 2/N). The scaling is the exact NLP's (``nlp.exact``): the same
 f_scale and g_scale, and x = (phi [, w], u). Parameters p = (M1, M2, mu_A, mu_B), so one solver
 serves every M of a continuation. At a stationary point IPOPT's lam_g of the two lifted rows give,
 through ``NLP.multipliers``, exactly the multiplier estimates in the exact solve's convention

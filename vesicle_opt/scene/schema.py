@@ -72,7 +72,8 @@ class Solver:
     # penalty continuation / augmented Lagrangian (see vesicle_opt.continuation)
     M0: float = 10.0
     M_factor: float = 10.0
-    M_max: float = 1e6  # continuation end; beyond ~1e6 the round-off floor (penalty.py) exceeds tol 1e-8
+    M_max: float = 1e6  # continuation end; the round-off floor (model.penalty.roundoff_floor) grows like
+    # M sqrt(N): at tol 1e-8 the last stage is certified only up to M ~ 1e4 on the bundled 2D meshes
     max_outer: int = 20
 
 

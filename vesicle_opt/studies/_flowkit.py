@@ -3,7 +3,7 @@
 The study rows go through ``vesicle_opt.studies.runner`` (one appending writer, resumable); the
 helpers here save the large fields a case shares with later cases (npz, written atomically so a
 kill never leaves a half file) and write the small *derived* CSVs that ``main`` recomputes from
-the finished rows on every run. Shared fields go through ``vesicle_opt.io.output.save_npz`` /
+the finished rows on every run. Shared fields go through ``vesicle_opt.io.files.save_npz`` /
 ``load_npz`` (atomic).
 """
 

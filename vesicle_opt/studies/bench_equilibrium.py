@@ -47,10 +47,6 @@ def cases(quick: bool) -> list[dict]:
 
 
 def run_case(case: dict) -> dict:
-    # deliberate: casadi is loaded before anything is timed in every fresh process (it is loaded
-    # already with vesicle_opt; the line states the requirement)
-    import casadi  # noqa: F401
-
     if case.get("scene", case["case"]) == "bare-casadi":
         r = bare_solve(case["n"])
         row = {**case, "n_nodes": case["n"] ** 2, "iterations": r["iterations"],

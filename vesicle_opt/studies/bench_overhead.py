@@ -21,9 +21,6 @@ EXTRA = ["repeat", "derivative_fraction", "median_wall_time_s", "ratio_to_bare"]
 
 
 def _one(case: dict) -> dict:
-    # deliberate: casadi is loaded before anything is timed, so neither side pays its import (it is
-    # loaded already with vesicle_opt; the line states the requirement)
-    import casadi  # noqa: F401
     if case["method"] == "bare":
         r = bare_solve(case["n"])
         return {**case, "scene": "ellipse-2d", "wall_time_s": r["wall_time_s"],

@@ -21,7 +21,7 @@ import numpy as np
 from vesicle_opt.flows.backward_euler import BackwardEulerScheme
 from vesicle_opt.flows.stepper import StepperOptions, run
 from vesicle_opt.flows.trackers import HistoryTracker
-from vesicle_opt.io.output import load_npz, save_npz
+from vesicle_opt.io.files import load_npz, save_npz
 from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup
 from vesicle_opt.studies.runner import run_cases

@@ -27,7 +27,7 @@ import numpy as np
 
 from vesicle_opt.flows.stepper import StepperOptions, run
 from vesicle_opt.flows.trackers import CallbackTracker
-from vesicle_opt.io.output import load_npz, save_npz
+from vesicle_opt.io.files import load_npz, save_npz
 from vesicle_opt.api import solve
 
 from vesicle_opt.studies._common import pyplot as plt

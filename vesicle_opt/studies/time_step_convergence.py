@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.flows.stepper import StepperOptions, run
-from vesicle_opt.io.output import load_npz, save_npz
+from vesicle_opt.io.files import load_npz, save_npz
 
 from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup, write_derived_csv

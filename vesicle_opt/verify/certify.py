@@ -100,7 +100,7 @@ def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol
     """
     eps, C, rig = scene.model.epsilon, scene.model.C, scene.model.rigidity
     phi = np.asarray(phi, float)
-    finite = bool(np.all(np.isfinite(phi)))
+    finite = all(bool(np.all(np.isfinite(v))) for v in (phi, x, w) if v is not None)
     if finite:
         E = F.evaluate(disc, phi, eps, C)["E"]
         res = residuals(disc, phi, eps, alpha, beta)

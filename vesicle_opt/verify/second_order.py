@@ -15,7 +15,7 @@ Rotations are not excluded here: the rotation mode is one of the reported eigenv
 4.1e-3 mu_ref on the 64^2 ellipse, below the first shape mode 1.28), which the matrix-free check on
 Fourier grids removes (its least eigenvalue is then this check's second).
 The Hessian comes from the NLP's CasADi graph (the same one IPOPT used); the KKT residual it
-relies on is checked independently in ``kkt.py``.
+relies on is checked independently in ``verify.kkt``.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ MAX_SHIFTS = 4  # shift-invert passes: one at a minimum, two at the saddles seen
 
 
 def hessian(nlp, x, lam_g) -> sp.csr_matrix:
-    """Physical Hessian of the Lagrangian: f_scale * Hessian(f + lam_g . g) (see nlp.py scaling)."""
+    """Physical Hessian of the Lagrangian: f_scale * Hessian(f + lam_g . g) (see the nlp.exact scaling)."""
     lam = ca.MX.sym("lam", nlp.g.shape[0])
     H, _ = ca.hessian(nlp.f + ca.dot(lam, nlp.g), nlp.x)
     fun = ca.Function("lagrangian_hessian", [nlp.x, lam], [H])
