@@ -201,11 +201,14 @@ def test_both_backends_start_from_an_earlier_solves_file(backend, tmp_path):
     """initial.shape = 'file' (a phi.npz of an earlier solve on the same mesh) on either backend."""
     sets = ["mesh.n=32", "solver.second_order=false"]
     first = S.solve(load_scene("ellipse-2d", sets), throw=True)
+    cold = S.solve(load_scene("ellipse-2d", sets), backend=backend, throw=True)
     np.savez(tmp_path / "phi.npz", phi=first.phi)
     again = S.solve(load_scene("ellipse-2d", [*sets, f"initial={{shape='file', file='{tmp_path / 'phi.npz'}'}}"]),
                     backend=backend, throw=True)
     assert abs(again.energy - first.energy) <= TOL * first.energy  # the same KKT point, to the certified tol
-    assert again.iterations <= 3  # started at it (measured 0 on IPOPT, 1 on NK)
+    # started at it: a few steps, far fewer than from the shape (measured IPOPT 0 against 74-81, NK
+    # 1-4 against 23, depending on the BLAS kernel)
+    assert again.iterations <= cold.iterations // 4, (again.iterations, cold.iterations)
 
 
 def test_nk_continuation_stages_carry_their_own_counts():
