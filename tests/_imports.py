@@ -3,7 +3,7 @@
 Used by ``test_import_cycles.py`` and ``test_layers.py``. The package is found next to this file
 (``../vesicle_opt``), so the tests need nothing outside the repository.
 
-Resolution rules (those of ``/work/shared/tools/import_graph.py``, restated so the tests do not
+Resolution rules (those of the shared ``import_graph.py`` tool, restated so the tests do not
 depend on it):
 
 * a module's name is its dotted path; ``pkg/__init__.py`` is ``pkg``;

@@ -5,7 +5,7 @@ Three properties, each failing with the offending modules and lines:
 1. no import cycle: the module graph of ``vesicle_opt/`` (every intra-package import, module-level
    and function-local alike; ``from pkg import name`` is an edge to ``pkg.name`` when that is a
    module, else to ``pkg``) has no strongly connected component of more than one module. This is
-   stricter than ``/work/shared/tools/import_graph.py``, which forgives components formed with a
+   stricter than the shared ``import_graph.py`` tool, which forgives components formed with a
    package's ``__init__``: here a submodule importing from its own package's ``__init__`` while that
    ``__init__`` imports it is a cycle too (it works only by import order).
 2. privacy: no private name (one leading underscore, not a dunder) is imported from another module
