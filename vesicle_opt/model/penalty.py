@@ -65,8 +65,9 @@ def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) 
 
 
 def roundoff_floor(disc, phi, epsilon: float, C: float, rigidity: float, lam: tuple[float, float],
-                   M: tuple[float, float]) -> float:
+                   M: tuple[float, float], grads=None) -> float:
     """Least relative stationarity residual (verify.kkt) that double precision permits at penalty M.
+    ``grads``: (dE, dA, dB) of ``functionals.gradients`` at phi, when the caller has them.
 
     The estimates lambda = mu - M (A - alpha) inherit the evaluation error of A and B inside the
     NLP (CasADi sums N nodal terms in order: error ~ sqrt(N) u_mach sum|terms|), multiplied by M:
@@ -75,7 +76,7 @@ def roundoff_floor(disc, phi, epsilon: float, C: float, rigidity: float, lam: tu
     residuals sit at 0.05 - 2x of it.) It is why the penalty cannot be pushed to M -> inf: a stage
     whose floor reaches tol cannot be certified and is reported as not converged, with this reason.
     """
-    dE, dA, dB = F.gradients(disc, phi, epsilon, C)
+    dE, dA, dB = F.gradients(disc, phi, epsilon, C) if grads is None else grads
     u = np.finfo(float).eps
     S_A = float(np.sum(np.abs(disc.weights * phi)))
     S_B = float(F.area_functional(F.NumpyOps(disc), phi, epsilon))

@@ -110,9 +110,10 @@ def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol
         lam = (mu[0] - M[0] * res[0], mu[1] - M[1] * res[1])
     lam_A, lam_B = (float(v) for v in lam)
     if finite:
-        kkt = kkt_residual(disc, phi, eps, C, rig, lam_A, lam_B)
+        grads = F.gradients(disc, phi, eps, C)  # once, for the residual and the penalty's floor
+        kkt = kkt_residual(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)
         if M is not None:
-            floor = max(floor, roundoff_floor(disc, phi, eps, C, rig, (lam_A, lam_B), M))
+            floor = max(floor, roundoff_floor(disc, phi, eps, C, rig, (lam_A, lam_B), M, grads=grads))
     else:
         kkt, floor = np.nan, np.inf
     exact_constraints = (M is None) if exact_constraints is None else exact_constraints

@@ -21,8 +21,9 @@ def dual_norm(disc, v: np.ndarray) -> float:
     return disc.dual_norm(v)
 
 
-def kkt_residual(disc, phi, epsilon, C, rigidity, lam_A, lam_B) -> float:
-    dE, dA, dB = F.gradients(disc, phi, epsilon, C)
+def kkt_residual(disc, phi, epsilon, C, rigidity, lam_A, lam_B, grads=None) -> float:
+    """``grads``: (dE, dA, dB) of ``functionals.gradients`` at phi, when the caller has them."""
+    dE, dA, dB = F.gradients(disc, phi, epsilon, C) if grads is None else grads
     terms = [rigidity * dE, lam_A * dA, lam_B * dB]
     scale = sum(dual_norm(disc, t) for t in terms)
     return dual_norm(disc, terms[0] - terms[1] - terms[2]) / max(scale, np.finfo(float).tiny)
