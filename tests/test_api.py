@@ -222,3 +222,19 @@ def test_nk_continuation_stages_carry_their_own_counts():
     assert sum(s["iterations"] for s in stages) == r.iterations == r.extra["newton_iterations"]
     assert all(s["iterations"] < r.iterations for s in stages)  # not the run's totals
     assert sum(s["wall_time_s"] for s in stages) <= r.wall_time_s
+
+
+def test_a_solve_meets_its_physical_targets_and_reports_them():
+    """reduced_volume and area in, the same out of the certified field (summary keys of geometry)."""
+    sc = S.scene.from_dict({
+        "domain": {"box": [[-4, 4], [-4, 4]]}, "mesh": {"kind": "fd", "n": 64}, "model": {"epsilon": 0.25},
+        "constraints": {"reduced_volume": 0.8, "area": 10.0},
+        "initial": {"shape": "ellipse", "semi_axes": [2.0, 1.1]}, "solver": {"second_order": False}})
+    r = S.solve(sc)
+    s = r.summary(sc.name)
+    assert r.converged
+    assert s["reduced_volume"] == pytest.approx(0.8, rel=1e-6)  # constraints met to tol 1e-8 relative
+    assert s["area"] == pytest.approx(10.0, rel=1e-6)
+    # an ellipse-like closed curve has more bending energy than the circle of its perimeter
+    assert s["reduced_energy"] > 1 and s["energy"] == pytest.approx(
+        s["reduced_energy"] * S.geometry.sphere_energy(s["area"], 2), rel=1e-12)

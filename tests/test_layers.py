@@ -2,7 +2,8 @@
 
 Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
 
-    0  errors, result        the vocabulary every layer speaks
+    0  errors, result,       the vocabulary every layer speaks
+       geometry              (geometry: volume, area, reduced volume <-> alpha, beta)
     1  scene                 TOML scenes, validated
     2  mesh                  discretisations
     3  model                 functionals, penalty, feasibility on a discretisation
@@ -27,7 +28,7 @@ from __future__ import annotations
 import _imports as I
 
 LAYERS = {
-    "errors": 0, "result": 0,
+    "errors": 0, "result": 0, "geometry": 0,
     "scene": 1,
     "mesh": 2,
     "model": 3,

@@ -81,3 +81,34 @@ def test_bad_warm_start_file_is_bad_input(tmp_path, content):
     with pytest.raises(InputError) as info:
         build_nlp(load_scene("ellipse-2d", ["mesh.n=32", "initial.shape='file'", f"initial.file='{path}'"]))
     assert info.value.key == "initial.file" and "\n" not in str(info.value)
+
+
+def _physical_scene(**constraints):
+    return {"domain": {"box": [[-4, 4], [-4, 4]]}, "mesh": {"kind": "fd", "n": 16}, "model": {"epsilon": 0.3},
+            "initial": {"shape": "circle", "radius": 1.0}, "constraints": constraints}
+
+
+def test_reduced_volume_and_area_set_alpha_and_beta():
+    sc = scene.from_dict(_physical_scene(reduced_volume=0.8, area=9.0))
+    c = sc.constraints
+    V = 0.8 * 9.0**2 / (4 * 3.141592653589793)  # nu = 4 pi V / S^2 (2D)
+    assert c.alpha == pytest.approx(2 * V - 64.0, rel=1e-14)  # alpha = 2V - |Omega|: round-off only
+    assert c.beta == pytest.approx(4 * 9.0 / (3 * 2**0.5), rel=1e-14)  # beta = 4S/(3 sqrt 2)
+    assert (c.reduced_volume, c.area) == (0.8, 9.0)
+
+
+@pytest.mark.parametrize("constraints, key", [
+    ({"reduced_volume": 0.8}, "constraints.area"),
+    ({"area": 9.0}, "constraints.reduced_volume"),
+    ({"reduced_volume": 1.2, "area": 9.0}, "constraints.reduced_volume"),
+    ({"reduced_volume": 0.0, "area": 9.0}, "constraints.reduced_volume"),
+    ({"reduced_volume": float("nan"), "area": 9.0}, "constraints.reduced_volume"),
+    ({"reduced_volume": 0.8, "area": -1.0}, "constraints.area"),
+    ({"reduced_volume": 0.8, "area": 40.0}, "constraints.area"),  # V = 102 > |Omega| = 64
+    ({"reduced_volume": 0.8, "area": 9.0, "alpha": 0.0}, "constraints.alpha"),
+    ({"reduced_volume": 0.8, "area": 9.0, "beta": 1.0}, "constraints.beta"),
+])
+def test_bad_physical_targets_name_the_key(constraints, key):
+    with pytest.raises(InputError) as info:
+        scene.from_dict(_physical_scene(**constraints))
+    assert info.value.key == key and "\n" not in str(info.value)

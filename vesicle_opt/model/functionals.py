@@ -21,11 +21,10 @@ CasADi, the matrix-free ``lumped`` model, the flows' Jacobians, the SCP baseline
 
 from __future__ import annotations
 
-import math
-
 import casadi as ca
 import numpy as np
 
+from vesicle_opt.geometry import enclosed_volume, sphere_energy, surface_area  # noqa: F401 (Section 3.1, re-exported)
 from vesicle_opt.mesh.base import Discretization
 
 
@@ -166,25 +165,7 @@ def area_gradient(disc: Discretization, phi: np.ndarray, epsilon: float) -> np.n
     return epsilon * (disc.K @ phi) + disc.quad_transpose(double_well_derivative(q)) / epsilon
 
 
-def enclosed_volume(A: float, domain_volume: float) -> float:
-    """Volume of {phi > 0} implied by A (Section 3.1): (|Omega| + A)/2."""
-    return (domain_volume + A) / 2
-
-
-def surface_area(B: float) -> float:
-    """Area (3D) or length (2D) implied by B (Section 3.1): 3 sqrt(2) B / 4."""
-    return 3 * math.sqrt(2) * B / 4
-
-
 def sharp_energy_sphere(B: float, dim: int) -> float:
-    """E of (3) for the tanh profile of a circle/sphere of area 3 sqrt(2) B/4, c0 = 0, eps -> 0.
-
-    Derivation: f_c = (1 - phi^2)(C - kappa/sqrt(2)) for phi = tanh(-d/(sqrt 2 eps)), and
-    integral of (1 - phi^2)^2 across the interface is 4 sqrt(2) eps / 3, so
-    E -> (sqrt(2)/3) integral_Gamma (kappa - sqrt(2) C)^2 with kappa the sum of principal curvatures:
-    2D circle of radius R: 2 sqrt(2) pi / (3 R); 3D sphere: 16 sqrt(2) pi / 3 for every R.
-    """
-    if dim == 3:
-        return 16 * math.sqrt(2) * math.pi / 3
-    R = surface_area(B) / (2 * math.pi)
-    return 2 * math.sqrt(2) * math.pi / (3 * R)
+    """E of (3) for the tanh profile of a circle/sphere of area 3 sqrt(2) B/4, c0 = 0, eps -> 0
+    (``geometry.sphere_energy``, derivation there)."""
+    return sphere_energy(surface_area(B), dim)

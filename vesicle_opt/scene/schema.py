@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from vesicle_opt.errors import InputError
+from vesicle_opt.geometry import targets, volume_of_reduced
 from vesicle_opt.scene.bundled import resolve as resolve_scene
 from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES, Shape, number, numbers, parse_shape
 
@@ -59,6 +60,9 @@ class Constraints:
     alpha: float | None = None
     beta: float | None = None
     target: Shape | None = None
+    # physical targets (geometry.targets): given together, they set alpha and beta
+    reduced_volume: float | None = None
+    area: float | None = None
 
 
 @dataclass(frozen=True)
@@ -132,6 +136,8 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "constraints.alpha": ("float", None, "-|Omega| < alpha < |Omega|"),
     "constraints.beta": ("float", None, "> 0"),
     "constraints.target": ("shape", None, "a shape table"),
+    "constraints.reduced_volume": ("float", None, "0 < reduced_volume <= 1, with constraints.area"),
+    "constraints.area": ("float", None, "> 0 (area in 3D, perimeter in 2D), with constraints.reduced_volume"),
     "initial": ("shape", _REQ, "a shape table"),
     "solver.method": ("str", "exact", ("exact", "penalty", "continuation", "augmented")),
     "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
@@ -158,7 +164,8 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "flow.checkpoint_every": ("int", 50, ">= 1"),
     "flow.initial": ("str", "projected", ("projected", "shape")),
 }
-_POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "solver.M", "solver.tol",
+_POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "constraints.area",
+             "solver.M", "solver.tol",
              "solver.M0", "solver.M_max",
              "flow.gamma", "flow.dt", "flow.t_end", "flow.dt_min", "flow.dt_max", "flow.law_tol"}
 
@@ -291,13 +298,16 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     if val["constraints.target"] is not None:
         target = parse_shape("constraints.target", val["constraints.target"], dim)
     alpha, beta = val["constraints.alpha"], val["constraints.beta"]
+    nu, area = val["constraints.reduced_volume"], val["constraints.area"]
+    if nu is not None or area is not None:
+        alpha, beta = _physical_targets(val, target, dim, domain)
     if target is None and (alpha is None or beta is None):
         raise InputError("constraints.alpha" if alpha is None else "constraints.beta",
                          "missing: give constraints.alpha and constraints.beta, or constraints.target")
     if alpha is not None and val["mesh.file"] is None and not (-domain.volume < alpha < domain.volume):
         raise InputError("constraints.alpha",
                          f"must lie in (-|Omega|, |Omega|) = ({-domain.volume:.6g}, {domain.volume:.6g}), got {alpha!r}")
-    constraints = Constraints(alpha, beta, target)
+    constraints = Constraints(alpha, beta, target, nu, area)
     initial = parse_shape("initial", val["initial"], dim)
     _check_penalty(val)
     solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
@@ -305,6 +315,26 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
                     M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
                     max_outer=val["solver.max_outer"])
     return Scene(name, domain, mesh, model, constraints, initial, solver, _flow(val))
+
+
+def _physical_targets(val: dict, target, dim: int, domain: Domain) -> tuple[float, float]:
+    """(alpha, beta) of ``constraints.reduced_volume`` and ``constraints.area`` (geometry.targets)."""
+    nu, area = val["constraints.reduced_volume"], val["constraints.area"]
+    for key, other in (("constraints.reduced_volume", "constraints.area"),
+                       ("constraints.area", "constraints.reduced_volume")):
+        if val[key] is None:
+            raise InputError(key, f"missing: {other} needs {key} beside it")
+    for key in ("constraints.alpha", "constraints.beta", "constraints.target"):
+        if val[key] is not None:
+            raise InputError(key, "give either constraints.reduced_volume with constraints.area, or "
+                             "constraints.alpha/beta/target, not both")
+    if not 0 < nu <= 1:
+        raise InputError("constraints.reduced_volume", f"allowed range 0 < reduced_volume <= 1, got {nu!r}")
+    alpha, beta = targets(nu, area, dim, domain.volume)
+    if not alpha < domain.volume:
+        raise InputError("constraints.area", f"the vesicle's volume {volume_of_reduced(nu, area, dim):.6g} "
+                         f"must be below the box's |Omega| = {domain.volume:.6g}; choose a smaller area")
+    return alpha, beta
 
 
 def _flow(val: dict) -> Flow:

@@ -36,6 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
+from vesicle_opt import geometry
 from vesicle_opt.model import functionals as F
 from vesicle_opt.model.penalty import penalised_energy, residuals, roundoff_floor
 from vesicle_opt.result import Result, Status
@@ -84,6 +85,14 @@ def certify(*, solver_status: str, solver_success: bool, finite: bool, tol: floa
     return Certificate(True, Status.CONVERGED, None)
 
 
+def _physical(disc, A: float, B: float, energy: float, rigidity: float) -> dict[str, float]:
+    """volume, area, reduced_volume and reduced_energy of the field (geometry: sphere/circle = 1)."""
+    out = geometry.physical(A, B, disc.dim, disc.volume)
+    ok = np.isfinite(out["area"]) and out["area"] > 0
+    out["reduced_energy"] = geometry.reduced_energy(energy, out["area"], disc.dim, rigidity) if ok else np.nan
+    return out
+
+
 def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol: float,
                  solver_status: str, solver_success: bool, method: str,
                  lam: tuple[float, float] | None = None, M: tuple[float, float] | None = None,
@@ -120,7 +129,9 @@ def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol
     rel = (abs(res[0]) / disc.volume, abs(res[1]) / abs(beta)) if exact_constraints else None
     cert = certify(solver_status=solver_status, solver_success=solver_success, finite=finite, tol=tol,
                    kkt=kkt, floor=floor, constraints=rel, checks=checks)
-    info = {"alpha": alpha, "beta": beta, "epsilon": eps, "h": disc.h, "kkt_floor": floor, **(extra or {})}
+    info = {"alpha": alpha, "beta": beta, "epsilon": eps, "c0": scene.model.c0, "h": disc.h,
+            "kkt_floor": floor, **_physical(disc, alpha + res[0], beta + res[1], rig * E, rig),
+            **(extra or {})}
     if M is not None:
         info.update({"M2": M[1], "mu_volume": mu[0], "mu_area": mu[1]})
     if cert.reason is not None:
