@@ -16,6 +16,7 @@ backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi N
 """
 
 from vesicle_opt.api import solve
+from vesicle_opt.io.files import package_version
 from vesicle_opt.flows.api import FlowResult, flow
 from vesicle_opt.errors import InfeasibleError, InputError, NotSupported, SolverError, VesicleError
 from vesicle_opt.nk.options import NewtonKrylovOptions
@@ -24,6 +25,8 @@ from vesicle_opt.result import Result, Status
 from vesicle_opt.scene import Scene, load as load_scene
 from vesicle_opt.studies import run_study
 
-__all__ = ["solve", "flow", "FlowResult", "run_study", "load_scene", "Scene", "build_nlp", "NLP",
+__version__ = package_version()
+
+__all__ = ["__version__", "solve", "flow", "FlowResult", "run_study", "load_scene", "Scene", "build_nlp", "NLP",
            "IpoptOptions", "NewtonKrylovOptions", "Result", "Status", "VesicleError", "InputError",
            "InfeasibleError", "NotSupported", "SolverError"]

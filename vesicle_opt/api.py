@@ -19,10 +19,12 @@ returning a result that is not converged.
 from __future__ import annotations
 
 import dataclasses
+import logging
+import math
 
 import numpy as np
 
-from vesicle_opt.backends import METHODS, choose_backend
+from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
@@ -31,6 +33,9 @@ from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp, solve_nlp
 from vesicle_opt.result import Result
 from vesicle_opt.scene import Scene
 from vesicle_opt.verify import lobpcg, second_order, topology
+
+
+log = logging.getLogger(__name__)  # one INFO line per phase of a solve (the CLI shows them; -q hides them)
 
 
 def _replace_extra(result: Result, **items) -> Result:
@@ -103,6 +108,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
                 raise NotSupported("solver.method", f"must be one of {', '.join(METHODS)}, got {method!r}")
             scene = scene.replace(solver=dataclasses.replace(scene.solver, method=method))
         chosen = choose_backend(scene, backend)
+        log.info("%s: %s on %s (%s), %s nodes", scene.name, scene.solver.method, chosen,
+                 reason(scene, chosen, backend), math.prod(scene.mesh.n))
     else:
         raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
     check_second_order = scene.solver.method == "exact" and scene.solver.second_order
@@ -111,6 +118,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         nlp = nlp or build_nlp(scene)
         result = solve_nlp(nlp, options=options, **_ipopt_start(nlp, x0))
         # the assembled check (verify.second_order): translations excluded on periodic grids
+        if check_second_order and result.converged:
+            log.info("%s: second-order check (shift-invert Lanczos on the KKT matrix)", scene.name)
         so = second_order.check(nlp, result) if check_second_order and result.converged else None
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
@@ -118,6 +127,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         result = nk_solve.solve(scene, x0=_phi_start(x0, setup[0].n_nodes), options=options, setup=setup)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
+        if check_second_order and result.converged:
+            log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
         so = lobpcg.check(scene, result, setup, rotations=True) if check_second_order and result.converged else None
     result = _second_order(result, so)
     result = _replace_extra(result, **topology.report(result.disc, result.phi))

@@ -60,6 +60,19 @@ def check_supported(scene, backend: str) -> None:
                            f"(supported: {', '.join(allowed)}){'; ' + why if why else ''}")
 
 
+def reason(scene, chosen: str, backend: str | None = None) -> str:
+    """Why ``scene`` runs on ``chosen`` (the log line of a solve): forced by the caller or the scene,
+    or which rule of ``auto`` picked it."""
+    b = backend or scene.solver.backend
+    if b != "auto":
+        return f"solver.backend = {b!r}" if backend is None else f"backend={b!r}"
+    if chosen == "newton-krylov":
+        return ("auto: a spectral mesh has a dense Laplacian" if scene.mesh.kind == "spectral" else
+                f"auto: 3D above {AUTO_3D_NODES} nodes, where the exact Hessian's factorisation fills in")
+    return "auto: 2D or a small 3D mesh" if supports(scene, "newton-krylov") else \
+        f"auto: {scene.mesh.mass} mass / {scene.mesh.quadrature} quadrature need IPOPT"
+
+
 def choose_backend(scene, backend: str | None = None) -> str:
     """The backend a scene runs on (``backend`` overrides ``solver.backend``), validated."""
     b = backend or scene.solver.backend

@@ -4,11 +4,18 @@ or a bundled name), ``vesicle-opt flow SCENE --scheme ... [--out DIR]`` (a gradi
 
 Exit codes: 0 converged; 1 the solver did not converge (results still written); 2 bad input
 (one line naming the key and the allowed range, no traceback).
+
+Output: the final result line of a verb on stdout; everything else through ``logging`` on stderr
+(``setup_logging``): INFO by default (which backend and why, the phases of a solve, study lines,
+progress bars with an ETA: tqdm on a terminal, plain lines in a log), ``-q`` only warnings and
+errors, ``-v`` also the solvers' iteration logs (IPOPT's own, one line per Newton step, one per
+flow step). ``-v``/``-q`` are accepted before or after the verb.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 import warnings
@@ -17,9 +24,24 @@ from pathlib import Path
 from vesicle_opt.api import solve
 from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.flows.run import write_flow
-from vesicle_opt.io import output
+from vesicle_opt.io import output, progress
+from vesicle_opt.io.files import package_version
 from vesicle_opt.scene import load as load_scene
-from vesicle_opt.studies import STUDIES, run_study, study
+from vesicle_opt.scene import resolved
+from vesicle_opt.studies import DESCRIPTIONS, STUDIES, docstring, run_study, study
+
+DESCRIPTION = ("Equilibrium shapes of vesicle membranes with the phase-field bending model, computed as "
+               "constrained minimisation (CasADi + IPOPT, or matrix-free Newton-Krylov), gradient flows "
+               "of the model, and the studies that check the paper's convergence theory.")
+EPILOG = """examples:
+  vesicle-opt solve ellipse-2d --out out/ellipse            # a bundled scene (or a TOML path)
+  vesicle-opt solve torus-table1-3d --set mesh.n=32 -v      # with the solver's iteration log
+  vesicle-opt flow ellipse-2d --steps 20 --out out/flow     # a gradient flow, ParaView series phi.pvd
+  vesicle-opt study --list                                  # the studies, one line each
+  vesicle-opt study table1 --help                           # what one study does
+
+exit codes: 0 converged, 1 not converged (results still written), 2 bad input.
+Run 'vesicle-opt VERB --help' for the options of a verb."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -44,6 +66,7 @@ def cmd_solve(args) -> int:
     out = out_dir(args.out)
     result = solve(sc)
     summary = output.write_result(out, sc, result.disc, result)
+    resolved.write(out / "scene.resolved.toml", sc)  # the run, repeatable: vesicle-opt solve DIR/scene.resolved.toml
     print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
     if result.converged and summary.get("second_order") == "saddle":
@@ -65,7 +88,8 @@ def cmd_solve(args) -> int:
 
 def cmd_study(args) -> int:
     if args.list:
-        print("\n".join(STUDIES))
+        width = max(map(len, STUDIES))
+        print("\n".join(f"{name:<{width}}  {DESCRIPTIONS[name]}" for name in STUDIES))
         return 0
     if args.name is None:
         raise InputError("study", f"give a study name or --list; one of {', '.join(STUDIES)}")
@@ -82,7 +106,7 @@ def cmd_flow(args) -> int:
     if args.adaptive:
         overrides.append('flow.stepping="adaptive"')
     sc = load_scene(args.scene, overrides)
-    run = write_flow(sc, out_dir(args.out), restart=args.restart, progress=not args.quiet)
+    run = write_flow(sc, out_dir(args.out), restart=args.restart, progress=not getattr(args, "quiet", False))
     s = run.summary
     print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "
           f"energy = {s['energy']:.10g}, rejections = {s['rejections']}, wall = {s['wall_time_s']:.2f}s "
@@ -104,26 +128,104 @@ def _flow_parser(sub) -> None:
     f.add_argument("--adaptive", action="store_true", help="adaptive k with rejection")
     f.add_argument("--out", default="out", help="output directory (default: out)")
     f.add_argument("--restart", action="store_true", help="ignore a checkpoint in --out")
-    f.add_argument("--quiet", action="store_true", help="no progress line")
+    f.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bar; only warnings and errors")
     f.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key (dotted, value parsed as TOML); repeatable")
+    _add_verbose(f)
     f.set_defaults(func=cmd_flow)
 
 
+class _StudyHelp(argparse.Action):
+    """``study --help`` with the study list; ``study NAME --help`` adds that study's own description."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        parser.print_help()
+        name = getattr(namespace, "name", None)
+        if name is not None:
+            try:
+                text = docstring(name)
+            except InputError as exc:
+                print(f"\nvesicle-opt: error: {exc}", file=sys.stderr)
+                parser.exit(2)
+            print(f"\nstudy {name}:\n{text}")
+        parser.exit()
+
+
+def _add_verbose(p) -> None:
+    """-v (repeatable), default SUPPRESS so that a verb's parser does not reset the main parser's."""
+    p.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                   help="also the solvers' iteration logs (IPOPT's own, Newton steps, flow steps)")
+
+
+def _add_verbosity(p) -> None:
+    _add_verbose(p)
+    p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="only warnings and errors (no progress bars)")
+
+
+class _Handler(logging.Handler):
+    """stderr as it is when a record is emitted (tests swap it); through tqdm on a terminal, so a
+    progress bar is not torn by a log line."""
+
+    def emit(self, record):
+        try:
+            text = self.format(record)
+            if sys.stderr.isatty():
+                from tqdm import tqdm  # only on a terminal, where bars are drawn
+                tqdm.write(text, file=sys.stderr)
+            else:
+                sys.stderr.write(text + "\n")
+                sys.stderr.flush()
+        except Exception:  # noqa: BLE001 - logging must never end the run (logging.Handler's own rule)
+            self.handleError(record)
+
+
+class _Format(logging.Formatter):
+    def format(self, record):
+        msg = record.getMessage()
+        if record.levelno >= logging.WARNING:
+            return f"vesicle-opt: {record.levelname.lower()}: {msg}"
+        return msg if record.levelno >= logging.INFO else f"[{record.name.removeprefix('vesicle_opt.')}] {msg}"
+
+
+def setup_logging(verbose: int = 0, quiet: bool = False) -> logging.Handler:
+    """The CLI's logging: the ``vesicle_opt`` logger at WARNING (quiet), INFO or DEBUG (verbose) to
+    stderr, and progress bars on unless quiet. Returns the handler (``main`` removes it again)."""
+    logger = logging.getLogger("vesicle_opt")
+    handler = _Handler()
+    handler.setFormatter(_Format())
+    logger.addHandler(handler)
+    logger.setLevel(logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO)
+    progress.enable(not quiet)
+    return handler
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="vesicle-opt", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="verb", required=True, parser_class=_Parser)
+    p = _Parser(prog="vesicle-opt", description=DESCRIPTION, epilog=EPILOG,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"vesicle-opt {package_version()}")
+    _add_verbosity(p)
+    sub = p.add_subparsers(dest="verb", required=True, parser_class=_Parser, metavar="{solve,study,flow}")
     s = sub.add_parser("solve", help="solve the equilibrium problem of a scene")
     s.add_argument("scene", help="scene TOML file or bundled scene name")
     s.add_argument("--out", default="out", help="output directory (default: out)")
     s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key (dotted, value parsed as TOML); repeatable")
+    _add_verbosity(s)
     s.set_defaults(func=cmd_solve)
-    st = sub.add_parser("study", help="run a study from studies/ writing CSV and figures")
+    st = sub.add_parser("study", help="run a study from studies/ writing CSV and figures", add_help=False,
+                        formatter_class=argparse.RawDescriptionHelpFormatter,
+                        epilog="studies:\n" + "\n".join(f"  {n:<22} {DESCRIPTIONS[n]}" for n in STUDIES))
+    st.add_argument("-h", "--help", action=_StudyHelp, help="this help; with NAME, also that study's description")
     st.add_argument("name", nargs="?", help="the study (- or _ alike); see --list")
     st.add_argument("--list", action="store_true", help="print the study names, one per line")
     st.add_argument("--out", default="out", help="output directory (default: out)")
     st.add_argument("--quick", action="store_true", help="small, fast variant")
+    _add_verbosity(st)
     st.set_defaults(func=cmd_study)
     _flow_parser(sub)
     return p
@@ -136,6 +238,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"vesicle-opt: warning: {message}", file=sys.stderr)
 
     warnings.showwarning = one_line_warning
+    handler = setup_logging(getattr(args, "verbose", 0), getattr(args, "quiet", False))
     try:
         code = args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at interpreter exit
@@ -146,6 +249,10 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # stdout piped into a reader that closed early (`| head`): not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return 0
+    finally:  # main() called in-process (tests, scripts) leaves no handler, level or bar switched on
+        logging.getLogger("vesicle_opt").removeHandler(handler)
+        logging.getLogger("vesicle_opt").setLevel(logging.NOTSET)
+        progress.enable(False)
 
 
 if __name__ == "__main__":

@@ -3,9 +3,11 @@
 
 Writes into DIR: ``history.csv`` (one row per accepted step, flushed as it goes; columns in
 ``COLUMNS`` plus scheme extras), ``checkpoint.npz`` (resume state) with ``checkpoint.id`` (the
-problem's fingerprint), ``snapshots/phi_JJJ.npz`` and ``frames/frame_JJJ.png`` at
-t = t_end * j / flow.frames, and at the end ``phi.npz``, ``phi.vtu``, ``phi.png`` and
-``summary.json``. A run finding a checkpoint of the same problem in DIR resumes from it
+problem's fingerprint), ``snapshots/phi_JJJ.npz`` with
+``snapshots/phi_JJJ.vti`` (periodic grids; ``.vtu`` on meshes), the ParaView time series ``phi.pvd``
+of all of them and ``frames/frame_JJJ.png``, spaced over the run's span (``SnapshotTracker``: t_end
+or flow.steps, whichever ends the run), and at the end ``phi.npz``, ``phi.vtu``, ``phi.vti``
+(grids), ``phi.png``, ``surface.ply`` (3D grids), ``scene.resolved.toml`` and ``summary.json``. A run finding a checkpoint of the same problem in DIR resumes from it
 (``restart=True`` starts afresh); history rows after the checkpoint are dropped.
 """
 
@@ -19,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.io import files, output
+from vesicle_opt.scene import resolved
 from vesicle_opt.flows.api import FlowResult, build_model, check_supported, fingerprint, flow
 from vesicle_opt.flows.trackers import CheckpointTracker, HistoryTracker, ProgressTracker, SnapshotTracker
 
@@ -62,16 +65,18 @@ def write_flow(scene, out: Path, *, restart: bool = False, progress: bool = Fals
     history = HistoryTracker(hist, columns=COLUMNS + EXTRA[fl.scheme], keep=False,
                              prior=_rows_upto(hist, state.step) if resume else [])
     trackers = [history, SnapshotTracker(out, md.disc, fl.t_end, fl.frames, png=frames,
-                                         title=f"{scene.name} {fl.scheme}", energy=md.E),
+                                         title=f"{scene.name} {fl.scheme}", energy=md.E, steps=fl.steps,
+                                         vtk=frames),
                 CheckpointTracker(ckpt, every=fl.checkpoint_every)]
     if progress:
-        trackers.append(ProgressTracker(t_end=fl.t_end))
+        trackers.append(ProgressTracker(t_end=fl.t_end, steps=fl.steps,
+                                        dt=fl.dt if fl.stepping == "constant" else None))
     try:
         res = flow(scene, trackers=trackers, resume_from=state, model=md)
     finally:
         history.close()
     phi = res.phi
-    summary = {"scene": scene.name, "scheme": fl.scheme, "law": res.law, "status": res.status.value,
+    summary = {"scene": scene.name, "version": files.package_version(), "scheme": fl.scheme, "law": res.law, "status": res.status.value,
                "outcome": res.status.value, "message": res.message, "steps": res.steps, "t": res.t,
                "rejections": res.rejections, "wall_time_s": res.wall_time_s,
                "resumed_from_step": res.resumed_from_step,
@@ -79,7 +84,11 @@ def write_flow(scene, out: Path, *, restart: bool = False, progress: bool = Fals
                **{k: float(v) for k, v in res.observed.items()}}
     np.savez_compressed(out / "phi.npz", phi=phi, nodes=md.disc.nodes, t=res.t)
     output.write_vtk(out / "phi.vtu", md.disc, phi)
+    if md.disc.grid_shape is not None:
+        output.write_field(out, "phi", md.disc, phi)  # phi.vti: the complete periodic grid
     output.write_png(out / "phi.png", md.disc, phi,
                      title=f"{scene.name} {fl.scheme}: t = {res.t:.4g}, E = {res.energy:.6g}")
+    summary.update(output.write_surface_files(out, md.disc, phi, {}))
+    resolved.write(out / "scene.resolved.toml", scene)
     files.write_json(out / "summary.json", summary)
     return FlowRun(res, summary)

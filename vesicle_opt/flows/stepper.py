@@ -29,6 +29,7 @@ never looks inside. Output, progress, checkpoints and caller's stop criteria are
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -36,6 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from vesicle_opt.result import Status
+
+log = logging.getLogger(__name__)  # one DEBUG line per accepted step (the CLI's -v)
 
 
 @dataclass(frozen=True)
@@ -154,6 +157,9 @@ def run(scheme, phi0: np.ndarray, opts: StepperOptions, trackers=(), *,
                 k_try = k
         else:
             k_try = opts.dt
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("step %d  t = %.6g  dt = %.3g  E = %.10g  law = %.1e  newton = %d  rejected = %d",
+                      step, t, k, row.get("energy", math.nan), out.law_residual, out.iterations, rejections)
         now = state()
         stop = [bool(tr.handle(now, row)) for tr in trackers]  # every tracker sees every accepted step
         if any(stop):

@@ -13,7 +13,7 @@ Ready trackers:
 * ``SnapshotTracker``: ``snapshots/phi_JJJ.npz`` and ``frames/frame_JJJ.png`` at t = t_end j / frames;
 * ``CheckpointTracker``: ``checkpoint.npz`` every ``every`` steps and at the end (atomic,
   ``io.files.save_npz``); ``CheckpointTracker.load(path)`` gives the state to resume from;
-* ``ProgressTracker``: one refreshed progress line on a stream (stderr by default);
+* ``ProgressTracker``: progress with an ETA on a stream (stderr by default; tqdm on a terminal);
 * ``StopTracker``: stop when ``criterion(row)`` is true; ``CallbackTracker``: any ``fn(state, row)``.
 """
 
@@ -22,13 +22,13 @@ from __future__ import annotations
 import csv
 import math
 import sys
-import time
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from vesicle_opt.errors import InputError
+from vesicle_opt.io import progress
 from vesicle_opt.io.files import load_npz, save_npz
 from vesicle_opt.flows.stepper import FlowState
 
@@ -121,36 +121,73 @@ class HistoryTracker(Tracker):
 
 
 class SnapshotTracker(Tracker):
-    """``DIR/snapshots/phi_JJJ.npz`` (phi, t) and, with ``png``, ``DIR/frames/frame_JJJ.png`` at the
-    first accepted step with t >= t_end j / frames (j = 0 at the start of a fresh run). ``title``
+    """Snapshots spaced over the run's actual span: ``DIR/snapshots/phi_JJJ.npz`` (phi, t), with
+    ``vtk`` a viewer file beside it (``phi_JJJ.vti`` on periodic grids, ``.vtu`` on meshes) listed in
+    the time series ``DIR/phi.pvd`` (rewritten after every snapshot, so a killed run leaves a valid
+    one), and with ``png`` ``DIR/frames/frame_JJJ.png``. Snapshot j is taken at the first accepted
+    step with t >= t_end j / frames or step >= steps j / frames (``steps``: the run's step cap, so
+    that ``--steps 20`` spreads the frames over its 20 steps, not over t_end); j = 0 at the start
+    of a fresh run, and the final state at the end when it is not a snapshot already. ``title``
     labels the frames, with ``E = energy(phi)`` at j = 0 and the row's ``energy`` after."""
 
     def __init__(self, directory: Path, disc, t_end: float, frames: int, *, png: bool = True, title: str = "",
-                 energy: Callable[[np.ndarray], float] | None = None):
+                 energy: Callable[[np.ndarray], float] | None = None, steps: int | None = None,
+                 vtk: bool = False):
         self.dir, self.disc, self.frame_dt, self.png = Path(directory), disc, t_end / frames, png
-        self.title, self.energy = title, energy
+        self.frame_steps = None if steps is None else steps / frames
+        self.title, self.energy, self.vtk = title, energy, vtk
         self.next_frame = 1
+        self._last_step = None
 
-    def _snapshot(self, j: int, t: float, phi: np.ndarray, E: float | None) -> None:
+    def _due(self, state) -> int:
+        j = int(math.floor(state.t / self.frame_dt * (1 + 1e-9) + 1e-9))
+        if self.frame_steps is not None:
+            j = max(j, int(math.floor(state.step / self.frame_steps + 1e-9)))
+        return j
+
+    def _snapshot(self, j: int, t: float, phi: np.ndarray, E: float | None, step: int) -> None:
         np.savez_compressed(self.dir / "snapshots" / f"phi_{j:03d}.npz", phi=phi, t=t)
+        self._last_step = step
+        if self.png or self.vtk:
+            # matplotlib and meshio only when files are drawn: ``import vesicle_opt`` does not load them
+            from vesicle_opt.io import output
+        if self.vtk:
+            output.write_field(self.dir / "snapshots", f"phi_{j:03d}", self.disc, phi)
+            self._write_pvd()
         if self.png:
-            # matplotlib only when frames are drawn: ``import vesicle_opt`` does not load it
-            from vesicle_opt.io.output import write_png
             label = f"{self.title}: t = {t:.4g}" + ("" if E is None else f", E = {E:.6g}")
-            write_png(self.dir / "frames" / f"frame_{j:03d}.png", self.disc, phi, title=label)
+            output.write_png(self.dir / "frames" / f"frame_{j:03d}.png", self.disc, phi, title=label)
+
+    def _write_pvd(self) -> None:
+        from vesicle_opt.io.vtk import write_pvd  # with the viewer files only (see _snapshot)
+        entries = []
+        for npz in sorted((self.dir / "snapshots").glob("phi_*.npz")):
+            view = next((p for p in (npz.with_suffix(".vti"), npz.with_suffix(".vtu")) if p.exists()), None)
+            if view is not None:
+                with np.load(npz) as z:
+                    entries.append((float(z["t"]), f"snapshots/{view.name}"))
+        write_pvd(self.dir / "phi.pvd", entries)
 
     def start(self, state):
         (self.dir / "snapshots").mkdir(parents=True, exist_ok=True)
         if self.png:
             (self.dir / "frames").mkdir(parents=True, exist_ok=True)
-        self.next_frame = int(math.floor(state.t / self.frame_dt + 1e-9)) + 1
+        self.next_frame = self._due(state) + 1
         if state.step == 0:
-            self._snapshot(0, state.t, state.phi, None if self.energy is None else self.energy(state.phi))
+            self._snapshot(0, state.t, state.phi, None if self.energy is None else self.energy(state.phi), 0)
 
     def handle(self, state, row):
-        if state.t >= self.next_frame * self.frame_dt * (1 - 1e-9):
-            self._snapshot(self.next_frame, state.t, state.phi, row.get("energy"))
-            self.next_frame = int(math.floor(state.t / self.frame_dt + 1e-9)) + 1
+        due = self._due(state)
+        if due >= self.next_frame:
+            self._snapshot(due, state.t, state.phi, row.get("energy"), state.step)
+            self.next_frame = due + 1
+        self._row = row
+
+    def finish(self, state):
+        if self._last_step != state.step:  # the end state (t_end, steps, steady or stopped)
+            row = getattr(self, "_row", {})
+            self._snapshot(self.next_frame, state.t, state.phi, row.get("energy"), state.step)
+            self.next_frame += 1
 
 
 class CheckpointTracker(Tracker):
@@ -188,27 +225,45 @@ class CheckpointTracker(Tracker):
 
 
 class ProgressTracker(Tracker):
-    """A progress line (step, t[/t_end], k, E, law residual, rejections) refreshed in place on
-    ``stream`` (default: sys.stderr at the time of writing) at most every ``interval`` seconds,
-    ended by a newline when the run ends."""
+    """Progress of the run on ``stream`` (default: sys.stderr): a tqdm bar with an ETA on a terminal,
+    plain lines every ``interval`` seconds elsewhere (``io.progress.bar``; never ``\r`` in a log).
+    The bar runs over simulated time to ``t_end``, or over accepted steps to ``steps`` when that
+    ends the run first (``steps * dt < t_end``, constant k); the postfix shows step, t[/t_end], k,
+    E, the law residual and the rejections."""
 
-    def __init__(self, stream=None, *, interval: float = 2.0, t_end: float | None = None):
-        self.stream, self.interval, self.t_end = stream, interval, t_end
-        self._last = -math.inf
-
-    def _out(self):
-        return self.stream if self.stream is not None else sys.stderr
+    def __init__(self, stream=None, *, interval: float = 2.0, t_end: float | None = None,
+                 steps: int | None = None, dt: float | None = None):
+        self.stream, self.interval, self.t_end, self.steps, self.dt = stream, interval, t_end, steps, dt
+        self._bar = None
+        self._by_steps = False
+        self._t0 = self._step0 = 0.0
 
     def start(self, state):
-        self._last = -math.inf
+        by_time = self.t_end is not None and (self.steps is None or self.dt is None
+                                              or self.steps * self.dt >= self.t_end)
+        self._by_steps = not by_time and self.steps is not None
+        total = (self.steps if self._by_steps else self.t_end)
+        done = state.step if self._by_steps else state.t
+        self._bar = progress.bar("flow", total=total, unit="steps" if self._by_steps else "t",
+                                 stream=self.stream if self.stream is not None else sys.stderr,
+                                 interval=self.interval, force=True)
+        self._t0, self._step0 = state.t, state.step
+        if done:
+            self._bar.update(done)
 
     def handle(self, state, row):
-        if time.perf_counter() - self._last > self.interval:
-            self._last = time.perf_counter()
-            t = f"{state.t:.4g}" + ("" if self.t_end is None else f"/{self.t_end:.4g}")
-            print(f"\r  step {state.step}  t = {t}  dt = {row['dt']:.3g}  E = {row.get('energy', math.nan):.8g}  "
-                  f"law = {row.get('energy_law_residual', math.nan):.1e}  rejected = {state.rejections}",
-                  end="", file=self._out(), flush=True)
+        t = f"{state.t:.4g}" + ("" if self.t_end is None else f"/{self.t_end:.4g}")
+        self._bar.set_postfix_str(f"step {state.step}  t = {t}  dt = {row['dt']:.3g}  "
+                                  f"E = {row.get('energy', math.nan):.8g}  "
+                                  f"law = {row.get('energy_law_residual', math.nan):.1e}  "
+                                  f"rejected = {state.rejections}", refresh=False)
+        if self._by_steps:
+            self._bar.update(state.step - self._step0)
+            self._step0 = state.step
+        else:
+            self._bar.update(state.t - self._t0)
+            self._t0 = state.t
 
     def finish(self, state):
-        print(file=self._out(), flush=True)
+        if self._bar is not None:
+            self._bar.close()

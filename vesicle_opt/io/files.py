@@ -4,9 +4,18 @@ from __future__ import annotations
 
 import json
 import os
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
+
+
+def package_version() -> str:
+    """The installed vesicle_opt version (``summary.json``'s ``version``; ``vesicle-opt --version``)."""
+    try:
+        return version("vesicle_opt")
+    except PackageNotFoundError:  # a source tree on sys.path without an install
+        return "unknown"
 
 
 def write_json(path: Path, data: dict) -> None:

@@ -1,5 +1,6 @@
-"""Writers of a result: summary.json, phi.npz, a VTK file (meshio) and a PNG of the level set
-(matplotlib); the atomic json/npz files are ``io.files``.
+"""Writers of a result: summary.json, phi.npz, VTK files (meshio ``.vtu``; ``io.vtk``: ``.vti``, ``.pvd``),
+the phi = 0 surface of 3D grids (``io.surface``) and a PNG of the level set (matplotlib); the
+atomic json/npz files are ``io.files``.
 
 Nothing non-finite is ever written: ``Result.summary`` maps NaN/inf to null, and fields with
 non-finite values are refused here rather than written. matplotlib and meshio load with this module
@@ -19,7 +20,9 @@ import meshio  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.interpolate import griddata  # noqa: E402
 
-from vesicle_opt.io.files import write_json  # noqa: E402
+from vesicle_opt.io import surface as zero_level  # noqa: E402
+from vesicle_opt.io import vtk  # noqa: E402
+from vesicle_opt.io.files import package_version, write_json  # noqa: E402
 
 
 def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:
@@ -29,15 +32,19 @@ def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:
 
 
 def write_vtk(path: Path, disc, phi: np.ndarray) -> None:
-    """phi on the mesh (FEM) or as a point cloud of grid nodes with its cells (FD) for ParaView."""
+    """phi on the mesh (FEM) or on the complete periodic grid with its cells (FD, spectral) for
+    ParaView: the grid's wrap row/plane is appended (``vtk.wrapped``), so the cells cover the box."""
     if disc.mesh is not None:
         values = disc.unfold @ phi if disc.unfold is not None else phi
         cell = "triangle" if disc.dim == 2 else "tetra"
         points = disc.mesh.p.T
         cells = [(cell, disc.mesh.t.T)]
-    else:  # FD grid: structured quads/hexahedra of the periodic grid without the wrap-around cells
-        shape = disc.grid_shape
-        idx = np.arange(disc.n_nodes).reshape(shape)
+    else:  # periodic grid, completed: (n + 1)^d points, n^d quads/hexahedra
+        F = vtk.wrapped(disc, phi)
+        origin, spacing = vtk.grid_geometry(disc)
+        axes = [origin[d] + spacing[d] * np.arange(k) for d, k in enumerate(F.shape)]
+        points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, disc.dim)
+        idx = np.arange(F.size).reshape(F.shape)
         if disc.dim == 2:
             c = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], axis=-1).reshape(-1, 4)
             cells = [("quad", c)]
@@ -46,50 +53,82 @@ def write_vtk(path: Path, disc, phi: np.ndarray) -> None:
             corners = [idx[s[i], s[j], s[k]] for i, j, k in
                        [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]]
             cells = [("hexahedron", np.stack(corners, axis=-1).reshape(-1, 8))]
-        points, values = disc.nodes, phi
+        values = F.ravel()
     if points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
     meshio.write(str(path), meshio.Mesh(points, cells, point_data={"phi": np.asarray(values, float)}))
 
 
+def write_field(out: Path, stem: str, disc, phi: np.ndarray) -> str:
+    """The viewer file of one field: ``stem.vti`` on periodic grids (complete ImageData), ``stem.vtu``
+    on meshes; returns the file name."""
+    if disc.grid_shape is not None:
+        vtk.write_vti(out / f"{stem}.vti", disc, {"phi": phi})
+        return f"{stem}.vti"
+    write_vtk(out / f"{stem}.vtu", disc, phi)
+    return f"{stem}.vtu"
+
+
+def _coords(disc, axis: int) -> np.ndarray:
+    lo, hi = disc.box[axis]
+    return np.linspace(lo, hi, disc.grid_shape[axis], endpoint=False)
+
+
+AXES = "xyz"
+
+
 def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
-    """2D: phi with its zero level set; 3D: three central cut views (x=0, y=0, z=0 planes)."""
+    """2D: phi with its zero level set; 3D: three central cuts (x, y, z = the box's middle plane), in
+    physical coordinates, with axis labels and a colorbar of phi."""
     box = disc.box
     if disc.dim == 2:
-        fig, ax = plt.subplots(figsize=(5, 5))
+        fig, ax = plt.subplots(figsize=(5.6, 5))
         if disc.grid_shape is not None:
-            draw_cut(ax, _grid_field(disc, phi), (box[0][0], box[1][0]), (box[0][1], box[1][1]))
+            image = draw_cut(ax, _grid_field(disc, phi), (box[0][0], box[1][0]), (box[0][1], box[1][1]))
         else:
             tri = mtri.Triangulation(disc.mesh.p[0], disc.mesh.p[1], disc.mesh.t.T)
             vals = disc.unfold @ phi if disc.unfold is not None else phi
-            ax.tripcolor(tri, vals, cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
+            image = ax.tripcolor(tri, vals, cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
             ax.tricontour(tri, vals, levels=[0.0], colors="k")
         ax.set_aspect("equal")
-        ax.set_title(title)
+        ax.set_xlabel("x")
+        ax.set_ylabel("y")
+        ax.set_title(title, fontsize=9)
+        fig.colorbar(image, ax=ax, shrink=0.8, label="phi (+1 inside, -1 outside)")
     else:
-        fig, axes = plt.subplots(1, 3, figsize=(12, 4))
+        fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
         if disc.grid_shape is not None:
             F = _grid_field(disc, phi)
             mid = [k // 2 for k in disc.grid_shape]
             cuts = [F[mid[0], :, :], F[:, mid[1], :], F[:, :, mid[2]]]
+            at = [_coords(disc, d)[mid[d]] for d in range(3)]
         else:
             cuts = [_sample_cut(disc, phi, axis) for axis in range(3)]
-        for ax, cut, name in zip(axes, cuts, ["x = mid", "y = mid", "z = mid"]):
-            ax.imshow(cut.T, origin="lower", cmap="RdBu_r", vmin=-1, vmax=1)
-            ax.contour(cut.T, levels=[0.0], colors="k")
-            ax.set_title(f"{title} {name}")
-    fig.tight_layout()
+            at = [0.5 * (box[d][0] + box[d][1]) for d in range(3)]
+        for axis, (ax, cut) in enumerate(zip(axes, cuts)):
+            other = [d for d in range(3) if d != axis]
+            lo, hi = (box[other[0]][0], box[other[1]][0]), (box[other[0]][1], box[other[1]][1])
+            image = draw_cut(ax, cut, lo, hi, f"{AXES[axis]} = {at[axis]:.3g}",
+                             endpoint=disc.grid_shape is None)
+            ax.set_xlabel(AXES[other[0]])
+            ax.set_ylabel(AXES[other[1]])
+        fig.suptitle(title, fontsize=10)
+        fig.colorbar(image, ax=list(axes), shrink=0.8, label="phi")
+    if disc.dim == 2:
+        fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
-def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "") -> None:
-    """A 2D section of phi (first index along x) on a periodic grid over [lo, hi) with its zero level."""
-    ax.imshow(cut.T, origin="lower", extent=[lo[0], hi[0], lo[1], hi[1]], cmap="RdBu_r", vmin=-1, vmax=1)
-    xs = [np.linspace(a, b, k, endpoint=False) for a, b, k in zip(lo, hi, cut.shape)]
+def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "", *, endpoint: bool = False):
+    """A 2D section of phi (first index along x) over [lo, hi) (a periodic grid; ``endpoint``: samples
+    including hi) with its zero level, in physical coordinates; returns the image (for a colorbar)."""
+    image = ax.imshow(cut.T, origin="lower", extent=[lo[0], hi[0], lo[1], hi[1]], cmap="RdBu_r", vmin=-1, vmax=1)
+    xs = [np.linspace(a, b, k, endpoint=endpoint) for a, b, k in zip(lo, hi, cut.shape)]
     ax.contour(xs[0], xs[1], cut.T, levels=[0.0], colors="k")
     ax.set_title(title, fontsize=9)
     ax.set_aspect("equal")
+    return image
 
 
 def _sample_cut(disc, phi, axis: int, n: int = 64) -> np.ndarray:
@@ -103,10 +142,24 @@ def _sample_cut(disc, phi, axis: int, n: int = 64) -> np.ndarray:
     return griddata(disc.nodes, phi, pts, method="nearest").reshape(n, n)
 
 
+def write_surface_files(out: Path, disc, phi: np.ndarray, summary: dict) -> dict:
+    """3D grids: ``surface.ply`` (the phi = 0 surface, marching cubes) and its area and volume beside
+    the phase-field ``area`` and ``volume`` of ``summary`` (``io.surface.report``); {} otherwise."""
+    surf = zero_level.zero_surface(disc, phi)
+    if surf is None:
+        return {}
+    zero_level.write_surface(out / "surface.ply", surf)
+    return zero_level.report(surf, summary.get("area"), summary.get("volume"))
+
+
 def write_result(out: Path, scene, disc, result) -> dict:
-    """Write everything a solve produced into ``out``; returns the summary dict."""
+    """Write everything a solve produced into ``out``; returns the summary dict.
+
+    ``summary.json``, ``phi.npz``, ``phi.vtu`` (every mesh; periodic grids complete, wrap included),
+    ``phi.vti`` (periodic grids: ImageData), ``phi.png``, and for 3D grids ``surface.ply`` with
+    ``surface_area`` / ``surface_volume`` in the summary (``write_surface_files``)."""
     out.mkdir(parents=True, exist_ok=True)
-    summary = result.summary(scene.name)
+    summary = {**result.summary(scene.name), "version": package_version()}
     finite = np.all(np.isfinite(result.phi))
     if finite:
         arrays = {"phi": result.phi, "nodes": disc.nodes}
@@ -114,7 +167,10 @@ def write_result(out: Path, scene, disc, result) -> dict:
             arrays["w"] = result.w
         np.savez_compressed(out / "phi.npz", **arrays)
         write_vtk(out / "phi.vtu", disc, result.phi)
+        if disc.grid_shape is not None:
+            vtk.write_vti(out / "phi.vti", disc, {"phi": result.phi})
         write_png(out / "phi.png", disc, result.phi, title=f"{scene.name}: E = {result.energy:.6g}")
+        summary.update(write_surface_files(out, disc, result.phi, summary))
     summary["fields_written"] = bool(finite)
     write_json(out / "summary.json", summary)
     return summary

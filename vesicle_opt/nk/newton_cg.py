@@ -17,6 +17,7 @@ fixed model P0 (``precond.dual_norm``), relative to rig |dE|_* + |mu_A| |dA|_* +
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
 
@@ -25,6 +26,7 @@ import numpy as np
 from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.nk.krylov import SubspacePreconditioner, projected_pcg
 
+log = logging.getLogger(__name__)  # one DEBUG line per Newton step (the CLI's -v)
 ARMIJO = 1e-4  # sufficient-decrease constant (the usual textbook value)
 ETA_MAX = 0.01  # CG relative tolerance cap of every Newton step (the forcing term above)
 STEP_CAP = 1.0  # no Newton step changes a nodal value by more than 1 (phi lives in [-1, 1])
@@ -40,6 +42,7 @@ class Counters:
     evaluations: int = 0
     hvp: int = 0
     deriv_time: float = 0.0
+    on_step: object = None  # called as on_step(relative dual stationarity) after every Newton step (progress)
     history: dict = field(default_factory=lambda: {"f": [], "dual_rel": [], "cg": [], "step": [],
                                                    "cg_status": []})
 
@@ -150,6 +153,10 @@ def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, 
         h["cg"].append(cg.iterations)
         h["cg_status"].append(cg.status)
         h["step"].append(t if accepted is not None else 0.0)
+        log.debug("Newton %3d  f = %.12g  kkt_dual = %.2e  cg = %3d (%s)  step = %.3g", cnt.newton, pt.f, pt.rel,
+                  cg.iterations, cg.status, t if accepted is not None else 0.0)
+        if cnt.on_step is not None:
+            cnt.on_step(pt.rel)
         if accepted is None:
             return pt, "line_search_failed"
         if t * float(np.max(np.abs(p))) <= STALL * max(1.0, float(np.max(np.abs(pt.phi)))):

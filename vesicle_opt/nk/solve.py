@@ -45,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vesicle_opt.io import progress
 from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.model.feasibility import check_feasible
@@ -232,7 +233,13 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
         check_feasible(*constraint_data(scene, disc), scene, disc)
     shape_start = x0 is None and scene.initial.shape != "file"
     levels = coarse_levels(disc, eps, opts.coarse_min_n) if (opts.nested and shape_start) else []
-    cnt = Counters()
+    bar = progress.bar(f"Newton-Krylov {scene.solver.method}", unit="Newton steps")
+
+    def on_step(rel: float) -> None:
+        bar.set_postfix_str(f"kkt_dual {rel:.1e} (tol {tol:.0e})", refresh=False)
+        bar.update(1)
+
+    cnt = Counters(on_step=on_step)
     log: list = []
     level_log = []
     phi = W = prev_shape = None
@@ -253,6 +260,7 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
     disc, stages, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol, opts, W, setup)
     level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": stages[-1].status,
                       "newton": cnt.newton - n0, "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
+    bar.close()
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     method = scene.solver.method
 

@@ -7,6 +7,7 @@ depends on the start).
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 
@@ -15,6 +16,8 @@ import numpy as np
 
 _DERIV_KEYS = ("nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad")
 HISTORY_KEYS = ("obj", "inf_pr", "inf_du", "mu", "alpha_pr")
+VERBOSE_PRINT_LEVEL = 5  # IPOPT's own iteration log (one line per iteration), shown at DEBUG (the CLI's -v)
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -28,7 +31,10 @@ class IpoptOptions:
 
     @classmethod
     def from_scene(cls, scene) -> "IpoptOptions":
-        return cls(tol=scene.solver.tol, max_iter=scene.solver.max_iter)
+        """The scene's tolerances; IPOPT's iteration log on stdout when this module's logger is at
+        DEBUG (``vesicle-opt -v``), silent otherwise."""
+        level = VERBOSE_PRINT_LEVEL if log.isEnabledFor(logging.DEBUG) else 0
+        return cls(tol=scene.solver.tol, max_iter=scene.solver.max_iter, print_level=level)
 
     def as_dict(self) -> dict:
         opts = {"ipopt.tol": self.tol, "ipopt.constr_viol_tol": self.tol,

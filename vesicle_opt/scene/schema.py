@@ -71,7 +71,7 @@ class Solver:
     M: float
     tol: float
     max_iter: int
-    backend: str = "ipopt"  # "ipopt" | "newton-krylov" | "auto" (see vesicle_opt.backend)
+    backend: str = "auto"  # "auto" | "ipopt" | "newton-krylov" (see vesicle_opt.backends.choose_backend)
     second_order: bool = True  # run the second-order check after a converged solve
     # penalty continuation / augmented Lagrangian (see vesicle_opt.continuation)
     M0: float = 10.0
@@ -143,7 +143,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
     "solver.tol": ("float", 1e-8, "> 0"),
     "solver.max_iter": ("int", 500, ">= 1"),
-    "solver.backend": ("str", "ipopt", ("ipopt", "newton-krylov", "auto")),
+    "solver.backend": ("str", "auto", ("ipopt", "newton-krylov", "auto")),
     "solver.second_order": ("bool", True, "true or false"),
     "solver.M0": ("float", 10.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
     "solver.M_factor": ("float", 10.0, "> 1"),

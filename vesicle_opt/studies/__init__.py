@@ -3,7 +3,8 @@
     import vesicle_opt as vo
     vo.run_study("table1", "out/table1", quick=True)       # == vesicle-opt study table1 --out ... --quick
 
-``STUDIES`` is the registry (the names ``vesicle-opt study --list`` prints); ``study(name)`` imports
+``STUDIES`` is the registry (the names ``vesicle-opt study --list`` prints, with the one-line
+``DESCRIPTIONS``); ``study(name)`` imports
 one (``-`` or ``_`` in the name), ``run_study`` runs it. The other modules here serve the studies
 and are not studies: ``runner`` (one resumable CSV writer over any executor), ``_common`` and
 ``_flowkit`` (shared helpers), ``bare_casadi`` (the hand-written CasADi baseline of the benchmarks).
@@ -21,6 +22,22 @@ from vesicle_opt.errors import InputError
 STUDIES = ("bench_3d", "bench_equilibrium", "bench_overhead", "diagonal", "energy_decay", "flow_vs_nlp",
            "h_refinement", "penalty_continuation", "penalty_vs_exact", "stress", "table1",
            "time_step_convergence", "torus_section5")
+# one line each for ``vesicle-opt study --list`` (the module docstring is the long form: ``study NAME --help``)
+DESCRIPTIONS = {
+    "bench_3d": "large-3D path: time, memory, Newton and CG counts against n (torus, NK backend)",
+    "bench_equilibrium": "IPOPT exact solve: iterations, time, Hessian nnz, memory against mesh size",
+    "bench_overhead": "cost of the abstractions: bare CasADi model against build_nlp + solve",
+    "diagonal": "Theorem 3.4: h -> 0 and M -> inf together; the rule M(h)",
+    "energy_decay": "Figure 3 analogue: log(E_M - E_min) against t for k and k/2 (scheme (18))",
+    "flow_vs_nlp": "flows (17), (18), (23) against the NLP: time to reach the equilibrium",
+    "h_refinement": "Theorem 3.3 / Corollary 3.2: convergence of the minimisers as h -> 0",
+    "penalty_continuation": "Theorem 3.2: penalty minimisers approach the constrained one as M -> inf",
+    "penalty_vs_exact": "work-precision: exact, penalty, continuation, augmented, SCP baseline",
+    "stress": "stiff and extreme cases: each a verified solution or an honest failure",
+    "table1": "Table 1 of the paper: the Section 5 torus on 16^3 ... 64^3 spectral grids",
+    "time_step_convergence": "Theorems 4.2-4.4: observed orders of the flows in the time step k",
+    "torus_section5": "Section 5 by the gradient flow: a flat disk pinches into a torus (Figures 1-2)",
+}
 NOT_STUDIES = ("_common", "_flowkit", "runner", "bare_casadi")
 
 
@@ -31,6 +48,11 @@ def study(name: str) -> ModuleType:
     if key not in STUDIES:
         raise InputError("study", f"unknown study {name!r}; one of {', '.join(STUDIES)}")
     return importlib.import_module(f"{__name__}.{key}")
+
+
+def docstring(name: str) -> str:
+    """The long description of a study (its module docstring), for ``vesicle-opt study NAME --help``."""
+    return (study(name).__doc__ or DESCRIPTIONS[str(name).replace("-", "_")]).strip()
 
 
 def run_study(name: str, out, quick: bool = False, **kwargs) -> int:

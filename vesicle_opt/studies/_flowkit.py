@@ -9,12 +9,15 @@ the finished rows on every run. Shared fields go through ``vesicle_opt.io.files.
 
 from __future__ import annotations
 
+import logging
 import csv
 import os
 from pathlib import Path
 
 from vesicle_opt import scene as S
 from vesicle_opt.flows.api import build_model, initial_field, make_scheme
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 
 def setup(name: str, sets: list[str]):
@@ -41,5 +44,5 @@ def report_failures(rows: list[dict]) -> bool:
     True when there is one (the study then returns 1)."""
     bad = [r for r in rows if str(r.get("status", "")).startswith("error")]
     for r in bad:
-        print(f"{r['case']}: {r['status']}", flush=True)
+        log.info(f"{r['case']}: {r['status']}")
     return bool(bad)

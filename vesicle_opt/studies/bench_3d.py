@@ -20,6 +20,7 @@ the solver's own CPU time (``solve_cpu_s``, newton-krylov only) shows what an id
 
 from __future__ import annotations
 
+import logging
 import os
 import resource
 import statistics
@@ -30,6 +31,8 @@ from pathlib import Path
 from vesicle_opt import scene
 from vesicle_opt.api import solve
 from vesicle_opt.studies.runner import in_fresh_process, run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 
 def _case(kind: str, n: int, backend: str) -> dict:
@@ -76,10 +79,9 @@ def case_rows(case: dict) -> list[dict]:
                 "wall_time_s": statistics.median(walls), "repeats": case["repeats"],
                 "total_wall_median_s": statistics.median(walls), "total_wall_min_s": min(walls),
                 "peak_rss_mb": max(r["peak_rss_mb"] for r in runs)})
-    print(f"bench_3d: {row['kind']:8s} n={row['n']:3d} {row['backend']:13s} E={row['energy']:.6f} "
+    log.info(f"bench_3d: {row['kind']:8s} n={row['n']:3d} {row['backend']:13s} E={row['energy']:.6f} "
           f"conv={row['converged']} newton={row['newton']} cg={row['cg']} "
-          f"wall(median of {case['repeats']})={row['total_wall_median_s']:.2f}s rss={row['peak_rss_mb']:.0f}MB",
-          flush=True)
+          f"wall(median of {case['repeats']})={row['total_wall_median_s']:.2f}s rss={row['peak_rss_mb']:.0f}MB")
     return [row]
 
 

@@ -8,6 +8,7 @@ toolkit no slower than the bare model, derivative evaluation <= 25% of the solve
 
 from __future__ import annotations
 
+import logging
 import statistics
 import sys
 from pathlib import Path
@@ -16,6 +17,8 @@ from vesicle_opt import scene
 from vesicle_opt.api import solve
 from vesicle_opt.studies.bare_casadi import bare_solve
 from vesicle_opt.studies.runner import in_fresh_process, run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 EXTRA = ["repeat", "derivative_fraction", "median_wall_time_s", "ratio_to_bare"]
 
@@ -49,7 +52,7 @@ def main(out: Path, quick: bool = False) -> int:
                      workers=1, extra_columns=EXTRA)
     for r in rows:
         if r["method"] == "toolkit" and r["repeat"] == "0":
-            print(f"n={r['n']}: toolkit/bare median wall time = {float(r['ratio_to_bare']):.3f}")
+            log.info(f"n={r['n']}: toolkit/bare median wall time = {float(r['ratio_to_bare']):.3f}")
     return 0
 
 

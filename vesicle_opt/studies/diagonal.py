@@ -12,6 +12,7 @@ fitted power law M(h) ~ h^-q is printed (e_pen ~ 1/M and e_disc ~ h^2 predict q 
 
 from __future__ import annotations
 
+import logging
 import csv
 import math
 from pathlib import Path
@@ -25,6 +26,8 @@ from vesicle_opt.mesh import discretize
 from vesicle_opt.verify.metrics import field_errors, observed_order, restrict, richardson
 from vesicle_opt.api import solve
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 NAME = "diagonal"
 MS = schedule(10.0, 10.0, 1e8)
@@ -105,8 +108,8 @@ def main(out, quick: bool = False, executor=None) -> int:
         w.writeheader()
         w.writerows([{**r, "fitted_q": q} for r in rules])
     for r in rules:
-        print(f"n={r['n']}: discretisation H1 error {r['disc_error_h1']:.3g}, M(h) = {r['M_rule_h1']:.3g} (H1), "
+        log.info(f"n={r['n']}: discretisation H1 error {r['disc_error_h1']:.3g}, M(h) = {r['M_rule_h1']:.3g} (H1), "
               f"{r['M_rule_energy']:.3g} (energy)")
-    print(f"fitted M(h) ~ h^-{q:.2f}")
+    log.info(f"fitted M(h) ~ h^-{q:.2f}")
     figure(rows, rules, out / f"{NAME}.png")
     return 0

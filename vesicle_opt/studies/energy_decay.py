@@ -14,6 +14,7 @@ constant-k case; ``energy_decay.png`` is drawn from the finished rows.
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,8 @@ from vesicle_opt.io.files import load_npz, save_npz
 from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 T_SS = 20.0
 EXTRA = ["row", "k", "step", "t", "penalized_energy", "excess", "energy_law_residual",
@@ -48,7 +51,7 @@ def _steady(case: dict) -> dict:
     phi_min, ok, status = BackwardEulerScheme(md, law_tol=sc.flow.law_tol).minimise(ss.phi)
     if ss.status != "t_end" or not ok:
         msg = f"steady state not found: flow {ss.status} ({ss.message}), IPOPT {status}"
-        print(msg, flush=True)
+        log.info(msg)
         raise RuntimeError(msg)
     st = {"phi": phi_min, "E_min": md.E_M(phi_min), "t": ss.t, "steps": ss.step,
           "flow_penalized_energy": md.E_M(ss.phi), "status": status,
@@ -62,9 +65,9 @@ def case_rows(case: dict) -> list[dict]:
     st = _steady(case)
     E_min = st["E_min"]
     if case["row"] == "steady":
-        print(f"E_min = {E_min:.12g} (flow to t = {st['t']:.4g} in {st['steps']} steps: E_M = "
+        log.info(f"E_min = {E_min:.12g} (flow to t = {st['t']:.4g} in {st['steps']} steps: E_M = "
               f"{st['flow_penalized_energy']:.12g}; IPOPT polish: {st['status']}, ||phi_min - phi(T_ss)|| = "
-              f"{st['polish_distance']:.2e})", flush=True)
+              f"{st['polish_distance']:.2e})")
         return [{"row": "steady", "n": case["n"], "t": st["t"], "step": st["steps"], "penalized_energy": E_min,
                  "flow_penalized_energy": st["flow_penalized_energy"], "status": st["status"],
                  "polish_distance": st["polish_distance"]}]
@@ -78,8 +81,8 @@ def case_rows(case: dict) -> list[dict]:
               "excess": r["penalized_energy"] - E_min, "energy_law_residual": r["energy_law_residual"]}
              for r in history.rows]
     law = max(abs(r.get("energy_law_residual", 0.0)) for r in rows)
-    print(f"k = {kk:.3g}: {o.status}, {o.step} steps, rejections {o.rejections}, "
-          f"E_M(T) - E_min = {rows[-1]['excess']:.4e}, max |law (22)| = {law:.2e}", flush=True)
+    log.info(f"k = {kk:.3g}: {o.status}, {o.step} steps, rejections {o.rejections}, "
+          f"E_M(T) - E_min = {rows[-1]['excess']:.4e}, max |law (22)| = {law:.2e}")
     return rows
 
 
@@ -103,7 +106,7 @@ def main(out: Path, quick: bool = False) -> int:
     b = {round(r["t"] / k): r["excess"] for r in rows if r["k"] == k / 2 and abs(r["t"] / k - round(r["t"] / k)) < 1e-9}
     common = sorted(set(a) & set(b))
     rel = max(abs(a[j] - b[j]) / abs(b[j]) for j in common if b[j] > 0)
-    print(f"max relative gap between the curves (E_M - E_min, k vs k/2): {rel:.3e}", flush=True)
+    log.info(f"max relative gap between the curves (E_M - E_min, k vs k/2): {rel:.3e}")
     fig, ax = plt.subplots(figsize=(6, 4))
     for kk in (k, k / 2):
         r = [x for x in rows if x["k"] == kk and x["excess"] > 0]

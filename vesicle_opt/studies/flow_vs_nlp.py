@@ -20,6 +20,7 @@ summary rows) and the PNG are derived from the finished rows.
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 
@@ -33,6 +34,8 @@ from vesicle_opt.api import solve
 from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup, write_derived_csv
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 TARGET = 1e-6  # relative energy error asked by the study
 PHI_TOL = 1e-3  # and the field itself close to phi* (lumped L^2, |Omega| = 64)
@@ -92,9 +95,9 @@ def _flow_rows(case: dict, nlp: dict) -> list[dict]:
                                        dt_max=sc.flow.dt_max, steady_tol=sc.flow.steady_tol), [CallbackTracker(record)])
     last = rows[-1]
     save_npz(_end_path(case, scheme), phi=o.phi)
-    print(f"{scheme:15s}: {o.status}, {o.step} steps, t = {o.t:.4g}, wall {o.wall_time_s:.1f}s, "
+    log.info(f"{scheme:15s}: {o.status}, {o.step} steps, t = {o.t:.4g}, wall {o.wall_time_s:.1f}s, "
           f"time to target {hit['t']} (energy alone: {hit['t_energy']}), best rel. energy error {best[0]:.2e}, "
-          f"final ||phi - phi*|| {last['phi_distance']:.2e}, final E {last['energy']:.10g}", flush=True)
+          f"final ||phi - phi*|| {last['phi_distance']:.2e}, final E {last['energy']:.10g}")
     return rows + [{"row": "summary", "method": scheme, "wall_time_s": o.wall_time_s, "time_to_target_s": hit["t"],
                     "time_to_energy_only_target_s": hit["t_energy"], "final_energy": last["energy"],
                     "best_energy_rel_error": best[0], "final_phi_distance": last["phi_distance"],
@@ -107,8 +110,8 @@ def _resolve_rows(case: dict, nlp: dict) -> list[dict]:
     low, E_star = case["from"], nlp["energy"]
     sc, md, _, _ = setup("ellipse-2d", _base(case["n"]))
     res2 = solve(sc, x0=load_npz(_end_path(case, low))["phi"])
-    print(f"NLP from the {low} end state: {res2.status}, converged={res2.converged}, "
-          f"E = {res2.energy:.10g} ({(res2.energy - E_star) / E_star:+.3e} relative to E*)", flush=True)
+    log.info(f"NLP from the {low} end state: {res2.status}, converged={res2.converged}, "
+          f"E = {res2.energy:.10g} ({(res2.energy - E_star) / E_star:+.3e} relative to E*)")
     return [{"row": "summary", "method": f"nlp-exact from {low} end state", "wall_time_s": res2.wall_time_s,
              "time_to_target_s": None, "final_energy": res2.energy,
              "best_energy_rel_error": abs(res2.energy - E_star) / E_star,
@@ -123,7 +126,7 @@ def case_rows(case: dict) -> list[dict]:
         return _flow_rows(case, nlp)
     if case["kind"] == "resolve":
         return _resolve_rows(case, nlp)
-    print(f"NLP: E* = {nlp['energy']:.10g}, {nlp['iterations']} iterations, {nlp['wall_time_s']:.2f}s", flush=True)
+    log.info(f"NLP: E* = {nlp['energy']:.10g}, {nlp['iterations']} iterations, {nlp['wall_time_s']:.2f}s")
     return [{"row": "summary", "method": "nlp-exact", "wall_time_s": nlp["wall_time_s"],
              "time_to_target_s": nlp["wall_time_s"], "final_energy": nlp["energy"], "best_energy_rel_error": 0.0,
              "final_phi_distance": 0.0, "status": nlp["status"], "steps": nlp["iterations"],
@@ -147,7 +150,7 @@ def main(out: Path, quick: bool = False, n: int | None = None, cap: float | None
     summary = {r["case"]: r for r in raw if r.get("row") == "summary"}
     nlp = summary.get(cases[0]["case"])
     if nlp is not None and nlp["converged"] != "True":
-        print(f"NLP did not converge: {nlp['status']}")
+        log.info(f"NLP did not converge: {nlp['status']}")
         return 1
     mine = [r for r in raw if r["case"] in {c["case"] for c in cases}]
     if report_failures(mine):

@@ -15,6 +15,7 @@ penalty, 2D to 256^2 (P1 consistent to 128^2); sphere-3d (P1 lumped, exact) to 3
 
 from __future__ import annotations
 
+import logging
 import csv
 import math
 from pathlib import Path
@@ -25,6 +26,8 @@ from vesicle_opt.studies._common import EXTRA, column, nlp_for, plt, row, savefi
 from vesicle_opt.verify.metrics import field_errors, observed_order, restrict, richardson
 from vesicle_opt.api import solve
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 NAME = "h_refinement"
 M_FIXED = 1e4
@@ -117,7 +120,7 @@ def main(out, quick: bool = False, executor=None) -> int:
         w.writeheader()
         w.writerows(od)
     for o in od:
-        print(f"{o['case']}: observed orders H1 {o['order_h1']:.2f}, Lap L2 {o['order_lap']:.2f}, "
+        log.info(f"{o['case']}: observed orders H1 {o['order_h1']:.2f}, Lap L2 {o['order_lap']:.2f}, "
               f"energy {o['order_energy']:.2f} (Richardson p = {o['richardson_order']:.2f}); successive "
               f"differences: H1 {o['order_h1_successive']:.2f}, Lap L2 {o['order_lap_successive']:.2f}")
     figure(rows, out / f"{NAME}.png")

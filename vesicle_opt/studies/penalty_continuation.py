@@ -13,8 +13,8 @@ continuation (every stage from the initial shape) to measure what the warm start
 
 from __future__ import annotations
 
+import logging
 import csv
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +26,8 @@ from vesicle_opt.verify.metrics import observed_order
 from vesicle_opt.api import solve
 from vesicle_opt.nlp.ipopt import IpoptOptions
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 NAME = "penalty_continuation"
 FIT_RANGE = (1e2, 1e6)  # above ~1e6 round-off in M (A - alpha) (penalty.roundoff_floor) competes with the 1/M bias
@@ -126,8 +128,8 @@ def main(out, quick: bool = False, executor=None) -> int:
     figure(rows, out / f"{NAME}.png")
     bad = [r for r in rs if not RATE_BAND[0] <= r["rate"] <= RATE_BAND[1]]
     for r in rs:
-        print(f"{r['case']}: rate of {r['quantity']} against M = {r['rate']:.3f}")
+        log.info(f"{r['case']}: rate of {r['quantity']} against M = {r['rate']:.3f}")
     if bad:
-        print(f"{NAME}: rates outside {RATE_BAND}: {bad}", file=sys.stderr)
+        log.warning(f"{NAME}: rates outside {RATE_BAND}: {bad}")
         return 1
     return 0

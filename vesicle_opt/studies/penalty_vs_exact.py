@@ -13,6 +13,7 @@ state 3.3e-5 lower in energy than the reference from the scene's start).
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,8 @@ from vesicle_opt.api import solve
 from vesicle_opt.nlp.ipopt import IpoptOptions
 from vesicle_opt.nlp.scp import scp  # cvxpy, its optional dependency, is imported when scp runs
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 NAME = "penalty_vs_exact"
 REF_TOL = 1e-8  # the scene's tol; 1e-10 ends Solved_To_Acceptable_Level on 48^2
@@ -136,7 +139,7 @@ def main(out, quick: bool = False, executor=None) -> int:
     rows = run_cases(NAME, cs, run, out / f"{NAME}.csv", executor=executor,
                      extra_columns=EXTRA + ["energy_difference"])
     for r in rows:
-        print(f"{r['method']:13s} {r.get('setting', ''):18s} time {float(r['wall_time_s']):7.2f}s "
+        log.info(f"{r['method']:13s} {r.get('setting', ''):18s} time {float(r['wall_time_s']):7.2f}s "
               f"H1 err {float(r['error_h1'] or 'nan'):.2e} energy err {float(r['error_energy'] or 'nan'):.2e} "
               f"(E - E* = {float(r.get('energy_difference') or 'nan'):+.2e}) "
               f"{r['status']}")

@@ -8,7 +8,8 @@
   the case has), so a case is finished iff all its rows are in the file.
 * Re-running resumes: a torn last line (a kill mid-write) is cut off, rows of incomplete cases are
   dropped, and finished cases are skipped. Every row is therefore in the file exactly once.
-* Progress: a one-line bar on stderr (cases done / total, the last case and its wall time).
+* Progress (``show_progress``): cases done / total with an ETA and the last case's wall time on
+  stderr (``io.progress.bar``: tqdm on a terminal, one plain line per finished case otherwise).
 """
 
 from __future__ import annotations
@@ -17,13 +18,14 @@ import csv
 import io
 import multiprocessing as mp
 import os
-import sys
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable, Iterable
 
 import numpy as np
+
+from vesicle_opt.io import progress
 
 COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual", "area_residual",
            "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
@@ -97,14 +99,6 @@ def _fmt(v):
     return v
 
 
-def progress(done: int, total: int, label: str, stream=sys.stderr, width: int = 30) -> None:
-    k = int(width * done / max(total, 1))
-    stream.write(f"\r[{'#' * k}{'.' * (width - k)}] {done}/{total} {label[:60]:<60}")
-    if done == total:
-        stream.write("\n")
-    stream.flush()
-
-
 def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], csv_path: Path,
               executor: Executor | None = None, workers: int = 1, show_progress: bool = True,
               extra_columns: Iterable[str] = ()) -> list[dict]:
@@ -120,9 +114,12 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
     finished = log.done()
     todo = [c for c in cases if c["case"] not in finished]
     total, done = len(cases), len(cases) - len(todo)
-    if show_progress:
-        progress(done, total, f"{study}: {done} done before" if done else study)
+    bar = progress.bar(study, total=total, unit="cases", interval=0.0, force=show_progress)
+    bar.update(done)
+    if done:
+        bar.set_postfix_str(f"{done} done before (resumed)")
     if not todo:
+        bar.close()
         return log.rows()
     own = executor is None
     if own:
@@ -138,9 +135,10 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
                                "status": f"error: {type(exc).__name__}: {exc}"[:200]}], float("nan")
             log.append(case["case"], [{"study": study, **r} for r in rows])
             done += 1
-            if show_progress:
-                progress(done, total, f"{case['case']} ({wall:.1f}s)")
+            bar.set_postfix_str(f"last {case['case']} ({wall:.1f} s)")
+            bar.update(1)
     finally:
+        bar.close()
         if own:
             executor.shutdown(wait=True, cancel_futures=True)
     return log.rows()

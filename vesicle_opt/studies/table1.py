@@ -22,6 +22,7 @@ when every solve converged, is a torus, and (exact) passed the second-order chec
 
 from __future__ import annotations
 
+import logging
 import resource
 import sys
 from pathlib import Path
@@ -35,6 +36,8 @@ from vesicle_opt.nk.setup import prepare
 from vesicle_opt.studies._common import TABLE1, TABLE1_M, pyplot as plt, torus_check
 from vesicle_opt.studies.runner import run_cases
 from vesicle_opt.verify import lobpcg
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 PAPER, M_PAPER = TABLE1, TABLE1_M  # the paper's Table 1 (``_common``)
 
@@ -93,9 +96,9 @@ def case_rows(case: dict) -> list[dict]:
         row["predicted_penalty_energy"] = ex.energy - lam2 / M_PAPER
         row["predicted_penalized"] = ex.energy - lam2 / (2 * M_PAPER)
         rows.append(row)
-        print(f"table1: n={n} {method}: E={r.energy:.6f} (paper {PAPER[n]}) converged={r.converged} "
+        log.info(f"table1: n={n} {method}: E={r.energy:.6f} (paper {PAPER[n]}) converged={r.converged} "
               f"torus={topo['torus_ok']} newton={r.iterations} cg={r.extra['cg_iterations']} "
-              f"wall={r.wall_time_s:.2f}s", flush=True)
+              f"wall={r.wall_time_s:.2f}s")
     return rows
 
 

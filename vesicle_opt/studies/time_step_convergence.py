@@ -14,6 +14,7 @@ are npz files beside the CSV): ``time_step_convergence.csv`` (``row`` = referenc
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 
@@ -25,6 +26,8 @@ from vesicle_opt.io.files import load_npz, save_npz
 from vesicle_opt.studies._common import pyplot as plt
 from vesicle_opt.studies._flowkit import report_failures, setup, write_derived_csv
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 SCHEMES = (("penalty", "(14)"), ("lagrange", "(13)"), ("backward-euler", "(14)"))
 REFERENCE = {"(14)": "penalty", "(13)": "lagrange"}  # the scheme whose fine-k run is each flow's reference
@@ -65,8 +68,8 @@ def case_rows(case: dict) -> list[dict]:
     n, T, flow_name = case["n"], case["T"], case["flow"]
     if case["row"] == "reference":
         scheme, k = REFERENCE[flow_name], case["k_ref"]
-        print(f"reference for {flow_name}: {scheme} at k = {k:.3g}, {ref['steps']} steps, "
-              f"{ref['wall_time_s']:.1f}s", flush=True)
+        log.info(f"reference for {flow_name}: {scheme} at k = {k:.3g}, {ref['steps']} steps, "
+              f"{ref['wall_time_s']:.1f}s")
         return [{"row": "reference", "scheme": scheme, "flow": flow_name, "n": n, "T": T, "k": k,
                  "steps": ref["steps"], "energy": ref["energy"], "rejections": ref["rejections"],
                  "wall_time_s": ref["wall_time_s"]}]
@@ -74,7 +77,7 @@ def case_rows(case: dict) -> list[dict]:
     md, o, wall = _solve("ellipse-2d", _base(n) + [f'flow.scheme="{scheme}"'], k, T)
     e2 = float(np.sqrt(md.norm2(o.phi - ref["phi"])))
     eE = abs(md.E(o.phi) - ref["energy"]) / abs(ref["energy"])
-    print(f"{scheme:15s} k = {k:.3e}  L2 error {e2:.3e}  energy error {eE:.3e}  {wall:.1f}s", flush=True)
+    log.info(f"{scheme:15s} k = {k:.3e}  L2 error {e2:.3e}  energy error {eE:.3e}  {wall:.1f}s")
     return [{"row": "run", "scheme": scheme, "flow": flow_name, "n": n, "T": T, "k": k, "steps": o.step,
              "l2_error": e2, "energy_rel_error": eE, "rejections": o.rejections, "wall_time_s": wall}]
 
@@ -105,7 +108,7 @@ def main(out: Path, quick: bool = False) -> int:
         rows += r
         orders.append({"scheme": scheme, "flow": flow_name, "order_l2": p2, "order_energy": pE,
                        "expected": 1 if scheme == "backward-euler" else 2})
-        print(f"{scheme}: observed order L2 {p2:.3f}, energy {pE:.3f}", flush=True)
+        log.info(f"{scheme}: observed order L2 {p2:.3f}, energy {pE:.3f}")
     write_derived_csv(out / "time_step_orders.csv", orders, ORDERS)
     _plot(out / "time_step_convergence.png", rows, orders)
     return 0

@@ -34,6 +34,7 @@ step's law verified, ended a single torus, and every equilibrium solve converged
 
 from __future__ import annotations
 
+import logging
 import csv
 import sys
 from pathlib import Path
@@ -46,6 +47,8 @@ from vesicle_opt.flows.run import write_flow
 from vesicle_opt.io.output import draw_cut
 from vesicle_opt.studies._common import TABLE1, TABLE1_M, pyplot as plt, torus_check
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 PAPER, M_PAPER = TABLE1, TABLE1_M  # the paper's Table 1 (``_common``)
 
@@ -114,8 +117,8 @@ def case_rows(case: dict) -> list[dict]:
         "flow_vs_torus_start": eq.energy / ref.energy - 1, "volume_residual": eq.volume_residual,
         "area_residual": eq.area_residual, "status": eq.status, "path": " -> ".join(states), **topo})
     np.savez_compressed(out / "equilibrium.npz", phi=eq.phi)
-    print(f"torus_section5: n={n} flow t={s['t']:.3g} steps={s['steps']} E_flow={s['energy']:.6f} "
-          f"E_eq={eq.energy:.6f} (paper {PAPER[n]}) path: {' -> '.join(states)}", flush=True)
+    log.info(f"torus_section5: n={n} flow t={s['t']:.3g} steps={s['steps']} E_flow={s['energy']:.6f} "
+          f"E_eq={eq.energy:.6f} (paper {PAPER[n]}) path: {' -> '.join(states)}")
     return rows
 
 
