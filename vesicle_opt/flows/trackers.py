@@ -252,7 +252,7 @@ class ProgressTracker(Tracker):
             self._bar.update(done)
 
     def handle(self, state, row):
-        t = f"{state.t:.4g}" + ("" if self.t_end is None else f"/{self.t_end:.4g}")
+        t = f"{state.t:.4g}" + ("" if self.t_end is None or self._by_steps else f"/{self.t_end:.4g}")
         self._bar.set_postfix_str(f"step {state.step}  t = {t}  dt = {row['dt']:.3g}  "
                                   f"E = {row.get('energy', math.nan):.8g}  "
                                   f"law = {row.get('energy_law_residual', math.nan):.1e}  "

@@ -96,7 +96,7 @@ def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
         ax.set_title(title, fontsize=9)
         fig.colorbar(image, ax=ax, shrink=0.8, label="phi (+1 inside, -1 outside)")
     else:
-        fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+        fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), layout="constrained")
         if disc.grid_shape is not None:
             F = _grid_field(disc, phi)
             mid = [k // 2 for k in disc.grid_shape]
@@ -123,8 +123,10 @@ def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
 def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "", *, endpoint: bool = False):
     """A 2D section of phi (first index along x) over [lo, hi) (a periodic grid; ``endpoint``: samples
     including hi) with its zero level, in physical coordinates; returns the image (for a colorbar)."""
-    image = ax.imshow(cut.T, origin="lower", extent=[lo[0], hi[0], lo[1], hi[1]], cmap="RdBu_r", vmin=-1, vmax=1)
     xs = [np.linspace(a, b, k, endpoint=endpoint) for a, b, k in zip(lo, hi, cut.shape)]
+    half = [0.5 * (x[1] - x[0]) for x in xs]  # pixels centred on the samples
+    image = ax.imshow(cut.T, origin="lower", cmap="RdBu_r", vmin=-1, vmax=1,
+                      extent=[xs[0][0] - half[0], xs[0][-1] + half[0], xs[1][0] - half[1], xs[1][-1] + half[1]])
     ax.contour(xs[0], xs[1], cut.T, levels=[0.0], colors="k")
     ax.set_title(title, fontsize=9)
     ax.set_aspect("equal")
