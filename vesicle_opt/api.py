@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 
 import numpy as np
 
 from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
+from vesicle_opt.model.feasibility import check_feasible
+from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import prepare
@@ -36,6 +37,12 @@ from vesicle_opt.verify import lobpcg, second_order, topology
 
 
 log = logging.getLogger(__name__)  # one INFO line per phase of a solve (the CLI shows them; -q hides them)
+
+
+def _log_start(scene, chosen: str, backend: str | None, n_nodes: int) -> None:
+    """The INFO line of a solve's start: scene, method, backend and why (``backends.reason``)."""
+    log.info("%s: method %s on %s (%s), %d nodes", scene.name, scene.solver.method, chosen,
+             reason(scene, chosen, backend), n_nodes)
 
 
 def _replace_extra(result: Result, **items) -> Result:
@@ -108,14 +115,13 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
                 raise NotSupported("solver.method", f"must be one of {', '.join(METHODS)}, got {method!r}")
             scene = scene.replace(solver=dataclasses.replace(scene.solver, method=method))
         chosen = choose_backend(scene, backend)
-        log.info("%s: %s on %s (%s), %s nodes", scene.name, scene.solver.method, chosen,
-                 reason(scene, chosen, backend), math.prod(scene.mesh.n))
     else:
         raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
     check_second_order = scene.solver.method == "exact" and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)
-        nlp = nlp or build_nlp(scene)
+        nlp = nlp or build_nlp(scene)  # refuses infeasible data (one line, before anything is logged)
+        _log_start(scene, chosen, backend, nlp.disc.n_nodes)
         result = solve_nlp(nlp, options=options, **_ipopt_start(nlp, x0))
         # the assembled check (verify.second_order): translations excluded on periodic grids
         if check_second_order and result.converged:
@@ -124,7 +130,10 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
         setup = prepare(scene)  # built once: the solve and its second-order check
-        result = nk_solve.solve(scene, x0=_phi_start(x0, setup[0].n_nodes), options=options, setup=setup)
+        disc = setup[0]
+        check_feasible(*constraint_data(scene, disc), scene, disc)  # before anything is logged
+        _log_start(scene, chosen, backend, disc.n_nodes)
+        result = nk_solve.solve(scene, x0=_phi_start(x0, disc.n_nodes), options=options, setup=setup, check=False)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
         if check_second_order and result.converged:
