@@ -14,6 +14,7 @@ Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
     8  studies               the studies and their registry
     9  cli                   the command line (argparse; the study verb uses the registry)
    10  vesicle_opt           the package's public namespace (__init__); nothing inside imports it
+   11  __main__              ``python -m vesicle_opt`` (the CLI's main)
 
 ``io`` stands aside: anyone may import it, and it imports nothing of the package but errors and
 result. Every intra-package import (module-level and function-local; ``cli``'s
@@ -38,6 +39,7 @@ LAYERS = {
     "api": 7, "backends": 7,
     "studies": 8, "cli": 9,
     "": 10,  # vesicle_opt/__init__.py
+    "__main__": 11,  # python -m vesicle_opt: runs the CLI
 }
 FREE = "io"  # imported by anyone; imports only errors and result
 IO_MAY_IMPORT = {"errors", "result"}

@@ -129,9 +129,11 @@ def test_failure_is_reported_not_returned_as_solution():
 
 
 def test_backend_dispatch_and_validation():
-    spectral = _scene("torus-table1-3d", "mesh.kind='spectral'", "mesh.n=16")
-    with pytest.raises(InputError, match="solver.backend"):
+    spectral = _scene("torus-table1-3d", "mesh.kind='spectral'", "mesh.n=16", "solver.backend='ipopt'")
+    with pytest.raises(InputError, match="solver.backend"):  # forcing IPOPT on a spectral mesh
         choose_backend(spectral)
+    # the default backend is "auto" (README: it was "ipopt" before), which runs spectral meshes
+    assert choose_backend(_scene("torus-table1-3d", "mesh.kind='spectral'", "mesh.n=16")) == "newton-krylov"
     auto = _scene("torus-table1-3d", "mesh.kind='spectral'", "mesh.n=16", "solver.backend='auto'")
     assert choose_backend(auto) == "newton-krylov"
     assert choose_backend(_scene("ellipse-2d", "solver.backend='auto'")) == "ipopt"

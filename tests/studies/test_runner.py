@@ -191,7 +191,7 @@ def test_translation_alignment_recovers_a_known_shift():
 
 def test_study_list_names_every_registered_study_each_with_a_main(capsys):
     assert cli.main(["study", "--list"]) == 0
-    listed = capsys.readouterr().out.split()
+    listed = [line.split()[0] for line in capsys.readouterr().out.splitlines()]  # name, then its one line
     assert listed == list(STUDIES)
     for name in listed:
         main = study(name).main
