@@ -1,6 +1,7 @@
 """What a new user meets first: --version, python -m vesicle_opt, --help, study --list / NAME --help,
 -v / -q, the default backend "auto", progress lines without carriage returns."""
 
+import json
 import subprocess
 import sys
 
@@ -50,12 +51,18 @@ def test_verbose_shows_ipopt_log_and_quiet_shows_nothing(tmp_path, capfd):
     out, err = capfd.readouterr()
     assert "iter    objective    inf_pr" in out  # IPOPT's own iteration table (print_level 5)
     assert "method exact on ipopt (auto: 2D" in err  # which backend and why
+    verbose = json.loads((tmp_path / "summary.json").read_text())
     assert cli.main(["-q", *argv]) == 0
+    quiet = json.loads((tmp_path / "summary.json").read_text())
+    # the iteration log and the progress callback change no number (timings aside)
+    assert {k: v for k, v in verbose.items() if not k.endswith("_time_s")} == \
+        {k: v for k, v in quiet.items() if not k.endswith("_time_s")}
     out, err = capfd.readouterr()
     assert err == "" and "objective" not in out and len(out.strip().splitlines()) == 1  # the result line only
     assert cli.main(argv) == 0  # default: the phase line on stderr, no iteration log
     out, err = capfd.readouterr()
     assert "objective" not in out and "on ipopt" in err
+    assert "IPOPT: " in err and " iterations, " in err and "\r" not in err  # progress, plain lines off a terminal
 
 
 def test_verbose_newton_krylov_and_flow_lines(tmp_path, capfd):

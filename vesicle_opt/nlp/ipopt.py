@@ -14,6 +14,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from vesicle_opt.io import progress
+from vesicle_opt.nlp.iteration_progress import IterationProgress
+
 _DERIV_KEYS = ("nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad")
 HISTORY_KEYS = ("obj", "inf_pr", "inf_du", "mu", "alpha_pr")
 VERBOSE_PRINT_LEVEL = 5  # IPOPT's own iteration log (one line per iteration), shown at DEBUG (the CLI's -v)
@@ -47,8 +50,18 @@ class IpoptOptions:
 
 
 def make_solver(nlp, options: IpoptOptions):
-    """``ca.nlpsol`` of an NLP's {"x", "f", "g", "p"} dict, built once."""
-    return ca.nlpsol("equilibrium", "ipopt", nlp.as_dict(), options.as_dict())
+    """``ca.nlpsol`` of an NLP's {"x", "f", "g", "p"} dict, built once; with progress on (the CLI),
+    IPOPT's iterations drive a progress bar (``nlp.iteration_progress``)."""
+    d, opts = nlp.as_dict(), options.as_dict()
+    bar = None
+    if progress.enabled():
+        n_p = d["p"].numel() if "p" in d else 0
+        bar = IterationProgress(d["x"].numel(), d["g"].numel(), n_p)
+        opts["iteration_callback"] = bar
+    solver = ca.nlpsol("equilibrium", "ipopt", d, opts)
+    if bar is not None:
+        solver.iteration_progress = bar  # the callback must live as long as the solver
+    return solver
 
 
 def run_ipopt(solver, nlp, x0, p=None, lam_x0=None, lam_g0=None):
@@ -58,7 +71,12 @@ def run_ipopt(solver, nlp, x0, p=None, lam_x0=None, lam_g0=None):
         if value is not None:
             args[key] = value
     t0 = time.perf_counter()
-    sol = solver(**args)
+    try:
+        sol = solver(**args)
+    finally:
+        bar = getattr(solver, "iteration_progress", None)
+        if bar is not None:
+            bar.close()
     wall = time.perf_counter() - t0
     return sol, solver.stats(), wall, np.asarray(sol["x"]).ravel()
 
