@@ -1,6 +1,7 @@
 """scene.resolved.toml: the validated scene written back; loading it gives the same Scene."""
 
 import json
+import os
 import tomllib
 
 import numpy as np
@@ -30,7 +31,6 @@ def test_round_trip_of_physical_targets_and_paths(tmp_path):
     assert from_dict(table, "phys") == sc
     np.savez(tmp_path / "start.npz", phi=np.zeros(4))
     raw["initial"] = {"shape": "file", "file": "start.npz"}
-    import os
     cwd = os.getcwd()
     os.chdir(tmp_path)
     try:

@@ -138,6 +138,7 @@ class SnapshotTracker(Tracker):
         self.title, self.energy, self.vtk = title, energy, vtk
         self.next_frame = 1
         self._last_step = None
+        self._row: dict = {}
 
     def _due(self, state) -> int:
         j = int(math.floor(state.t / self.frame_dt * (1 + 1e-9) + 1e-9))
@@ -185,8 +186,7 @@ class SnapshotTracker(Tracker):
 
     def finish(self, state):
         if self._last_step != state.step:  # the end state (t_end, steps, steady or stopped)
-            row = getattr(self, "_row", {})
-            self._snapshot(self.next_frame, state.t, state.phi, row.get("energy"), state.step)
+            self._snapshot(self.next_frame, state.t, state.phi, self._row.get("energy"), state.step)
             self.next_frame += 1
 
 

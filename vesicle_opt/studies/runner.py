@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import csv
 import io
+import logging
 import multiprocessing as mp
 import os
+import sys
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -123,7 +125,9 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
         return log.rows()
     own = executor is None
     if own:
-        executor = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        level = logging.getLogger("vesicle_opt").getEffectiveLevel()
+        executor = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                                       initializer=worker_logging, initargs=(level,))
     try:
         futures = {executor.submit(_timed, fn, c): c for c in todo}
         for fut in as_completed(futures):
@@ -142,6 +146,17 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
         if own:
             executor.shutdown(wait=True, cancel_futures=True)
     return log.rows()
+
+
+def worker_logging(level: int) -> None:
+    """A spawned worker's ``vesicle_opt`` logger at the parent's level, to stderr (a spawned process
+    starts with no handler, so a case's log lines would otherwise be dropped)."""
+    logger = logging.getLogger("vesicle_opt")
+    if not logger.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        logger.addHandler(handler)
+    logger.setLevel(level)
 
 
 def in_fresh_process(fn: Callable, *args):
