@@ -72,6 +72,7 @@ class PlainBar(NullBar):
         self._t0 = time.perf_counter()
         self._last = self._t0
         self._closed = False
+        self._shown = None  # (n, postfix) of the last line written
 
     def _count(self, x: float) -> str:
         return f"{x:.4g}" if isinstance(x, float) and not float(x).is_integer() else f"{int(x)}"
@@ -90,6 +91,7 @@ class PlainBar(NullBar):
         self.stream.write(self.line() + "\n")
         self.stream.flush()
         self._last = time.perf_counter()
+        self._shown = (self.n, self.postfix)
 
     def update(self, n: float = 1) -> None:
         self.n += n
@@ -102,7 +104,8 @@ class PlainBar(NullBar):
     def close(self) -> None:
         if not self._closed:
             self._closed = True
-            self._emit()
+            if self._shown != (self.n, self.postfix):  # the final state, unless just written
+                self._emit()
 
 
 def bar(desc: str, total: float | None = None, unit: str = "it", *, stream=None, interval: float = 5.0,
