@@ -12,6 +12,7 @@ Newton steps) shows counts and elapsed time only.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 
@@ -28,9 +29,11 @@ def enabled() -> bool:
 
 
 def _is_tty(stream) -> bool:
+    """A terminal with a width (a pty without a size, e.g. under ``script``, gets plain lines: tqdm
+    would cut its bar to 0 columns and show nothing)."""
     try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError):
+        return bool(stream.isatty()) and os.get_terminal_size(stream.fileno()).columns > 0
+    except (AttributeError, ValueError, OSError):
         return False
 
 
