@@ -10,6 +10,9 @@ the same reports added here:
   ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``;
 * ``topology`` and its counts (``verify.topology.report``).
 
+``solver.array = 'jax'`` runs the newton-krylov backend's arrays on JAX devices (``nk_jax``); its
+field comes back to the host and is certified, and second-order checked, by the numpy code.
+
 Warm starts: ``x0`` is a field phi (nodal values), a full NLP vector, or an earlier ``Result`` (on
 IPOPT its primal-dual point is reused when the NLP matches, else its phi), on either backend.
 ``throw=True`` raises :class:`~vesicle_opt.errors.SolverError` (carrying the result) instead of
@@ -24,6 +27,7 @@ import numpy as np
 
 from vesicle_opt.backends import METHODS, choose_backend
 from vesicle_opt.errors import InputError, NotSupported, SolverError
+from vesicle_opt import nk_jax
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import prepare
@@ -115,7 +119,9 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
         setup = prepare(scene)  # built once: the solve and its second-order check
-        result = nk_solve.solve(scene, x0=_phi_start(x0, setup[0].n_nodes), options=options, setup=setup)
+        # solver.array: the same method with numpy arrays or on JAX devices (nk_jax), same Result
+        run = nk_jax.solve if scene.solver.array == "jax" else nk_solve.solve
+        result = run(scene, x0=_phi_start(x0, setup[0].n_nodes), options=options, setup=setup)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
         so = lobpcg.check(scene, result, setup, rotations=True) if check_second_order and result.converged else None
