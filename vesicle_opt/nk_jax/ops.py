@@ -18,8 +18,8 @@ g(phi) = (phi/eps + C)(1 - phi^2) and s = g'(phi):
 
 and the model P(k) = max(cE p0 + cB m q, FLOOR cE p0) (+ rho_A m^2 N at k = 0), q = eps(-sigma) + 2/eps,
 p0 = m q^2/eps (``nk.precond``). The symbols are rebuilt inside each kernel from the 1D wavenumbers
-(broadcast, fused by XLA), so no full-size symbol array is stored: a field costs its own 8 bytes a
-node and its transform 8 (n_last/2 + 1)/n_last x 2 bytes a node (``memory``).
+(broadcast, fused by XLA), so no full-size symbol array is stored (``memory_bytes_per_node``: the
+device memory of a solve, a node).
 """
 
 from __future__ import annotations
@@ -149,16 +149,22 @@ class GridOps:
         return jnp.sqrt(jnp.maximum(val, 0.0))
 
 
-def memory_bytes_per_node(shape) -> float:
-    """Device bytes per grid node of a Newton-CG solve on this backend (module docstring).
+CG_TEMP_BYTES = 72.5  # bytes a node of XLA temporaries inside the compiled CG loop (CG's x, r, z, p, Hp
+# and the transforms of two products): ``memory_analysis()`` of the program, 72.5 at 64^3, 73.0 at 32^3
 
-    Live float64 fields at the peak (the CG loop inside a Newton step): phi, lap, r, s, dE, dB, g,
-    the two Hessian diagonals (9, ``newton``), CG's x, r, z, p, Hp (5) and the subspace
-    preconditioner's C and U (2 d), plus the line search's trial phi and its state (4); XLA keeps
-    about three transforms (complex128 on the half spectrum) and two field temporaries alive
-    inside one product. Counted, not measured on a device (``studies/bench_jax`` measures host RSS).
+
+def memory_bytes_per_node(dim: int = 3) -> float:
+    """Device bytes a grid node at the peak of a Newton-CG solve on this backend (the CG loop).
+
+    Float64 fields: the compiled CG program's arguments (b, s, the two Hessian diagonals, dB, and the
+    subspace preconditioner's C_i = m d_i phi and U_i = P^{-1} C_i: 5 + 2 dim) and output (x), the
+    Newton point's phi, Delta_h phi, r, dE, g and dA = m held outside it (6), plus the program's
+    temporaries ``CG_TEMP_BYTES``: 216.5 bytes a node in 3D (XLA's memory analysis of the program
+    on the CPU; a GPU's FFT workspace comes on top and is not measured here).
     """
-    dim = len(shape)
-    fields = 9 + 5 + 2 * dim + 4 + 2
-    half = (shape[-1] // 2 + 1) / shape[-1]
-    return 8.0 * fields + 3 * 16.0 * half
+    return 8.0 * ((5 + 2 * dim) + 1 + 6) + CG_TEMP_BYTES
+
+
+def largest_grid_per_gib(gib: float = 1.0, dim: int = 3) -> int:
+    """The largest n with n^dim nodes within ``gib`` GiB at ``memory_bytes_per_node``."""
+    return int((gib * 2**30 / memory_bytes_per_node(dim)) ** (1 / dim))
