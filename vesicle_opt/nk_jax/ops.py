@@ -4,8 +4,8 @@ on a periodic grid, in JAX (float64, ``jit``): the device form of ``model.lumped
 
 Fields live in grid shape (n_0, ..., n_{d-1}), C order (``reshape`` of the numpy path's node
 vectors), optionally split across devices along the first grid axis (``layout.GridLayout``):
-every kernel constrains its field outputs to that sharding, XLA partitions the FFTs (its own
-transforms) and turns the sums of A, B and the inner products into cross-device reductions.
+every kernel constrains its field outputs to that sharding, the FFTs run slab-decomposed
+(``layout``) and XLA turns the sums of A, B and the inner products into cross-device reductions.
 
 With m the constant cell weight (Fourier grids: nodal quadrature), sigma the symbol of Delta_h,
 g(phi) = (phi/eps + C)(1 - phi^2) and s = g'(phi):
@@ -85,10 +85,10 @@ class GridOps:
 
     # --- transforms ---------------------------------------------------------------------------
     def _fft(self, v):
-        return jnp.fft.rfftn(v)
+        return self.layout.rfftn(v)
 
     def _ifft(self, vh):
-        return self.layout.constrain(jnp.fft.irfftn(vh, s=self.shape))
+        return self.layout.irfftn(vh)
 
     def _lap(self, v):
         return self._ifft(self.symbol() * self._fft(v))
