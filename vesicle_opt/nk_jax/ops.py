@@ -153,18 +153,25 @@ CG_TEMP_BYTES = 72.5  # bytes a node of XLA temporaries inside the compiled CG l
 # and the transforms of two products): ``memory_analysis()`` of the program, 72.5 at 64^3, 73.0 at 32^3
 
 
-def memory_bytes_per_node(dim: int = 3) -> float:
-    """Device bytes a grid node at the peak of a Newton-CG solve on this backend (the CG loop).
+SLAB_BYTES = 9.2  # bytes a node (over D) of the slab FFT's all_to_all buffers on D > 1 devices: measured
+# 89.1 bytes a global node per device for the CG program at 32^3 on two devices against 169.1 / 2
+
+
+def memory_bytes_per_node(dim: int = 3, devices: int = 1) -> float:
+    """Bytes each device holds per node of the whole grid at the peak of a Newton-CG solve on this
+    backend (the CG loop), the grid split over ``devices`` (``layout``).
 
     Float64 fields: the compiled CG program's arguments (b, s, the two Hessian diagonals, dB, and the
     subspace preconditioner's C_i = m d_i phi and U_i = P^{-1} C_i: 5 + 2 dim) and output (x), the
     Newton point's phi, Delta_h phi, r, dE, g and dA = m held outside it (6), plus the program's
     temporaries ``CG_TEMP_BYTES``: 216.5 bytes a node in 3D (XLA's memory analysis of the program
-    on the CPU; a GPU's FFT workspace comes on top and is not measured here).
+    on the CPU; a GPU's FFT workspace comes on top and is not measured here), divided by D, plus
+    ``SLAB_BYTES`` / D for the transposes when D > 1.
     """
-    return 8.0 * ((5 + 2 * dim) + 1 + 6) + CG_TEMP_BYTES
+    one = 8.0 * ((5 + 2 * dim) + 1 + 6) + CG_TEMP_BYTES
+    return (one + (SLAB_BYTES if devices > 1 else 0.0)) / devices
 
 
-def largest_grid_per_gib(gib: float = 1.0, dim: int = 3) -> int:
-    """The largest n with n^dim nodes within ``gib`` GiB at ``memory_bytes_per_node``."""
-    return int((gib * 2**30 / memory_bytes_per_node(dim)) ** (1 / dim))
+def largest_grid_per_gib(gib: float = 1.0, dim: int = 3, devices: int = 1) -> int:
+    """The largest n with n^dim nodes when each of ``devices`` has ``gib`` GiB (``memory_bytes_per_node``)."""
+    return int((gib * 2**30 / memory_bytes_per_node(dim, devices)) ** (1 / dim))
