@@ -47,6 +47,9 @@ SCRIPT = textwrap.dedent("""
                          "hlo_all_gather": ops.lap.lower(P).compile().as_text().count("all-gather(")}
     out["field_rel"] = max(float(np.max(np.abs(a - b)) / np.max(np.abs(b))) for a, b in zip(res[2][0], res[1][0]))
     out["scalar_rel"] = max(abs(a - b) / abs(b) for a, b in zip(res[2][1], res[1][1]))
+    if sys.argv[1:] != ["solve"]:
+        print(json.dumps(out))
+        raise SystemExit(0)
     runs = [solver.solve(sc, devices=jax.devices()[:D]) for D in (1, 2)]
     out["devices"] = [r.extra["devices"] for r in runs]
     out["converged"] = [r.converged for r in runs]
@@ -60,17 +63,30 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-
-def test_two_devices_give_the_one_device_answer():
+def _run(*args) -> dict:
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu",
            "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run([sys.executable, "-c", SCRIPT, *args], env=env, capture_output=True, text=True,
+                          timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert out["ops"]["2"] == {"slab_fft": True, "shards": 2, "hlo_all_gather": 0}, out  # split, no gathers
     assert out["ops"]["1"]["shards"] == 1
-    # the operators on two devices: the same numbers to round-off (measured 1.5e-15 fields, 4e-16 sums)
+    # the operators on two devices: the same numbers to round-off (measured 5.5e-16 fields, 7.6e-16 sums)
     assert out["field_rel"] <= 1e-13 and out["scalar_rel"] <= 1e-13, out
+    return out
+
+
+def test_two_device_operators_equal_one_device():
+    """E, A, B, dE, dB, H v, P^{-1} v, the dual norm and d_i phi on the 16^3 grid split in two slabs
+    (the slab FFT: no all-gather in the compiled Laplacian) equal the one-device numbers."""
+    _run()
+
+
+@pytest.mark.slow
+def test_two_devices_give_the_one_device_answer():
+    """The 16^3 torus solved on one and on two devices (~12 s of CPU: two compilations)."""
+    out = _run("solve")
     assert out["devices"] == [1, 2] and out["converged"] == [True, True], out
     e1, e2 = out["energy_at_constraints"]
     assert abs(e2 - e1) <= 1e-12 * abs(e1), out  # the issue's target; measured 3e-16
