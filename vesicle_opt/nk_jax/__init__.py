@@ -24,5 +24,6 @@ def available() -> bool:
 def solve(scene, disc=None, **kwargs):
     """``nk_jax.solver.solve`` (see there). Imported here, on first use, because jax is optional:
     the package and its front door import without it."""
-    from vesicle_opt.nk_jax import solver as _solver  # noqa: PLC0415 (jax is an optional dependency)
+    # imported on first use: jax is an optional dependency and the front door imports this package
+    from vesicle_opt.nk_jax import solver as _solver
     return _solver.solve(scene, disc, **kwargs)
