@@ -77,9 +77,23 @@ def test_front_door_penalty_fd_2d():
     _compare(("ellipse-2d", "mesh.n=32", "solver.method='penalty'", "solver.M=1e3"))
 
 
+def _at_constraints(r) -> float:
+    """E* at the exact constraints to first order: E - lam . c (lam = dE*/d(alpha, beta))."""
+    return r.energy - r.lambda_volume * r.volume_residual - r.lambda_area * r.area_residual
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("n", [32, 64])
 def test_table1_torus_agrees(n):
-    """The issue's target: 10 E of the Table-1 torus (spectral, exact, tol 1e-8) to 1e-11 relative."""
-    rn, rj = _compare(("torus-table1-3d", "mesh.kind='spectral'", f"mesh.n={n}", "solver.second_order=false"),
-                      energy_rel=1e-11)
+    """The issue's target: 10 E of the Table-1 torus (spectral, exact, tol 1e-8) to 1e-11 relative,
+    at the constraints. E itself may move by lam . c within the stopping test's |c| <= 0.1 tol
+    (|A - alpha| <= 0.1 tol |Omega|, |B - beta| <= 0.1 tol beta) on any two round-off paths: numpy
+    against numpy with one BLAS thread or several differed by 7.7e-11 at 64^3 (measured)."""
+    sc_sets = ("torus-table1-3d", "mesh.kind='spectral'", f"mesh.n={n}", "solver.second_order=false")
+    rn, rj = _compare(sc_sets, energy_rel=1.0)  # E is bounded below, by the tolerance
+    sc = _scene(*sc_sets)
+    tol, volume, beta = sc.solver.tol, rn.disc.volume, sc.constraints.beta
+    slack = 2 * 0.1 * tol * (abs(rn.lambda_volume) * volume + abs(rn.lambda_area) * beta)
+    assert abs(rj.energy - rn.energy) <= slack, (rj.energy, rn.energy, slack)
+    en = _at_constraints(rn)
+    assert abs(_at_constraints(rj) - en) <= 1e-11 * abs(en), (_at_constraints(rj), en)
