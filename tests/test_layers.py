@@ -8,7 +8,8 @@ Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
     2  mesh                  discretisations
     3  model                 functionals, penalty, feasibility on a discretisation
     4  verify                certification, KKT, second order, topology
-    5  nlp | nk              the two solver backends; neither imports the other
+    5  nlp | nk | nk_jax     the two solver backends; neither imports the other (nk_jax: nk's
+                             arrays on JAX, imports nk's options/setup, nk never imports it)
     6  flows                 gradient flows (may use a backend's NLP pieces)
     7  api, backends         the front door and its backend table (api -> backends only)
     8  studies               the studies and their registry
@@ -34,7 +35,7 @@ LAYERS = {
     "mesh": 2,
     "model": 3,
     "verify": 4,
-    "nlp": 5, "nk": 5,
+    "nlp": 5, "nk": 5, "nk_jax": 5,
     "flows": 6,
     "api": 7, "backends": 7,
     "studies": 8, "cli": 9,
@@ -46,7 +47,8 @@ IO_MAY_IMPORT = {"errors", "result"}
 # (importing module, imported module) -> why it is still there. None at main 6e1c74d.
 ALLOWED: dict[tuple[str, str], str] = {}
 # units of one layer that may import each other, one way (otherwise one layer means independent)
-SIDEWAYS = {("api", "backends"): "the front door consults its own support table"}
+SIDEWAYS = {("api", "backends"): "the front door consults its own support table",
+            ("nk_jax", "nk"): "the JAX arrays reuse nk's options, setup and constants (never back)"}
 
 
 def unit(module: str) -> str:
@@ -88,6 +90,8 @@ def test_the_rule():
     assert violation(P + "verify.kkt", P + "nlp.exact")  # up
     assert violation(P + "nk.solve", P + "nlp.ipopt")  # nlp | nk
     assert violation(P + "nlp.solve", P + "nk.solve")
+    assert violation(P + "nk_jax.solver", P + "nk.setup") is None and violation(P + "nk.solve", P + "nk_jax.ops")
+    assert violation(P + "nk_jax.solver", P + "nlp.exact")
     assert violation(P + "studies.table1", P + "cli")  # cli on top of studies
     assert violation(P + "cli", P + "studies") is None
     assert violation(P + "io.output", P + "scene.schema")  # io imports only errors, result
@@ -115,5 +119,5 @@ def test_imports_point_down():
 def test_nlp_and_nk_are_independent():
     """Restated on its own, since it is the point of having two backends."""
     edges = [(i.where(), i.module, i.target) for i in I.imports()
-             if {unit(i.module), unit(i.target)} == {"nlp", "nk"}]
+             if {unit(i.module), unit(i.target)} in ({"nlp", "nk"}, {"nlp", "nk_jax"})]
     assert not edges, edges

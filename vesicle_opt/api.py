@@ -10,6 +10,9 @@ the same reports added here:
   ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``;
 * ``topology`` and its counts (``verify.topology.report``).
 
+``solver.array = 'jax'`` runs the newton-krylov backend's arrays on JAX devices (``nk_jax``); its
+field comes back to the host and is certified, and second-order checked, by the numpy code.
+
 Warm starts: ``x0`` is a field phi (nodal values), a full NLP vector, or an earlier ``Result`` (on
 IPOPT its primal-dual point is reused when the NLP matches, else its phi), on either backend.
 ``throw=True`` raises :class:`~vesicle_opt.errors.SolverError` (carrying the result) instead of
@@ -25,6 +28,7 @@ import numpy as np
 
 from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
+from vesicle_opt import nk_jax
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.nk import solve as nk_solve
@@ -133,7 +137,9 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         disc = setup[0]
         check_feasible(*constraint_data(scene, disc), scene, disc)  # before anything is logged
         _log_start(scene, chosen, backend, disc.n_nodes)
-        result = nk_solve.solve(scene, x0=_phi_start(x0, disc.n_nodes), options=options, setup=setup, check=False)
+        # solver.array: the same method with numpy arrays or on JAX devices (nk_jax), same Result
+        run = nk_jax.solve if scene.solver.array == "jax" else nk_solve.solve
+        result = run(scene, x0=_phi_start(x0, disc.n_nodes), options=options, setup=setup, check=False)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
         if check_second_order and result.converged:

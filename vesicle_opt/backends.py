@@ -5,6 +5,8 @@
 * ``newton-krylov``: the matrix-free backend (``vesicle_opt.nk``); needs lumped mass and nodal
   quadrature (its products use Delta_h = -M_L^{-1} K): ``mesh.base.LUMPED``, the setting that
   ``mesh.base.require_lumped`` guards in the matrix-free model itself.
+* ``solver.array``: ``numpy`` (default) or ``jax`` (``vesicle_opt.nk_jax``: the newton-krylov
+  backend's operators and loop on JAX devices, periodic grids, methods exact and penalty).
 * ``auto``: newton-krylov for spectral meshes and for 3D lumped/nodal meshes above ``AUTO_3D_NODES``
   (the sparse factorisation of the bi-Laplacian fills in beyond that: ~24 s per IPOPT iteration
   at 32^3 was measured), IPOPT otherwise.
@@ -18,7 +20,7 @@ from __future__ import annotations
 
 import math
 
-from vesicle_opt.errors import NotSupported
+from vesicle_opt.errors import InputError, NotSupported
 from vesicle_opt.mesh.base import LUMPED
 
 AUTO_3D_NODES = 20**3
@@ -73,8 +75,22 @@ def reason(scene, chosen: str, backend: str | None = None) -> str:
         f"auto: {scene.mesh.mass} mass / {scene.mesh.quadrature} quadrature need IPOPT"
 
 
+def check_array(scene, chosen: str) -> None:
+    """``solver.array = 'jax'`` (``vesicle_opt.nk_jax``) is the newton-krylov backend's second array
+    library: InputError when the scene runs on IPOPT (the schema checks jax and the grid)."""
+    if scene.solver.array == "jax" and chosen != "newton-krylov":
+        raise InputError("solver.array", f"'jax' runs the newton-krylov backend, not {chosen!r}; set "
+                         "solver.backend = 'newton-krylov' (or 'auto' on a spectral mesh)")
+
+
 def choose_backend(scene, backend: str | None = None) -> str:
     """The backend a scene runs on (``backend`` overrides ``solver.backend``), validated."""
+    chosen = _choose(scene, backend)
+    check_array(scene, chosen)
+    return chosen
+
+
+def _choose(scene, backend: str | None) -> str:
     b = backend or scene.solver.backend
     if b == "auto":
         n_nodes = math.prod(scene.mesh.n)

@@ -37,9 +37,11 @@ def test_torus_check_accepts_a_torus_and_rejects_others():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["table1", "bench_3d"])
+@pytest.mark.parametrize("name", ["table1", "bench_3d", "bench_jax"])
 def test_quick_3d_study_appends_and_resumes(tmp_path, name):
     import csv
+    if name == "bench_jax":
+        pytest.importorskip("jax")
     module = study(name)
     module.main(tmp_path, quick=True)
     rows = list(csv.DictReader((tmp_path / f"{name}.csv").open()))

@@ -9,6 +9,7 @@ overrides use the same dotted keys, with values parsed as TOML.
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import math
 import tomllib
 from dataclasses import dataclass
@@ -79,6 +80,7 @@ class Solver:
     M_max: float = 1e6  # continuation end; the round-off floor (model.penalty.roundoff_floor) grows like
     # M sqrt(N): at tol 1e-8 the last stage is certified only up to M ~ 1e4 on the bundled 2D meshes
     max_outer: int = 20
+    array: str = "numpy"  # "numpy" | "jax": the array library of the newton-krylov backend (nk_jax)
 
 
 @dataclass(frozen=True)
@@ -149,6 +151,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.M_factor": ("float", 10.0, "> 1"),
     "solver.M_max": ("float", 1e6, f"M0 <= M_max <= {M_LIMIT:g}"),
     "solver.max_outer": ("int", 20, ">= 1"),
+    "solver.array": ("str", "numpy", ("numpy", "jax")),
     # gradient flows (vesicle_opt.flows)
     "flow.scheme": ("str", "penalty", ("penalty", "lagrange", "backward-euler")),
     "flow.gamma": ("float", 1.0, "> 0"),
@@ -310,11 +313,27 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     constraints = Constraints(alpha, beta, target, nu, area)
     initial = parse_shape("initial", val["initial"], dim)
     _check_penalty(val)
+    _check_array(val)
     solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
                     val["solver.backend"], second_order=val["solver.second_order"], M0=val["solver.M0"],
                     M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
-                    max_outer=val["solver.max_outer"])
+                    max_outer=val["solver.max_outer"], array=val["solver.array"])
     return Scene(name, domain, mesh, model, constraints, initial, solver, _flow(val))
+
+
+def _check_array(val: dict) -> None:
+    """solver.array = 'jax' (vesicle_opt.nk_jax) needs jax installed and a periodic grid (fd or
+    spectral: FFT-applied Laplacians); checked here, before any work."""
+    if val["solver.array"] != "jax":
+        return
+    if val["mesh.kind"] not in ("fd", "spectral"):
+        raise InputError("solver.array", f"'jax' needs a periodic grid (mesh.kind 'fd' or 'spectral'), "
+                         f"got mesh.kind {val['mesh.kind']!r}")
+    if val["solver.method"] not in ("exact", "penalty"):
+        raise InputError("solver.array", f"'jax' runs solver.method 'exact' or 'penalty', got "
+                         f"{val['solver.method']!r}")
+    if importlib.util.find_spec("jax") is None:
+        raise InputError("solver.array", "'jax' needs the optional extra: pip install 'vesicle_opt[jax]'")
 
 
 def _physical_targets(val: dict, target, dim: int, domain: Domain) -> tuple[float, float]:

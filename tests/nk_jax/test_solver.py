@@ -1,0 +1,99 @@
+"""The JAX array backend (``solver.array = 'jax'``) against the numpy path, through the front door:
+the same KKT point, Newton and CG counts, certificate and summary; the one-line input errors."""
+
+import dataclasses
+import importlib.util
+
+import numpy as np
+import pytest
+
+from vesicle_opt import scene as S
+from vesicle_opt.api import solve
+from vesicle_opt.cli import main as cli_main
+from vesicle_opt.errors import InputError
+
+ENERGY_REL = 1e-10  # both stop at tol 1e-8 on the same KKT point; measured 1e-13 .. 5e-12 (E is
+# stationary there, and the numpy path itself moves 1.3e-11 under 1e-15 start perturbations, 32^3 torus)
+COUNT_REL = 0.10  # the issue's target for Newton counts (measured equal on these scenes)
+CG_REL = 0.25  # CG totals follow the path's round-off: numpy against itself with the start scaled by
+# 1 +- 1e-15 took 259 .. 354 CG steps on the 32^3 torus (measured), the W refresh being a threshold test
+
+
+def _scene(name, *sets):
+    return S.load(name, ["solver.backend='newton-krylov'", *sets])
+
+
+def test_input_errors_name_solver_array(monkeypatch):
+    """One-line InputErrors before any work: no periodic grid, IPOPT, a method nk_jax does not run,
+    and jax not installed (find_spec patched)."""
+    with pytest.raises(InputError, match="solver.array.*periodic grid"):
+        S.load("sphere-3d", ["solver.array='jax'"])
+    with pytest.raises(InputError, match="solver.array.*'exact' or 'penalty'"):
+        S.load("ellipse-2d", ["solver.array='jax'", "solver.method='continuation'"])
+    if importlib.util.find_spec("jax") is not None:
+        with pytest.raises(InputError, match="solver.array.*newton-krylov"):
+            solve(S.load("ellipse-2d", ["solver.array='jax'", "solver.backend='ipopt'"]))
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "jax" else real(name, *a))
+    with pytest.raises(InputError, match=r"solver.array.*pip install 'vesicle_opt\[jax\]'"):
+        S.load("ellipse-2d", ["solver.array='jax'", "mesh.kind='spectral'"])
+    with pytest.raises(InputError, match="solver.array: must be one of numpy, jax"):
+        S.load("ellipse-2d", ["solver.array='cupy'"])
+
+
+def test_cli_refuses_jax_on_p1_with_exit_2(tmp_path, capsys):
+    code = cli_main(["solve", "sphere-3d", "--set", "solver.array='jax'", "--out", str(tmp_path / "o")])
+    assert code == 2 and "solver.array" in capsys.readouterr().err
+
+
+def _compare(sets, energy_rel=ENERGY_REL):
+    pytest.importorskip("jax")
+    sc = _scene(*sets)
+    rn = solve(sc)
+    rj = solve(sc.replace(solver=dataclasses.replace(sc.solver, array="jax")))
+    assert rn.converged and rj.converged, (rn.reason, rj.reason)
+    assert abs(rj.energy - rn.energy) <= energy_rel * abs(rn.energy), (rj.energy, rn.energy)
+    assert abs(rj.iterations - rn.iterations) <= COUNT_REL * rn.iterations, (rj.iterations, rn.iterations)
+    cg_n, cg_j = rn.extra["cg_iterations"], rj.extra["cg_iterations"]
+    assert abs(cg_j - cg_n) <= CG_REL * cg_n, (cg_j, cg_n)
+    assert rj.extra["array"] == "jax" and "array" not in rn.extra
+    # the same certificate: recomputed in numpy on the returned field
+    assert (rj.outcome, rj.extra["second_order"]) == (rn.outcome, rn.extra["second_order"])
+    sn, sj = rn.summary(sc.name), rj.summary(sc.name)
+    assert set(sj) >= set(sn) and (sj["outcome"], sj.get("reason")) == (sn["outcome"], sn.get("reason"))
+    return rn, rj
+
+
+def test_front_door_exact_spectral_2d():
+    """The ellipse on a 32^2 Fourier grid, exact constraints, second-order check on the numpy side."""
+    rn, rj = _compare(("ellipse-2d", "mesh.kind='spectral'", "mesh.n=32"))
+    lam_n = np.array([rn.lambda_volume, rn.lambda_area])
+    lam = np.array([rj.lambda_volume, rj.lambda_area])
+    assert np.max(np.abs(lam - lam_n)) <= 1e-6 * np.max(np.abs(lam_n))  # issue 6's multiplier agreement
+
+
+def test_front_door_penalty_fd_2d():
+    """The paper's penalty form (11) on the FFT-applied FD grid."""
+    _compare(("ellipse-2d", "mesh.n=32", "solver.method='penalty'", "solver.M=1e3"))
+
+
+def _at_constraints(r) -> float:
+    """E* at the exact constraints to first order: E - lam . c (lam = dE*/d(alpha, beta))."""
+    return r.energy - r.lambda_volume * r.volume_residual - r.lambda_area * r.area_residual
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("n", [32, 64])
+def test_table1_torus_agrees(n):
+    """The issue's target: 10 E of the Table-1 torus (spectral, exact, tol 1e-8) to 1e-11 relative,
+    at the constraints. E itself may move by lam . c within the stopping test's |c| <= 0.1 tol
+    (|A - alpha| <= 0.1 tol |Omega|, |B - beta| <= 0.1 tol beta) on any two round-off paths: numpy
+    against numpy with one BLAS thread or several differed by 7.7e-11 at 64^3 (measured)."""
+    sc_sets = ("torus-table1-3d", "mesh.kind='spectral'", f"mesh.n={n}", "solver.second_order=false")
+    rn, rj = _compare(sc_sets, energy_rel=1.0)  # E is bounded below, by the tolerance
+    sc = _scene(*sc_sets)
+    tol, volume, beta = sc.solver.tol, rn.disc.volume, sc.constraints.beta
+    slack = 2 * 0.1 * tol * (abs(rn.lambda_volume) * volume + abs(rn.lambda_area) * beta)
+    assert abs(rj.energy - rn.energy) <= slack, (rj.energy, rn.energy, slack)
+    en = _at_constraints(rn)
+    assert abs(_at_constraints(rj) - en) <= 1e-11 * abs(en), (_at_constraints(rj), en)

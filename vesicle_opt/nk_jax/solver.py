@@ -1,0 +1,213 @@
+"""The Newton-Krylov backend on JAX (``solver.array = 'jax'``): ``nk.solve`` for ``exact`` and
+``penalty`` on periodic grids (spectral, FD by FFT), with the fields on one or several devices.
+
+* ``exact``: the augmented Lagrangian with dual Newton steps lam <- lam - W^{-1} c,
+  W = G^T H_rho^{-1} G, of ``nk.solve._exact`` (the same rho start, refresh and growth rules and
+  the same outer test |c| <= margin tol, dual KKT <= tol), least-squares multipliers in the dual
+  metric of P0;
+* ``penalty``: one inner solve with lam = 0, rho = (M, M) (the paper's E_{M,h} (11)).
+
+Nested iteration (coarse grids first, ``nk.setup.coarse_levels``; the interpolant by
+``nk.setup.resample`` on the host) as on numpy. The result is the one certified ``Result`` of
+every backend: the returned field is brought back to the host and ``verify.certify.build_result``
+recomputes E_h, A, B, the multipliers' KKT residual and the round-off floor in numpy on the numpy
+discretisation, so the certificate, the summary and the front door's second-order check
+(``verify.lobpcg``, numpy) are those of the numpy path.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from vesicle_opt.errors import InputError
+from vesicle_opt.mesh import discretize
+from vesicle_opt.mesh.spectral import fourier_grid
+from vesicle_opt.model.feasibility import check_feasible
+from vesicle_opt.model.problem import constraint_data, initial_guess
+from vesicle_opt.nk.newton_cg import Counters
+from vesicle_opt.nk.options import NewtonKrylovOptions
+from vesicle_opt.nk.setup import coarse_levels, on_fourier_grid, resample
+from vesicle_opt.nk.solve import l2_floor
+from vesicle_opt.nk_jax.layout import GridLayout
+from vesicle_opt.nk_jax.newton import DeviceObjective, newton_minimize
+from vesicle_opt.nk_jax.ops import GridOps
+from vesicle_opt.result import Result
+from vesicle_opt.scene.shapes import phase_field
+from vesicle_opt.verify.certify import build_result
+
+METHODS = ("exact", "penalty")
+
+
+def _ls_kernel(ops, rig):
+    """(N, rhs) of argmin_lam |rig dE - lam_A dA - lam_B dB|_* (``nk.solve._least_squares_multipliers``)."""
+    def kernel(dE, dA, dB):
+        G = (dA, dB)
+        PG = [ops._apply_inverse(v, 1.0, 0.0, 0.0) for v in G]
+        N = jnp.array([[jnp.sum(G[i] * PG[j]) for j in range(2)] for i in range(2)])
+        rhs = jnp.array([rig * jnp.sum(dE * PG[i]) for i in range(2)])
+        return N, rhs
+    return jax.jit(kernel)
+
+
+def _dual_kkt_kernel(ops, rig):
+    def kernel(dE, dA, dB, lam0, lam1):
+        res = rig * dE - lam0 * dA - lam1 * dB
+        dn = ops._dual_norm
+        scale = rig * dn(dE) + jnp.abs(lam0) * dn(dA) + jnp.abs(lam1) * dn(dB)
+        return dn(res) / jnp.maximum(scale, np.finfo(float).tiny)
+    return jax.jit(kernel)
+
+
+class Level:
+    """One grid: its operators, objective and the exact method's helper kernels."""
+
+    def __init__(self, scene, disc, alpha, beta, cnt, devices):
+        self.disc = disc
+        self.layout = GridLayout(disc.grid_shape, devices)
+        self.ops = GridOps(disc.fourier, scene.model.epsilon, scene.model.C, self.layout)
+        rig = scene.model.rigidity
+        self.obj = DeviceObjective(self.ops, rig, alpha, beta, np.zeros(2), np.zeros(2), cnt)
+        self._ls = _ls_kernel(self.ops, rig)
+        self._dual = _dual_kkt_kernel(self.ops, rig)
+        self._gpg = jax.jit(lambda g, cE: jnp.sum(g * self.ops._apply_inverse(g, cE, 0.0, 0.0)))
+
+    def multipliers(self, pt) -> np.ndarray:
+        N, rhs = jax.device_get(self._ls(pt.dE, self.obj.ones, pt.dB))
+        return np.linalg.solve(np.asarray(N), np.asarray(rhs))
+
+    def dual_kkt(self, pt, lam) -> float:
+        return float(self._dual(pt.dE, self.obj.ones, pt.dB, lam[0], lam[1]))
+
+
+def _dual_hessian(level: Level, pt, w_tol: float, max_cg: int):
+    obj = level.obj
+    sols = [obj.pcg(pt, g, w_tol, max_cg)[0] for g in (obj.ones, pt.dB)]
+    if not all(s.status == "converged" for s in sols):
+        return None
+    W = np.array([[float(obj._dot(obj.ones, s.x)), float(obj._dot(pt.dB, s.x))] for s in sols])
+    return 0.5 * (W + W.T)
+
+
+def _exact(level: Level, phi, tol, opts: NewtonKrylovOptions, volume, beta, log, dual_model=None):
+    """``nk.solve._exact`` on the device (see there)."""
+    obj, rig = level.obj, level.obj.rig
+    pt = obj.point(phi)
+    obj.lam = level.multipliers(pt)
+    W = None
+    if dual_model is not None:
+        W, obj.rho = dual_model
+    else:
+        obj.rho = np.array([opts.rho_hat / float(level._gpg(g, rig)) for g in (obj.ones, pt.dB)])
+    cscale = np.array([volume, abs(beta)])
+    prev_c = np.inf
+    status = "max_iter"
+    lam_ls, dual = obj.lam, math.inf
+    for outer in range(1, opts.exact_max_outer + 1):
+        crel = float(np.max(np.abs(pt.c) / cscale))
+        inner_tol = max(0.1 * tol, min(1e-3, crel))
+        budget = opts.max_iter - obj.cnt.newton
+        pt, inner = newton_minimize(obj, pt.phi, inner_tol, budget, opts.max_cg)
+        crel = float(np.max(np.abs(pt.c) / cscale))
+        lam_ls = level.multipliers(pt)
+        dual = level.dual_kkt(pt, lam_ls)
+        log.append({"outer": outer, "inner": inner, "newton": obj.cnt.newton, "c_rel": crel,
+                    "dual": dual, "rho": obj.rho.tolist(), "lam": lam_ls.tolist()})
+        if crel <= opts.constraint_margin * tol and dual <= tol:
+            status = "converged"
+            break
+        if inner not in ("converged", "max_iter"):
+            status = f"inner_{inner}"
+            break
+        if obj.cnt.newton >= opts.max_iter:
+            break
+        if W is None or crel > opts.w_refresh * prev_c:
+            W = _dual_hessian(level, pt, opts.w_tol, opts.max_cg)
+        try:
+            obj.lam = obj.lam - np.linalg.solve(W, pt.c)
+        except (np.linalg.LinAlgError, ValueError):
+            W = None
+            obj.lam = obj.lam - obj.rho * pt.c
+        if crel > 0.25 * prev_c:
+            obj.rho = obj.rho * 10.0
+        prev_c = crel
+    return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy()))
+
+
+def _run_level(scene, level: Level, phi_host, log, tol, opts, W=None):
+    """One level from a host start; returns (pt, status, lam, dual, M, mu, W)."""
+    s, obj = scene.solver, level.obj
+    phi = level.layout.put(phi_host)
+    if s.method == "exact":
+        pt, status, lam, dual, W = _exact(level, phi, tol, opts, level.disc.volume,
+                                          obj.target[1], log, W)
+        return pt, status, lam, dual, None, (0.0, 0.0), W
+    obj.lam, obj.rho = np.zeros(2), np.array([s.M, s.M], float)
+    pt, status = newton_minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg)
+    return pt, status, None, pt.rel, (float(s.M), float(s.M)), (0.0, 0.0), W
+
+
+def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
+          check: bool = True, setup=None, devices=None) -> Result:
+    """``nk.solve.solve`` with the arrays in JAX (module docstring); ``devices``: the devices to
+    split the grid over (default all of ``jax.devices()``, the largest count dividing n_0)."""
+    if scene.solver.method not in METHODS:
+        raise InputError("solver.array", f"'jax' runs solver.method {', '.join(METHODS)}, got "
+                         f"{scene.solver.method!r}")
+    opts = options or NewtonKrylovOptions.from_scene(scene)
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    disc = setup[0] if setup is not None else on_fourier_grid(disc or discretize(scene))
+    rig, eps, tol = scene.model.rigidity, scene.model.epsilon, opts.tol
+    alpha, beta = constraint_data(scene, disc)
+    if check:
+        check_feasible(alpha, beta, scene, disc)
+    shape_start = x0 is None and scene.initial.shape != "file"
+    levels = coarse_levels(disc, eps, opts.coarse_min_n) if (opts.nested and shape_start) else []
+    cnt = Counters()
+    log: list = []
+    level_log = []
+    phi = W = prev_shape = None
+    for shape in levels:
+        cdisc = fourier_grid(disc.box, shape, disc.kind)
+        start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \
+            resample(phi, prev_shape, shape)
+        ca, cb = constraint_data(scene, cdisc)
+        n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
+        level = Level(scene, cdisc, ca, cb, cnt, devices)
+        pt, status, *_, W = _run_level(scene, level, start, log, max(tol, opts.coarse_tol), opts, W)
+        level_log.append({"n": list(shape), "status": status, "newton": cnt.newton - n0,
+                          "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
+        phi, prev_shape = level.layout.get(pt.phi), shape
+    if phi is None:
+        phi = initial_guess(scene, disc) if x0 is None else np.array(x0, float)
+    else:
+        phi = resample(phi, prev_shape, disc.grid_shape)
+    n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
+    level = Level(scene, disc, alpha, beta, cnt, devices)
+    pt, status, lam, dual, M, mu, _ = _run_level(scene, level, phi, log, tol, opts, W)
+    level_log.append({"n": list(disc.grid_shape), "status": status, "newton": cnt.newton - n0,
+                      "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
+    wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
+    phi_out, dE = level.layout.get(pt.phi), level.layout.get(pt.dE)
+    floor = l2_floor(disc, rig, dE, eps)
+    method = scene.solver.method
+    hist = dict(cnt.history)
+    hist["outer"] = log
+    hist["levels"] = level_log
+    totals = {"cpu_time_s": cpu, "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
+              "outer_iterations": len(log) if method == "exact" else 1,
+              "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
+              "fine_newton_iterations": level_log[-1]["newton"]}
+    return build_result(
+        scene=scene, disc=disc, alpha=alpha, beta=beta, phi=phi_out, tol=tol,
+        solver_status=status, solver_success=status == "converged", method=method,
+        lam=None if M is not None else tuple(lam), M=M, mu=mu,
+        exact_constraints=method == "exact", floor=floor,
+        iterations=cnt.newton, wall_time_s=wall, derivative_time_s=cnt.deriv_time, history=hist,
+        extra={"backend": "newton-krylov", "array": "jax", "devices": level.layout.count,
+               "platform": level.layout.devices[0].platform, "mesh_kind": disc.kind,
+               "kkt_dual": float(dual), "kkt_l2_floor": floor, **totals})
