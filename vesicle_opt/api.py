@@ -10,8 +10,10 @@ the same reports added here:
   ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``;
 * ``topology`` and its counts (``verify.topology.report``).
 
-Warm starts: ``x0`` is a field phi (nodal values), a full NLP vector, or an earlier ``Result`` (on
-IPOPT its primal-dual point is reused when the NLP matches, else its phi), on either backend.
+Warm starts: ``x0`` is a field phi (nodal values), a full NLP vector, a path to a ``phi.npz``, or an
+earlier ``Result`` (on IPOPT its primal-dual point is reused when the NLP matches, else its phi), on
+either backend; a file or Result of another periodic grid of the same box is Fourier-resampled
+(``model.warm_start``; ``flow(scene, x0=...)`` takes the same argument).
 ``throw=True`` raises :class:`~vesicle_opt.errors.SolverError` (carrying the result) instead of
 returning a result that is not converged.
 """
@@ -24,6 +26,7 @@ import numpy as np
 
 from vesicle_opt.backends import METHODS, choose_backend
 from vesicle_opt.errors import InputError, NotSupported, SolverError
+from vesicle_opt.model.warm_start import start_field
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import prepare
@@ -45,8 +48,7 @@ def _ipopt_start(nlp: NLP, x0) -> dict:
         if x0.x is not None and x0.x.size == nlp.x0.size and x0.lam_g is not None \
                 and x0.lam_g.size == nlp.lbg.size:
             return {"x0": x0.x, "lam_x0": x0.lam_x, "lam_g0": x0.lam_g}
-        x0 = x0.phi
-    x0 = np.asarray(x0, float).ravel()
+    x0 = start_field(x0, nlp.disc)  # a path or a Result of another periodic grid: resampled
     if x0.size == nlp.x0.size:
         return {"x0": x0}
     if x0.size == nlp.disc.n_nodes:
@@ -55,12 +57,13 @@ def _ipopt_start(nlp: NLP, x0) -> dict:
                      f"{nlp.x0.size}), got {x0.size}")
 
 
-def _phi_start(x0, n_nodes: int) -> np.ndarray | None:
+def _phi_start(x0, disc) -> np.ndarray | None:
     """phi for the matrix-free backend from any accepted warm start: a Result, a field, or an IPOPT
     vector of a lumped NLP (phi, or phi with the penalty's two lifted unknowns)."""
     if x0 is None:
         return None
-    phi = np.asarray(x0.phi if isinstance(x0, Result) else x0, float).ravel()
+    phi = start_field(x0, disc)  # a path or a Result of another periodic grid: resampled
+    n_nodes = disc.n_nodes
     if phi.size not in (n_nodes, n_nodes + 2):
         raise InputError("x0", f"a warm start needs {n_nodes} nodal values (or a lifted NLP vector of "
                          f"{n_nodes + 2}), got {phi.size}")
@@ -115,7 +118,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
         setup = prepare(scene)  # built once: the solve and its second-order check
-        result = nk_solve.solve(scene, x0=_phi_start(x0, setup[0].n_nodes), options=options, setup=setup)
+        result = nk_solve.solve(scene, x0=_phi_start(x0, setup[0]), options=options, setup=setup)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
         so = lobpcg.check(scene, result, setup, rotations=True) if check_second_order and result.converged else None
