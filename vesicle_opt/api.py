@@ -24,6 +24,7 @@ import dataclasses
 
 import numpy as np
 
+from vesicle_opt import resources
 from vesicle_opt.backends import METHODS, choose_backend
 from vesicle_opt.errors import InputError, NotSupported, SolverError
 from vesicle_opt.model.warm_start import start_field
@@ -106,6 +107,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
                 raise NotSupported("solver.method", f"must be one of {', '.join(METHODS)}, got {method!r}")
             scene = scene.replace(solver=dataclasses.replace(scene.solver, method=method))
         chosen = choose_backend(scene, backend)
+        resources.check(scene, chosen)  # the memory estimate, before anything is built
     else:
         raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
     check_second_order = scene.solver.method == "exact" and scene.solver.second_order

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vesicle_opt import resources
 from vesicle_opt.errors import InputError, SolverError
 from vesicle_opt.mesh import Discretization, discretize
 from vesicle_opt.mesh.base import require_lumped
@@ -41,7 +42,8 @@ SCHEMES = {"penalty": PenaltyScheme, "lagrange": LagrangeScheme, "backward-euler
 
 
 def check_supported(scene) -> None:
-    """Refuse what the flows do not support, before any work (one-line InputError)."""
+    """Refuse what the flows do not support or what cannot fit in memory (``resources``), before any
+    work (one-line InputError)."""
     if scene.mesh.kind not in ("fd", "fem-p1", "spectral"):
         raise InputError("mesh.kind", f"the gradient flows support 'fd', 'fem-p1' and 'spectral', "
                                       f"got {scene.mesh.kind!r}")
@@ -49,6 +51,7 @@ def check_supported(scene) -> None:
         raise InputError("flow.scheme", "'backward-euler' (23) goes through IPOPT, which needs assembled "
                                         "matrices: use 'penalty' or 'lagrange' on spectral grids")
     require_lumped(FEATURE, scene.mesh.mass, scene.mesh.quadrature, WHY)
+    resources.check(scene, "flow")
 
 
 def build_model(scene, disc: Discretization | None = None) -> FlowModel:

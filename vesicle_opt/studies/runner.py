@@ -9,6 +9,10 @@
 * Re-running resumes: a torn last line (a kill mid-write) is cut off, rows of incomplete cases are
   dropped, and finished cases are skipped. Every row is therefore in the file exactly once.
 * Progress: a one-line bar on stderr (cases done / total, the last case and its wall time).
+* No orphans: the runner's own pools (``process_pool``) start workers that watch their parent and
+  exit within ``PARENT_POLL_S`` once it is gone, however it ended (SIGKILL included: no handler
+  of the parent runs then, so the workers themselves must notice; a re-parented process sees a
+  new ``os.getppid()``).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import io
 import multiprocessing as mp
 import os
 import sys
+import threading
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -29,6 +34,22 @@ COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual
            "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
            "status"]
 BOOKKEEPING = ["case", "case_rows"]
+PARENT_POLL_S = 0.5  # a worker notices its parent's death within this (the SIGKILL test allows a few s)
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """Pool initializer: a daemon thread ends this worker at once when ``parent_pid`` is gone."""
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)  # the parent is gone: nobody will read this worker's result
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def process_pool(workers: int = 1, **kwargs) -> ProcessPoolExecutor:
+    """A spawn-context process pool whose workers end with this process (module docstring)."""
+    return ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                               initializer=_exit_with_parent, initargs=(os.getpid(),), **kwargs)
 
 
 class CsvLog:
@@ -126,7 +147,7 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
         return log.rows()
     own = executor is None
     if own:
-        executor = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        executor = process_pool(workers)
     try:
         futures = {executor.submit(_timed, fn, c): c for c in todo}
         for fut in as_completed(futures):
@@ -148,7 +169,7 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
 
 def in_fresh_process(fn: Callable, *args):
     """``fn(*args)`` in a new spawned process, so that its peak memory (ru_maxrss) is its own."""
-    with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
+    with process_pool(1) as pool:
         return pool.submit(fn, *args).result()
 
 
