@@ -49,9 +49,14 @@ def grid_of(nodes: np.ndarray, box) -> tuple[int, ...] | None:
     return tuple(shape)
 
 
-def _describe(nodes, box, n_values: int) -> str:
-    shape = None if nodes is None else grid_of(nodes, box)
-    return "x".join(map(str, shape)) + " grid" if shape else f"{n_values} nodes"
+def _describe(nodes, n_values: int) -> str:
+    """'24x24 grid' when the nodes form a tensor grid (of any box), else 'N nodes'."""
+    nodes = np.asarray(nodes, float)
+    if nodes.ndim == 2:
+        shape = [len(np.unique(np.round(nodes[:, d], 9))) for d in range(nodes.shape[1])]
+        if int(np.prod(shape)) == nodes.shape[0] == n_values:
+            return "x".join(map(str, shape)) + " grid"
+    return f"{n_values} nodes"
 
 
 def carry(phi: np.ndarray, nodes: np.ndarray | None, disc, key: str, origin: str) -> np.ndarray:
@@ -66,7 +71,7 @@ def carry(phi: np.ndarray, nodes: np.ndarray | None, disc, key: str, origin: str
         return phi
     src = None if nodes is None or disc.grid_shape is None else grid_of(nodes, disc.box)
     if src is None or grid_of(disc.nodes, disc.box) != tuple(disc.grid_shape):
-        there = f"{phi.size} values" if nodes is None else _describe(nodes, disc.box, phi.size)
+        there = f"{phi.size} values" if nodes is None else _describe(nodes, phi.size)
         raise InputError(key, f"{origin} holds a field on {there}, this mesh is a {here}: a start "
                          f"from another mesh is resampled only between periodic grids of the same box")
     if phi.size != int(np.prod(src)):
