@@ -12,7 +12,8 @@
 * No orphans: the runner's own pools (``process_pool``) start workers that watch their parent and
   exit within ``PARENT_POLL_S`` once it is gone, however it ended (SIGKILL included: no handler
   of the parent runs then, so the workers themselves must notice; a re-parented process sees a
-  new ``os.getppid()``).
+  new ``os.getppid()``). The watch starts in the pool's initializer, after a spawned worker's
+  imports: a worker killed-around while still importing exits as soon as its imports end.
 """
 
 from __future__ import annotations
