@@ -238,8 +238,10 @@ def apply_overrides(raw: dict, overrides: list[str] | None) -> dict:
             raise InputError("--set", f"expected KEY=VALUE, got {item!r}")
         key, text = item.split("=", 1)
         key = key.strip()
+        if not key:
+            raise InputError("--set", f"expected KEY=VALUE with a key, got {item!r}")
         if not _known(key):
-            raise InputError(key, f"unknown scene key (allowed: {', '.join(SCHEMA)})")
+            raise InputError(key or "scene", f"unknown scene key {key!r} (allowed: {', '.join(SCHEMA)})")
         _set_dotted(raw, key, parse_value(text.strip()))
     return raw
 
@@ -249,7 +251,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     flat = _flatten(raw)
     for key in flat:
         if not _known(key):
-            raise InputError(key, f"unknown scene key (allowed: {', '.join(SCHEMA)})")
+            raise InputError(key or "scene", f"unknown scene key {key!r} (allowed: {', '.join(SCHEMA)})")
     val: dict[str, Any] = {}
     for key, (kind, default, allowed) in SCHEMA.items():
         if key not in flat:
