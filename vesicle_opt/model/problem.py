@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from vesicle_opt.errors import InputError
 from vesicle_opt.mesh.base import Discretization
 from vesicle_opt.model import functionals as F
 from vesicle_opt.scene.schema import Scene
