@@ -188,12 +188,14 @@ def test_a_method_override_is_checked_before_any_work():
             S.solve(sc, backend=backend, method="penlaty")
 
 
-def test_nk_refuses_a_warm_start_of_another_mesh():
+def test_nk_resamples_a_result_of_another_grid_and_refuses_a_bare_field_of_another_size():
+    """Issue 12: a Result carries its grid, so another periodic grid of the same box is Fourier-
+    resampled (model.warm_start); a bare array of another size has no grid to resample from."""
     small = S.solve(load_scene("ellipse-2d", ["mesh.n=32", "solver.second_order=false"]), backend="newton-krylov")
     sc = load_scene("ellipse-2d", ["mesh.n=24", "solver.second_order=false"])
-    for x0 in (small, small.phi):
-        with pytest.raises(InputError, match="x0"):
-            S.solve(sc, backend="newton-krylov", x0=x0)
+    assert S.solve(sc, backend="newton-krylov", x0=small).converged
+    with pytest.raises(InputError, match="x0"):
+        S.solve(sc, backend="newton-krylov", x0=small.phi)
 
 
 @pytest.mark.parametrize("backend", ["ipopt", "newton-krylov"])

@@ -7,7 +7,7 @@ Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
     1  scene                 TOML scenes, validated
     2  mesh                  discretisations
     3  model                 functionals, penalty, feasibility on a discretisation
-    4  verify                certification, KKT, second order, topology
+    4  verify, resources     certification, KKT, second order, topology | the memory guard
     5  nlp | nk | nk_jax     the two solver backends; neither imports the other (nk_jax: nk's
                              arrays on JAX, imports nk's options/setup, nk never imports it)
     6  flows                 gradient flows (may use a backend's NLP pieces)
@@ -34,7 +34,7 @@ LAYERS = {
     "scene": 1,
     "mesh": 2,
     "model": 3,
-    "verify": 4,
+    "verify": 4, "resources": 4,
     "nlp": 5, "nk": 5, "nk_jax": 5,
     "flows": 6,
     "api": 7, "backends": 7,

@@ -13,8 +13,10 @@ the same reports added here:
 ``solver.array = 'jax'`` runs the newton-krylov backend's arrays on JAX devices (``nk_jax``); its
 field comes back to the host and is certified, and second-order checked, by the numpy code.
 
-Warm starts: ``x0`` is a field phi (nodal values), a full NLP vector, or an earlier ``Result`` (on
-IPOPT its primal-dual point is reused when the NLP matches, else its phi), on either backend.
+Warm starts: ``x0`` is a field phi (nodal values), a full NLP vector, a path to a ``phi.npz``, or an
+earlier ``Result`` (on IPOPT its primal-dual point is reused when the NLP matches, else its phi), on
+either backend; a file or Result of another periodic grid of the same box is Fourier-resampled
+(``model.warm_start``; ``flow(scene, x0=...)`` takes the same argument).
 ``throw=True`` raises :class:`~vesicle_opt.errors.SolverError` (carrying the result) instead of
 returning a result that is not converged.
 """
@@ -26,11 +28,12 @@ import logging
 
 import numpy as np
 
+from vesicle_opt import nk_jax, resources
 from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
-from vesicle_opt import nk_jax
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.model.warm_start import start_field
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import prepare
@@ -61,8 +64,7 @@ def _ipopt_start(nlp: NLP, x0) -> dict:
         if x0.x is not None and x0.x.size == nlp.x0.size and x0.lam_g is not None \
                 and x0.lam_g.size == nlp.lbg.size:
             return {"x0": x0.x, "lam_x0": x0.lam_x, "lam_g0": x0.lam_g}
-        x0 = x0.phi
-    x0 = np.asarray(x0, float).ravel()
+    x0 = start_field(x0, nlp.disc)  # a path or a Result of another periodic grid: resampled
     if x0.size == nlp.x0.size:
         return {"x0": x0}
     if x0.size == nlp.disc.n_nodes:
@@ -71,12 +73,13 @@ def _ipopt_start(nlp: NLP, x0) -> dict:
                      f"{nlp.x0.size}), got {x0.size}")
 
 
-def _phi_start(x0, n_nodes: int) -> np.ndarray | None:
+def _phi_start(x0, disc) -> np.ndarray | None:
     """phi for the matrix-free backend from any accepted warm start: a Result, a field, or an IPOPT
     vector of a lumped NLP (phi, or phi with the penalty's two lifted unknowns)."""
     if x0 is None:
         return None
-    phi = np.asarray(x0.phi if isinstance(x0, Result) else x0, float).ravel()
+    phi = start_field(x0, disc)  # a path or a Result of another periodic grid: resampled
+    n_nodes = disc.n_nodes
     if phi.size not in (n_nodes, n_nodes + 2):
         raise InputError("x0", f"a warm start needs {n_nodes} nodal values (or a lifted NLP vector of "
                          f"{n_nodes + 2}), got {phi.size}")
@@ -119,6 +122,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
                 raise NotSupported("solver.method", f"must be one of {', '.join(METHODS)}, got {method!r}")
             scene = scene.replace(solver=dataclasses.replace(scene.solver, method=method))
         chosen = choose_backend(scene, backend)
+        resources.check(scene, chosen)  # the memory estimate, before anything is built
     else:
         raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
     check_second_order = scene.solver.method == "exact" and scene.solver.second_order
@@ -139,7 +143,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         _log_start(scene, chosen, backend, disc.n_nodes)
         # solver.array: the same method with numpy arrays or on JAX devices (nk_jax), same Result
         run = nk_jax.solve if scene.solver.array == "jax" else nk_solve.solve
-        result = run(scene, x0=_phi_start(x0, disc.n_nodes), options=options, setup=setup, check=False)
+        result = run(scene, x0=_phi_start(x0, disc), options=options, setup=setup, check=False)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
         if check_second_order and result.converged:

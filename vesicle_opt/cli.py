@@ -21,10 +21,13 @@ import sys
 import warnings
 from pathlib import Path
 
+from vesicle_opt import resources
 from vesicle_opt.api import solve
+from vesicle_opt.backends import choose_backend
 from vesicle_opt.errors import InputError, VesicleError
+from vesicle_opt.flows.api import check_supported as check_flow_supported
 from vesicle_opt.flows.run import write_flow
-from vesicle_opt.io import output, progress
+from vesicle_opt.io import outdir, output, progress
 from vesicle_opt.io.files import package_version
 from vesicle_opt.scene import load as load_scene
 from vesicle_opt.scene import resolved
@@ -51,22 +54,26 @@ class _Parser(argparse.ArgumentParser):
 
 
 def out_dir(arg: str) -> Path:
-    """The output directory, created now: a one-line InputError (``--out``) before any work when it
-    cannot be (a file of that name, no permission)."""
-    path = Path(arg)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError("--out", f"cannot use {arg!r} as the output directory ({exc.strerror or exc})") from None
-    return path
+    """The output directory, created and probed now (``io.outdir.check``): a one-line InputError
+    (``--out``) before any work when it cannot be used (a file, below a file, not writable)."""
+    return outdir.check(arg)
+
+
+def _preflight(scene, out: str | None, path: str | None):
+    """Everything checked before any work: the scene's memory estimate on ``path`` (a backend or
+    "flow"; ``resources``), then ``--out`` (``io.outdir``); returns the context that holds the
+    directory's lock for the run (a second run into it is refused with one line)."""
+    if scene is not None and path is not None:
+        resources.check(scene, path)
+    return outdir.locked(out_dir(out))
 
 
 def cmd_solve(args) -> int:
     sc = load_scene(args.scene, args.set)
-    out = out_dir(args.out)
-    result = solve(sc)
-    summary = output.write_result(out, sc, result.disc, result)
-    resolved.write(out / "scene.resolved.toml", sc)  # the run, repeatable: vesicle-opt solve DIR/scene.resolved.toml
+    with _preflight(sc, args.out, choose_backend(sc)) as out:
+        result = solve(sc)
+        summary = output.write_result(out, sc, result.disc, result)
+        resolved.write(out / "scene.resolved.toml", sc)  # the run, repeatable: vesicle-opt solve DIR/scene.resolved.toml
     print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
     if result.converged and summary.get("second_order") == "saddle":
@@ -94,7 +101,10 @@ def cmd_study(args) -> int:
     if args.name is None:
         raise InputError("study", f"give a study name or --list; one of {', '.join(STUDIES)}")
     study(args.name)  # an unknown name is refused before the directory is made
-    return run_study(args.name, out_dir(args.out), quick=args.quick)
+    if args.out is None:  # the README's contract: a study writes many files, so it names its directory
+        raise InputError("--out", "a study needs --out DIR (the directory for its CSV and figures)")
+    with _preflight(None, args.out, None) as out:
+        return run_study(args.name, out, quick=args.quick)
 
 
 def cmd_flow(args) -> int:
@@ -106,7 +116,9 @@ def cmd_flow(args) -> int:
     if args.adaptive:
         overrides.append('flow.stepping="adaptive"')
     sc = load_scene(args.scene, overrides)
-    run = write_flow(sc, out_dir(args.out), restart=args.restart, progress=not getattr(args, "quiet", False))
+    check_flow_supported(sc)  # the flows' own refusals, before the directory is touched
+    with _preflight(sc, args.out, "flow") as out:
+        run = write_flow(sc, out, restart=args.restart, progress=not getattr(args, "quiet", False))
     s = run.summary
     print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "
           f"energy = {s['energy']:.10g}, rejections = {s['rejections']}, wall = {s['wall_time_s']:.2f}s "
@@ -223,7 +235,7 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("-h", "--help", action=_StudyHelp, help="this help; with NAME, also that study's description")
     st.add_argument("name", nargs="?", help="the study (- or _ alike); see --list")
     st.add_argument("--list", action="store_true", help="print the study names, one per line")
-    st.add_argument("--out", default="out", help="output directory (default: out)")
+    st.add_argument("--out", default=None, help="output directory (required with a study name)")
     st.add_argument("--quick", action="store_true", help="small, fast variant")
     _add_verbosity(st)
     st.set_defaults(func=cmd_study)

@@ -48,11 +48,25 @@ def test_override_parses_toml_values():
     ("initial.shape='cube'", "initial.shape"),
     ("initial.semi_axes=[1.0]", "initial.semi_axes"),
     ("mesh.quadrature='gauss'", "mesh.quadrature"),  # gauss needs fem-p1; ellipse-2d is fd
+    # issue 12: ranges that mean something (scene.schema.TOL_RANGE, EPS_PER_H_MIN, EPS_PER_BOX_MAX)
+    ("solver.tol=1", "solver.tol"),  # certified a saddle with kkt 0.2 before
+    ("solver.tol=2e-4", "solver.tol"),
+    ("solver.tol=1e-15", "solver.tol"),
+    ("model.epsilon=1e-300", "model.epsilon"),  # died inside the feasibility bound's radial grid
+    ("model.epsilon=0.006", "model.epsilon"),  # h/10 = 0.00625 on the 128^2 grid of the 8-wide box
+    ("model.epsilon=4.5", "model.epsilon"),  # above half the box's side
+    ("solver.max_memory_gb=-1", "solver.max_memory_gb"),
 ])
 def test_bad_input_names_the_key(override, key):
     with pytest.raises(InputError) as info:
         load_scene("ellipse-2d", [override])
     assert info.value.key == key and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("override", ["solver.tol=1e-4", "solver.tol=1e-14", "model.epsilon=0.00625",
+                                      "model.epsilon=4.0", "solver.max_memory_gb=0.5"])
+def test_the_ends_of_the_ranges_are_accepted(override):
+    load_scene("ellipse-2d", [override])
 
 
 def test_missing_required_key():

@@ -210,3 +210,90 @@ def test_unknown_study_is_one_line_naming_study_and_the_allowed_names(capsys):
     assert all(name in err for name in STUDIES)
     with pytest.raises(InputError, match="runner"):  # a helper module is no study
         run_study("runner", "unused")
+
+
+def _children(pid: int) -> list:
+    import psutil
+    try:
+        return psutil.Process(pid).children(recursive=True)
+    except psutil.NoSuchProcess:
+        return []
+
+
+def _alive(procs) -> list:
+    import psutil
+    out = []
+    for p in procs:
+        try:
+            if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
+                out.append(p.pid)
+        except psutil.NoSuchProcess:
+            pass
+    return out
+
+
+SLEEPY_STUDY = """
+import importlib.util, sys, time
+# the runner alone (stdlib and numpy), loaded by path: the spawned workers re-run this file and get
+# the same module under the same name, without the package's imports (seconds on a loaded machine)
+spec = importlib.util.spec_from_file_location("_runner", sys.argv[2])
+runner = importlib.util.module_from_spec(spec)
+sys.modules["_runner"] = runner
+spec.loader.exec_module(runner)
+run_cases = runner.run_cases
+
+def sleepy(case):
+    open(sys.argv[1] + "." + case["case"] + ".started", "w").close()
+    time.sleep(120)
+    return [{"scene": "s"}]
+
+if __name__ == "__main__":
+    run_cases("sleepy", [{"case": str(k)} for k in range(4)], sleepy, sys.argv[1], workers=2,
+              show_progress=False)
+"""
+
+
+def _kill_and_watch(argv, tmp_path, expect_workers: int, started, start_timeout: float = 300.0):
+    """Start argv, wait for its pool workers and until ``started()`` (the workers are inside their
+    cases: past their imports, which on a loaded machine take seconds, and during which no watcher
+    runs yet), SIGKILL it, return the workers alive 5 s later."""
+    import os
+    import signal
+    p = subprocess.Popen(argv, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t0 = time.time()
+    workers = []
+    while time.time() - t0 < start_timeout:
+        workers = [c for c in _children(p.pid) if "multiprocessing" in " ".join(c.cmdline())
+                   and "resource_tracker" not in " ".join(c.cmdline())]
+        if len(workers) >= expect_workers and started():
+            break
+        time.sleep(0.2)
+    assert len(workers) >= expect_workers and started(), "the pool's workers did not start their cases"
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait(timeout=10)
+    deadline = time.time() + 5.0  # "a few seconds": the workers poll their parent every 0.5 s
+    while time.time() < deadline and _alive(workers):
+        time.sleep(0.1)
+    left = _alive(workers)
+    for pid in left:  # never leave them behind, even when the test fails
+        os.kill(pid, signal.SIGKILL)
+    return left
+
+
+def test_sigkill_of_a_study_leaves_no_worker(tmp_path):
+    script = tmp_path / "sleepy_study.py"
+    script.write_text(SLEEPY_STUDY)
+    csv_path = tmp_path / "s.csv"
+    runner_file = Path(vesicle_opt.__file__).parent / "studies" / "runner.py"
+    left = _kill_and_watch([sys.executable, str(script), str(csv_path), str(runner_file)], tmp_path, expect_workers=2,
+                           started=lambda: len(list(tmp_path.glob("s.csv.*.started"))) >= 2)
+    assert not left, f"workers outlived the SIGKILLed study by 5 s: {left}"
+
+
+@pytest.mark.slow
+def test_sigkill_of_a_real_study_through_the_cli_leaves_no_worker(tmp_path):
+    argv = [sys.executable, "-m", "vesicle_opt.cli", "study", "stress", "--quick", "--out", str(tmp_path / "o")]
+    rows = tmp_path / "o" / "stress.csv"
+    left = _kill_and_watch(argv, tmp_path, expect_workers=1,  # a case finished: the worker is past its imports
+                           started=lambda: rows.exists() and len(rows.read_text().splitlines()) >= 2)
+    assert not left, f"workers outlived the SIGKILLed study by 5 s: {left}"

@@ -22,10 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
+from vesicle_opt import resources
 from vesicle_opt.errors import InputError, SolverError
 from vesicle_opt.mesh import Discretization, discretize
 from vesicle_opt.mesh.base import require_lumped
 from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.model.warm_start import load_warm_start, start_field
 from vesicle_opt.result import Status
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.flows.backward_euler import BackwardEulerScheme
@@ -40,7 +42,8 @@ SCHEMES = {"penalty": PenaltyScheme, "lagrange": LagrangeScheme, "backward-euler
 
 
 def check_supported(scene) -> None:
-    """Refuse what the flows do not support, before any work (one-line InputError)."""
+    """Refuse what the flows do not support or what cannot fit in memory (``resources``), before any
+    work (one-line InputError)."""
     if scene.mesh.kind not in ("fd", "fem-p1", "spectral"):
         raise InputError("mesh.kind", f"the gradient flows support 'fd', 'fem-p1' and 'spectral', "
                                       f"got {scene.mesh.kind!r}")
@@ -48,6 +51,7 @@ def check_supported(scene) -> None:
         raise InputError("flow.scheme", "'backward-euler' (23) goes through IPOPT, which needs assembled "
                                         "matrices: use 'penalty' or 'lagrange' on spectral grids")
     require_lumped(FEATURE, scene.mesh.mass, scene.mesh.quadrature, WHY)
+    resources.check(scene, "flow")
 
 
 def build_model(scene, disc: Discretization | None = None) -> FlowModel:
@@ -60,9 +64,12 @@ def build_model(scene, disc: Discretization | None = None) -> FlowModel:
 def initial_field(scene, md: FlowModel) -> np.ndarray:
     """The scene's initial shape, projected onto A = alpha, B = beta (``projection``) unless
     ``flow.initial = "shape"`` (penalty and backward Euler only; (17) must start on the set)."""
-    phi0 = phase_field(scene.initial, md.disc.nodes, md.disc.box, scene.model.epsilon)
+    if scene.initial.shape == "file":  # an earlier solve's phi.npz (resampled from another periodic grid)
+        phi0 = load_warm_start(scene.initial.file, md.disc)
+    else:
+        phi0 = phase_field(scene.initial, md.disc.nodes, md.disc.box, scene.model.epsilon)
     if scene.flow.initial == "projected" or scene.flow.scheme == "lagrange":
-        phi0 = project(md, phi0, md.alpha, md.beta)
+        phi0 = project(md, phi0, md.alpha, md.beta, volume_first=scene.initial.shape != "file")
     return phi0
 
 
@@ -123,12 +130,15 @@ def fingerprint(scene) -> str:
     return hashlib.sha256(repr(key).encode()).hexdigest()[:16]
 
 
-def flow(scene, *, trackers=(), phi0=None, resume_from: FlowState | str | Path | None = None,
+def flow(scene, *, trackers=(), x0=None, phi0=None, resume_from: FlowState | str | Path | None = None,
          throw: bool = False, model: FlowModel | None = None) -> FlowResult:
     """Run ``scene.flow`` in memory and return a frozen ``FlowResult``.
 
     trackers: ``flows.trackers`` objects, or callables ``fn(state, row)`` (a True return stops the run).
-    phi0: the start field, used as given (default: ``initial_field(scene, model)``; (17) needs it on
+    x0: the start, the argument name of ``solve`` too: a field, a path to a phi.npz or an earlier
+    Result / FlowResult (another periodic grid of the same box is Fourier-resampled,
+    ``model.warm_start``); used as given. phi0: the same for a field (kept for old callers).
+    Default (neither): ``initial_field(scene, model)``; (17) needs it on
     A = alpha, B = beta: ``flows.projection.project``). resume_from: a ``FlowState`` (e.g.
     ``result.state``) or a checkpoint file a ``CheckpointTracker`` wrote; the run continues from it
     bit-for-bit. throw: raise ``SolverError`` (carrying the result) when the run failed.
@@ -142,6 +152,10 @@ def flow(scene, *, trackers=(), phi0=None, resume_from: FlowState | str | Path |
         if isinstance(tr, CheckpointTracker) and tr.fingerprint is None:
             tr.fingerprint = tag
     start = None
+    if x0 is not None:
+        if phi0 is not None:
+            raise InputError("x0", "give x0 or phi0 (the same start), not both")
+        phi0 = start_field(x0, md.disc, "x0")
     if resume_from is not None:
         if phi0 is not None:
             raise InputError("phi0", "give phi0 or resume_from, not both")

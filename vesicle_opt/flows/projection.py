@@ -46,9 +46,11 @@ def project_volume(md: FlowModel, phi0: np.ndarray, alpha: float) -> np.ndarray:
 
 
 def project(md: FlowModel, phi0: np.ndarray, alpha: float, beta: float, rtol: float = 1e-14,
-            max_iter: int = 200) -> np.ndarray:
-    """Map phi0 onto A = alpha, B = beta (see the module docstring)."""
-    phi = project_volume(md, phi0, alpha)
+            max_iter: int = 200, volume_first: bool = True) -> np.ndarray:
+    """Map phi0 onto A = alpha, B = beta (see the module docstring). ``volume_first=False`` skips
+    step 1 (for a warm start near the set: an equilibrium overshoots |phi| = 1 slightly, and the
+    clip of step 1 would move it by ~1e-2; step 2 alone corrects A and B by a tiny step)."""
+    phi = project_volume(md, phi0, alpha) if volume_first else np.array(phi0, float)
     one = np.ones_like(phi)
 
     def G(p):

@@ -1,7 +1,8 @@
 """Problem data of a scene on a discretisation, shared by every solver path.
 
 * ``constraint_data``: (alpha, beta) of (7), (8): given, or A_h, B_h of a target shape's tanh profile;
-* ``initial_guess`` / ``load_warm_start``: the start (a shape, or a phi.npz of an earlier solve);
+* ``initial_guess``: the start (a shape, or a phi.npz of an earlier solve: ``model.warm_start``, which
+  resamples a file of another periodic grid of the same box);
 * ``gradient_scale`` / ``objective_scale``: the scaling contract of the stopping test (documented in
   ``vesicle_opt.nlp.exact``): G_ref = 2 (E_ref / V) sqrt(|Omega| / (eps |Gamma|)) and
   k = rigidity m_bar G_ref, m_bar = |Omega| / N.
@@ -11,11 +12,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from vesicle_opt.errors import InputError
 from vesicle_opt.mesh.base import Discretization
 from vesicle_opt.model import functionals as F
 from vesicle_opt.scene.schema import Scene
+from vesicle_opt.model.warm_start import load_warm_start
 from vesicle_opt.scene.shapes import phase_field
+
+__all__ = ["constraint_data", "initial_guess", "load_warm_start", "gradient_scale", "objective_scale"]
 
 
 def constraint_data(scene: Scene, disc: Discretization) -> tuple[float, float]:
@@ -28,22 +31,6 @@ def constraint_data(scene: Scene, disc: Discretization) -> tuple[float, float]:
         alpha = vals["A"] if alpha is None else alpha
         beta = vals["B"] if beta is None else beta
     return float(alpha), float(beta)
-
-
-def load_warm_start(path: str, disc: Discretization) -> np.ndarray:
-    """phi from a phi.npz of an earlier solve on the same mesh; InputError if unusable."""
-    try:
-        with np.load(path) as data:
-            phi = np.asarray(data["phi"], float)
-    except FileNotFoundError:
-        raise InputError("initial.file", f"file not found: {path}") from None
-    except Exception as exc:  # zip/pickle/key errors of a corrupt or foreign file
-        raise InputError("initial.file", f"{path} is not a phi.npz written by vesicle-opt ({type(exc).__name__})") from None
-    if phi.shape != (disc.n_nodes,):
-        raise InputError("initial.file", f"{path} holds {phi.size} values, this mesh has {disc.n_nodes} nodes")
-    if not np.all(np.isfinite(phi)):
-        raise InputError("initial.file", f"{path} contains non-finite values")
-    return phi
 
 
 def initial_guess(scene: Scene, disc: Discretization) -> np.ndarray:

@@ -33,6 +33,9 @@ def text(name: str) -> str:
 def resolve(arg: str | Path) -> tuple[str, str]:
     """(name, TOML text) of a scene given as a path or as the name of a bundled scene."""
     p = Path(arg)
+    if p.is_dir():
+        raise InputError("scene", f"{arg} is a directory; give a scene TOML file or a bundled name "
+                         f"({', '.join(names())})")
     if p.is_file():
         try:
             return p.stem, p.read_text()

@@ -81,6 +81,7 @@ class Solver:
     # M sqrt(N): at tol 1e-8 the last stage is certified only up to M ~ 1e4 on the bundled 2D meshes
     max_outer: int = 20
     array: str = "numpy"  # "numpy" | "jax": the array library of the newton-krylov backend (nk_jax)
+    max_memory_gb: float | None = None  # the resource guard's limit (vesicle_opt.resources); None: available memory
 
 
 @dataclass(frozen=True)
@@ -124,6 +125,14 @@ class Scene:
 # --- schema: key -> (kind, default, allowed). kind in {float, int, str, shape, box, ints, floats}.
 _REQ = object()
 M_LIMIT = 1e12  # largest penalty constant accepted (double precision: M |A - alpha| loses digits beyond)
+# solver.tol: the certificate accepts kkt_residual <= 100 tol, so above 1e-4 a point 1% away from
+# stationarity would pass (tol = 1 certified a saddle with kkt 0.2); below 1e-14 (~50 eps_mach) no
+# relative residual of sums over the mesh can be met in double precision
+TOL_RANGE = (1e-14, 1e-4)
+# model.epsilon: below h/10 the tanh profile jumps from -1 to +1 between neighbouring nodes to
+# within 1e-6 (no node sees the diffuse interface); above half the box's shortest side the
+# interface is as wide as the box (no vesicle fits)
+EPS_PER_H_MIN, EPS_PER_BOX_MAX = 0.1, 0.5
 SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "domain.box": ("box", _REQ, "list of [lo, hi] pairs with lo < hi, 2 or 3 of them"),
     "domain.boundary": ("str", "periodic", ("periodic", "natural")),
@@ -132,7 +141,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "mesh.mass": ("str", "lumped", ("lumped", "consistent")),
     "mesh.quadrature": ("str", "nodal", ("nodal", "gauss")),
     "mesh.file": ("str", None, "path to a mesh file meshio can read"),
-    "model.epsilon": ("float", _REQ, "> 0"),
+    "model.epsilon": ("float", _REQ, f"h/{1 / EPS_PER_H_MIN:g} <= epsilon <= {EPS_PER_BOX_MAX:g} x the shortest box side"),
     "model.c0": ("float", 0.0, "any real"),
     "model.rigidity": ("float", 1.0, "> 0"),
     "constraints.alpha": ("float", None, "-|Omega| < alpha < |Omega|"),
@@ -143,7 +152,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "initial": ("shape", _REQ, "a shape table"),
     "solver.method": ("str", "exact", ("exact", "penalty", "continuation", "augmented")),
     "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
-    "solver.tol": ("float", 1e-8, "> 0"),
+    "solver.tol": ("float", 1e-8, f"{TOL_RANGE[0]:g} <= tol <= {TOL_RANGE[1]:g}"),
     "solver.max_iter": ("int", 500, ">= 1"),
     "solver.backend": ("str", "auto", ("ipopt", "newton-krylov", "auto")),
     "solver.second_order": ("bool", True, "true or false"),
@@ -152,6 +161,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.M_max": ("float", 1e6, f"M0 <= M_max <= {M_LIMIT:g}"),
     "solver.max_outer": ("int", 20, ">= 1"),
     "solver.array": ("str", "numpy", ("numpy", "jax")),
+    "solver.max_memory_gb": ("float", None, "> 0 (GB; default: the memory available now)"),
     # gradient flows (vesicle_opt.flows)
     "flow.scheme": ("str", "penalty", ("penalty", "lagrange", "backward-euler")),
     "flow.gamma": ("float", 1.0, "> 0"),
@@ -168,7 +178,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "flow.initial": ("str", "projected", ("projected", "shape")),
 }
 _POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "constraints.area",
-             "solver.M", "solver.tol",
+             "solver.M", "solver.tol", "solver.max_memory_gb",
              "solver.M0", "solver.M_max",
              "flow.gamma", "flow.dt", "flow.t_end", "flow.dt_min", "flow.dt_max", "flow.law_tol"}
 
@@ -231,8 +241,10 @@ def apply_overrides(raw: dict, overrides: list[str] | None) -> dict:
             raise InputError("--set", f"expected KEY=VALUE, got {item!r}")
         key, text = item.split("=", 1)
         key = key.strip()
+        if not key:
+            raise InputError("--set", f"expected KEY=VALUE with a key, got {item!r}")
         if not _known(key):
-            raise InputError(key, f"unknown scene key (allowed: {', '.join(SCHEMA)})")
+            raise InputError(key or "scene", f"unknown scene key {key!r} (allowed: {', '.join(SCHEMA)})")
         _set_dotted(raw, key, parse_value(text.strip()))
     return raw
 
@@ -242,7 +254,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     flat = _flatten(raw)
     for key in flat:
         if not _known(key):
-            raise InputError(key, f"unknown scene key (allowed: {', '.join(SCHEMA)})")
+            raise InputError(key or "scene", f"unknown scene key {key!r} (allowed: {', '.join(SCHEMA)})")
     val: dict[str, Any] = {}
     for key, (kind, default, allowed) in SCHEMA.items():
         if key not in flat:
@@ -282,6 +294,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     if min(n) < 4:
         raise InputError("mesh.n", f"must be >= 4 cells per side, got {n_raw!r}")
     domain = Domain(box, val["domain.boundary"])
+    _check_ranges(val, box, n)
     if val["mesh.kind"] == "fd" and domain.boundary != "periodic":
         raise InputError("domain.boundary", "mesh.kind 'fd' supports only 'periodic'")
     if val["mesh.kind"] == "fd" and val["mesh.mass"] == "consistent":
@@ -317,7 +330,8 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
                     val["solver.backend"], second_order=val["solver.second_order"], M0=val["solver.M0"],
                     M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
-                    max_outer=val["solver.max_outer"], array=val["solver.array"])
+                    max_outer=val["solver.max_outer"], array=val["solver.array"],
+                    max_memory_gb=val["solver.max_memory_gb"])
     return Scene(name, domain, mesh, model, constraints, initial, solver, _flow(val))
 
 
@@ -334,6 +348,24 @@ def _check_array(val: dict) -> None:
                          f"{val['solver.method']!r}")
     if importlib.util.find_spec("jax") is None:
         raise InputError("solver.array", "'jax' needs the optional extra: pip install 'vesicle_opt[jax]'")
+
+
+def _check_ranges(val: dict, box, n) -> None:
+    """solver.tol and model.epsilon within the ranges that mean something (TOL_RANGE, EPS_*)."""
+    lo, hi = TOL_RANGE
+    if not lo <= val["solver.tol"] <= hi:
+        raise InputError("solver.tol", f"allowed range {lo:g} <= tol <= {hi:g} (the certificate accepts "
+                         f"kkt_residual <= 100 tol), got {val['solver.tol']!r}")
+    eps, lengths = val["model.epsilon"], [b - a for a, b in box]
+    if not all(math.isfinite(L) for L in lengths):
+        raise InputError("domain.box", f"side lengths must be finite, got {lengths}")
+    top = EPS_PER_BOX_MAX * min(lengths)
+    h = max(L / k for L, k in zip(lengths, n))
+    bottom = EPS_PER_H_MIN * h if val["mesh.file"] is None else 0.0  # a mesh file: h unknown here
+    if not bottom <= eps <= top:
+        raise InputError("model.epsilon", f"allowed range {bottom:.3g} <= epsilon <= {top:.3g} "
+                         f"(h/{1 / EPS_PER_H_MIN:g} with h = {h:.3g}, and {EPS_PER_BOX_MAX:g} x the shortest "
+                         f"box side), got {eps!r}")
 
 
 def _physical_targets(val: dict, target, dim: int, domain: Domain) -> tuple[float, float]:

@@ -9,18 +9,16 @@ peak memory (ru_maxrss) is its own. Rows are appended as they finish; a re-run r
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import resource
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from vesicle_opt import scene
 from vesicle_opt.api import solve
 from vesicle_opt.nlp import build_nlp
 from vesicle_opt.studies.bare_casadi import bare_solve
-from vesicle_opt.studies.runner import run_cases
+from vesicle_opt.studies.runner import process_pool, run_cases
 from vesicle_opt.verify import second_order
 
 EXTRA = ["dim", "discretisation", "n_nodes", "derivative_time_s", "derivative_fraction",
@@ -81,7 +79,7 @@ def case_rows(case: dict) -> list[dict]:
 
 def main(out: Path, quick: bool = False) -> int:
     # a fresh process per case, so that each peak memory (ru_maxrss) is the case's own
-    pool = ProcessPoolExecutor(max_workers=1, max_tasks_per_child=1, mp_context=mp.get_context("spawn"))
+    pool = process_pool(1, max_tasks_per_child=1)
     with pool:
         rows = run_cases("bench_equilibrium", cases(quick), case_rows, Path(out) / "bench_equilibrium.csv",
                          executor=pool, extra_columns=EXTRA)

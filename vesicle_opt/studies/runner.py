@@ -10,6 +10,11 @@
   dropped, and finished cases are skipped. Every row is therefore in the file exactly once.
 * Progress (``show_progress``): cases done / total with an ETA and the last case's wall time on
   stderr (``io.progress.bar``: tqdm on a terminal, one plain line per finished case otherwise).
+* No orphans: the runner's own pools (``process_pool``) start workers that watch their parent and
+  exit within ``PARENT_POLL_S`` once it is gone, however it ended (SIGKILL included: no handler
+  of the parent runs then, so the workers themselves must notice; a re-parented process sees a
+  new ``os.getppid()``). The watch starts in the pool's initializer, after a spawned worker's
+  imports: a worker killed-around while still importing exits as soon as its imports end.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import logging
 import multiprocessing as mp
 import os
 import sys
+import threading
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -33,6 +39,27 @@ COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual
            "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
            "status"]
 BOOKKEEPING = ["case", "case_rows"]
+PARENT_POLL_S = 0.5  # a worker notices its parent's death within this (the SIGKILL test allows a few s)
+
+
+def _exit_with_parent(parent_pid: int, log_level: int | None = None) -> None:
+    """Pool initializer: a daemon thread ends this worker at once when ``parent_pid`` is gone; with
+    ``log_level``, the worker's ``vesicle_opt`` logger at the parent's level (``worker_logging``)."""
+    if log_level is not None:
+        worker_logging(log_level)
+
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)  # the parent is gone: nobody will read this worker's result
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def process_pool(workers: int = 1, log_level: int | None = None, **kwargs) -> ProcessPoolExecutor:
+    """A spawn-context process pool whose workers end with this process (module docstring) and log
+    at ``log_level`` (the parent's, for a study's own pool)."""
+    return ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                               initializer=_exit_with_parent, initargs=(os.getpid(), log_level), **kwargs)
 
 
 class CsvLog:
@@ -125,9 +152,7 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
         return log.rows()
     own = executor is None
     if own:
-        level = logging.getLogger("vesicle_opt").getEffectiveLevel()
-        executor = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                                       initializer=worker_logging, initargs=(level,))
+        executor = process_pool(workers, log_level=logging.getLogger("vesicle_opt").getEffectiveLevel())
     try:
         futures = {executor.submit(_timed, fn, c): c for c in todo}
         for fut in as_completed(futures):
@@ -161,7 +186,7 @@ def worker_logging(level: int) -> None:
 
 def in_fresh_process(fn: Callable, *args):
     """``fn(*args)`` in a new spawned process, so that its peak memory (ru_maxrss) is its own."""
-    with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
+    with process_pool(1) as pool:
         return pool.submit(fn, *args).result()
 
 

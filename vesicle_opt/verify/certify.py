@@ -56,6 +56,14 @@ class Certificate:
     reason: str | None
 
 
+def certifiable_tol(floor: float) -> float:
+    """The least tolerance of the form 1, 2 or 5 x 10^k strictly above ``floor`` (the floor test)."""
+    if not np.isfinite(floor) or floor <= 0:
+        return float("nan") if not np.isfinite(floor) else 0.0
+    k = int(np.floor(np.log10(floor)))
+    return next(m * 10.0**e for e in (k, k + 1) for m in (1, 2, 5) if m * 10.0**e > floor)
+
+
 def certify(*, solver_status: str, solver_success: bool, finite: bool, tol: float, kkt: float,
             floor: float = 0.0, constraints: tuple[float, float] | None = None,
             checks: Sequence[tuple[bool, str]] = ()) -> Certificate:
@@ -71,7 +79,8 @@ def certify(*, solver_status: str, solver_success: bool, finite: bool, tol: floa
     if not floor < tol:
         return Certificate(False, Status.ROUNDOFF_FLOOR,
                            f"round-off floor: stationarity is known only to ~{floor:.1e} here "
-                           f"(>= tol = {tol:g}; kkt_residual {kkt:.2e}); lower solver.M or raise solver.tol")
+                           f"(>= tol = {tol:g}; kkt_residual {kkt:.2e}); tol >= {certifiable_tol(floor):.0e} "
+                           f"can be certified: raise solver.tol (or lower solver.M for a penalty)")
     if constraints is not None and not (constraints[0] <= tol and constraints[1] <= tol):
         return Certificate(False, Status.INFEASIBLE,
                            f"constraint residuals {constraints[0]:.1e}, {constraints[1]:.1e} above tol = "

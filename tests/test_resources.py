@@ -1,0 +1,53 @@
+"""The resource guard (vesicle_opt.resources): the estimate's arithmetic, the refusal before any
+work with one line naming mesh.n and the estimate, and solver.max_memory_gb."""
+
+import time
+
+import pytest
+
+import vesicle_opt as vo
+from vesicle_opt import cli, resources
+from vesicle_opt.errors import InputError
+
+
+def test_the_estimate_is_nodes_times_bytes_per_node_plus_the_feasibility_grid():
+    small, big = (vo.load_scene("ellipse-2d", [f"mesh.n={n}"]) for n in (64, 128))
+    grid = resources.feasibility_points(small) * resources.BYTES_PER_RADIAL_POINT  # the same box and eps
+    b_small, _ = resources.estimate_bytes(small, "ipopt")
+    b_big, _ = resources.estimate_bytes(big, "ipopt")
+    assert b_small - grid == 64**2 * resources.BYTES_PER_NODE[("ipopt", 2)]  # integer arithmetic: exact
+    assert (b_big - grid) == 4 * (b_small - grid)  # linear in the nodes in 2D
+    s3 = [vo.load_scene("sphere-3d", [f"mesh.n={n}", "mesh.kind='fd'"]) for n in (20, 40)]
+    per = [resources.bytes_per_node(s, "ipopt") for s in s3]
+    assert per[1] == pytest.approx(2 * per[0], rel=1e-12)  # 3D IPOPT: fill grows like N^(4/3)
+    assert resources.bytes_per_node(s3[0], "newton-krylov") < per[0] / 10  # matrix-free is far lighter
+
+
+@pytest.mark.parametrize("sets", [["mesh.n=100000"], ["mesh.n=9223372036854775807"], ["mesh.n=5000"]])
+def test_too_large_is_refused_at_once(sets):
+    t0 = time.perf_counter()
+    with pytest.raises(InputError) as exc:
+        vo.solve(vo.load_scene("ellipse-2d", sets))
+    msg = str(exc.value)
+    assert msg.startswith("mesh.n:") and "GB" in msg and "solver.max_memory_gb" in msg and "\n" not in msg
+    assert time.perf_counter() - t0 < 5  # before any array is made (the unguarded 20000^2 died after 14 s)
+
+
+def test_max_memory_gb_sets_the_limit():
+    sc = vo.load_scene("ellipse-2d", ["mesh.n=16", "solver.max_memory_gb=1e-3"])  # 1 MB: below any run
+    with pytest.raises(InputError, match="solver.max_memory_gb"):
+        resources.check(sc, "ipopt")
+    big = vo.load_scene("ellipse-2d", ["mesh.n=100000", "solver.max_memory_gb=1e6"])
+    assert resources.check(big, "newton-krylov") > 1e12  # raised: accepted (the check only estimates)
+    with pytest.raises(InputError, match="solver.max_memory_gb"):
+        vo.load_scene("ellipse-2d", ["solver.max_memory_gb=0"])
+
+
+def test_flows_and_the_cli_are_guarded_too(tmp_path, capsys):
+    with pytest.raises(InputError, match="mesh.n"):
+        vo.flow(vo.load_scene("ellipse-2d", ["mesh.n=50000"]))
+    for verb in (["solve", "ellipse-2d"], ["flow", "ellipse-2d"]):
+        rc = cli.main([*verb, "--set", "mesh.n=50000", "--out", str(tmp_path / "o")])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2 and len(err) == 1 and err[0].startswith("vesicle-opt: error: mesh.n")
+        assert not (tmp_path / "o").exists()  # refused before the output directory is made
