@@ -193,7 +193,10 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
                       "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     phi_out, dE = level.layout.get(pt.phi), level.layout.get(pt.dE)
-    floor = l2_floor(disc, rig, dE, eps)
+    if lam is None:  # penalty: the multipliers as build_result computes them, mu - M (A - alpha, B - beta)
+        lam = np.asarray(mu) - np.asarray(M) * np.asarray(jax.device_get(pt.c), float)
+    dA, dB = level.layout.get(level.obj.ones), level.layout.get(pt.dB)
+    floor = l2_floor(disc, rig, eps, (dE, dA, dB), lam)
     method = scene.solver.method
     hist = dict(cnt.history)
     hist["outer"] = log
