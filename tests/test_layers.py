@@ -3,7 +3,8 @@
 Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
 
     0  errors, result,       the vocabulary every layer speaks
-       geometry              (geometry: volume, area, reduced volume <-> alpha, beta)
+       geometry, sharp       (geometry: volume, area, reduced volume <-> alpha, beta; sharp: the
+                             sharp-interface references, which import nothing of the package)
     1  scene                 TOML scenes, validated
     2  mesh                  discretisations
     3  model                 functionals, penalty, feasibility on a discretisation
@@ -30,7 +31,7 @@ from __future__ import annotations
 import _imports as I
 
 LAYERS = {
-    "errors": 0, "result": 0, "geometry": 0,
+    "errors": 0, "result": 0, "geometry": 0, "sharp": 0,
     "scene": 1,
     "mesh": 2,
     "model": 3,
@@ -121,3 +122,11 @@ def test_nlp_and_nk_are_independent():
     edges = [(i.where(), i.module, i.target) for i in I.imports()
              if {unit(i.module), unit(i.target)} in ({"nlp", "nk"}, {"nlp", "nk_jax"})]
     assert not edges, edges
+
+
+def test_sharp_references_share_no_code_with_the_phase_field_path():
+    """vesicle_opt.sharp imports nothing of the package (not even layer 0), so its references are
+    independent of everything they check."""
+    edges = [(i.where(), i.target) for i in I.imports() if unit(i.module) == "sharp" and unit(i.target) != "sharp"]
+    assert not edges, edges
+    assert "sharp" in {unit(m) for m in I.modules()}  # the check sees the unit

@@ -31,6 +31,7 @@ DESCRIPTIONS = {
     "h_refinement": "Theorem 3.3 / Corollary 3.2: convergence of the minimisers as h -> 0",
     "penalty_continuation": "Theorem 3.2: penalty minimisers approach the constrained one as M -> inf",
     "penalty_vs_exact": "work-precision: exact, penalty, continuation, augmented, SCP baseline",
+    "sharp_limit": "the eps -> 0 limit: 2D reduced energies at eps, eps/2, eps/4 against the sharp elastica",
     "stress": "stiff and extreme cases: each a verified solution or an honest failure",
     "table1": "Table 1 of the paper: the Section 5 torus on 16^3 ... 64^3 spectral grids",
     "time_step_convergence": "Theorems 4.2-4.4: observed orders of the flows in the time step k",
