@@ -29,6 +29,7 @@ from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.result import Status
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.flows.backward_euler import BackwardEulerScheme
+from vesicle_opt.flows.backward_euler_nk import STEP_TOL, BackwardEulerNKScheme
 from vesicle_opt.flows.discrete import FEATURE, WHY, FlowModel
 from vesicle_opt.flows.lagrange import LagrangeScheme
 from vesicle_opt.flows.penalty import PenaltyScheme
@@ -44,9 +45,9 @@ def check_supported(scene) -> None:
     if scene.mesh.kind not in ("fd", "fem-p1", "spectral"):
         raise InputError("mesh.kind", f"the gradient flows support 'fd', 'fem-p1' and 'spectral', "
                                       f"got {scene.mesh.kind!r}")
-    if scene.mesh.kind == "spectral" and scene.flow.scheme == "backward-euler":
-        raise InputError("flow.scheme", "'backward-euler' (23) goes through IPOPT, which needs assembled "
-                                        "matrices: use 'penalty' or 'lagrange' on spectral grids")
+    if scene.flow.scheme == "backward-euler" and matrix_free_steps(scene) and scene.mesh.kind == "fem-p1":
+        raise InputError("solver.backend", "'backward-euler' (23) by Newton-Krylov runs on 'fd' and 'spectral' "
+                                           "grids; on 'fem-p1' use solver.backend = 'ipopt'")
     require_lumped(FEATURE, scene.mesh.mass, scene.mesh.quadrature, WHY)
 
 
@@ -66,14 +67,26 @@ def initial_field(scene, md: FlowModel) -> np.ndarray:
     return phi0
 
 
+def matrix_free_steps(scene) -> bool:
+    """Whether (23) steps go to the Newton-Krylov minimiser (``flows.backward_euler_nk``) rather
+    than IPOPT: always on spectral grids (no assembled Laplacian), and where ``solver.backend`` is
+    'newton-krylov' (FD grids). 'auto' keeps IPOPT on FD/P1 (the flows' historical path)."""
+    return scene.mesh.kind == "spectral" or scene.solver.backend == "newton-krylov"
+
+
 def make_scheme(scene, md: FlowModel):
+    if scene.flow.scheme == "backward-euler" and matrix_free_steps(scene):
+        return BackwardEulerNKScheme(md, law_tol=scene.flow.law_tol, tol=min(STEP_TOL, scene.solver.tol))
     return SCHEMES[scene.flow.scheme](md, law_tol=scene.flow.law_tol)
 
 
-def stepper_options(scene) -> StepperOptions:
+def stepper_options(scene, scheme=None) -> StepperOptions:
+    """The scene's ``flow.*`` stepping keys; a scheme may name its own adaptive-k thresholds
+    (``scheme.controller``: what counts as an easy / hard solve in its iteration count)."""
     fl = scene.flow
-    return StepperOptions(dt=fl.dt, t_end=fl.t_end, max_steps=fl.steps, adaptive=fl.stepping == "adaptive",
+    opts = StepperOptions(dt=fl.dt, t_end=fl.t_end, max_steps=fl.steps, adaptive=fl.stepping == "adaptive",
                           dt_min=fl.dt_min, dt_max=fl.dt_max, steady_tol=fl.steady_tol)
+    return replace(opts, **getattr(scheme, "controller", {}))
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,7 +164,7 @@ def flow(scene, *, trackers=(), phi0=None, resume_from: FlowState | str | Path |
         phi_start = _field(md, start.phi, "resume_from")
     else:
         phi_start = initial_field(scene, md) if phi0 is None else _field(md, phi0, "phi0")
-    out = run(scheme, phi_start, stepper_options(scene), trackers, start=start)
+    out = run(scheme, phi_start, stepper_options(scene, scheme), trackers, start=start)
     history = next((tuple(tr.rows) for tr in trackers if isinstance(tr, HistoryTracker) and tr.keep), ())
     result = FlowResult(out.phi, out.t, out.step, out.status, out.message, out.rejections, out.wall_time_s,
                         md, scene.flow.scheme, scheme.law, scheme.observe(out.phi), history, out.state,
