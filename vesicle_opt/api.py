@@ -114,7 +114,9 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         so = second_order.check(nlp, result) if check_second_order and result.converged else None
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
-        setup = prepare(scene)  # built once: the solve and its second-order check
+        # built once: the solve and its second-order check (lumped P1 on a periodic tensor box goes
+        # to the FFT path it equals unless options.tensor_fft is False: nk.setup.fft_equivalent)
+        setup = prepare(scene, tensor_fft=(options or NewtonKrylovOptions.from_scene(scene)).tensor_fft)
         result = nk_solve.solve(scene, x0=_phi_start(x0, setup[0].n_nodes), options=options, setup=setup)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
