@@ -87,9 +87,3 @@ class BackwardEulerNKScheme(Scheme):
         return StepOutcome(phi, True, cnt.newton, "converged" if ok else f"{LAW} violated: {law:.3g}",
                            law_residual=law, law_ok=ok, rate=float(np.sqrt(dd)) / k,
                            linear_iterations=cnt.cg, extra={"equality_law_defect": eq})
-
-    def minimise(self, phi_start: np.ndarray) -> tuple[np.ndarray, bool, str]:
-        """The k -> infinity limit of the step: a stationary point of E_M from phi_start."""
-        obj = self.objective(phi_start, np.inf)
-        pt, status = newton_minimize(obj, phi_start, self.tol, 500, self.max_cg)
-        return pt.phi, status == "converged" and bool(np.all(np.isfinite(pt.phi))), status
