@@ -137,7 +137,7 @@ def fingerprint(scene) -> str:
 
 
 def flow(scene, *, trackers=(), phi0=None, resume_from: FlowState | str | Path | None = None,
-         throw: bool = False, model: FlowModel | None = None) -> FlowResult:
+         throw: bool = False, model: FlowModel | None = None, scheme=None) -> FlowResult:
     """Run ``scene.flow`` in memory and return a frozen ``FlowResult``.
 
     trackers: ``flows.trackers`` objects, or callables ``fn(state, row)`` (a True return stops the run).
@@ -145,10 +145,11 @@ def flow(scene, *, trackers=(), phi0=None, resume_from: FlowState | str | Path |
     A = alpha, B = beta: ``flows.projection.project``). resume_from: a ``FlowState`` (e.g.
     ``result.state``) or a checkpoint file a ``CheckpointTracker`` wrote; the run continues from it
     bit-for-bit. throw: raise ``SolverError`` (carrying the result) when the run failed.
-    model: a ``build_model(scene)`` to reuse (e.g. the one a tracker evaluates energies with)."""
+    model: a ``build_model(scene)`` to reuse (e.g. the one a tracker evaluates energies with).
+    scheme: a ``make_scheme(scene, model)`` to reuse (e.g. one whose multiplier shift a caller sets)."""
     check_supported(scene)
     md = model if model is not None else build_model(scene)
-    scheme = make_scheme(scene, md)
+    scheme = scheme if scheme is not None else make_scheme(scene, md)
     trackers = tuple(as_tracker(tr) for tr in trackers)
     tag = fingerprint(scene)
     for tr in trackers:  # checkpoints say which problem they belong to

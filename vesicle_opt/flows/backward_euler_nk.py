@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField
+from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.nk.newton_cg import Counters, newton_minimize
 from vesicle_opt.nk.precond import FourierPreconditioner, SparsePreconditioner
 from vesicle_opt.nk.proximal import ProximalObjective
@@ -58,13 +59,24 @@ class BackwardEulerNKScheme(Scheme):
         fourier = getattr(disc, "fourier", None)
         self.prec = FourierPreconditioner(fourier, disc.weights[0], model.epsilon) if fourier is not None \
             else SparsePreconditioner(disc.K, disc.weights, model.epsilon, disc.dim)
+        self.mu = np.zeros(2)  # multiplier shift: the flow of E_M - mu . (A - alpha, B - beta) (below)
+
+    def energy(self, phi):
+        """The energy whose law (24) is checked: E_M, or with a multiplier shift mu (set between flow
+        stages by ``flows.equilibrium.flow_to_equilibrium``) the augmented Lagrangian
+        E_M - mu_A (A - alpha) - mu_B (B - beta) (``penalty.penalised_energy``), the functional the
+        steps then minimise (Proposition 4.1 holds for it unchanged)."""
+        md = self.model
+        if not np.any(self.mu):
+            return md.E_M(phi)
+        return penalised_energy(md.rigidity, md.E_h(phi), md.residuals(phi), md.M, md.M, self.mu)
 
     def objective(self, phi_n: np.ndarray, k: float) -> ProximalObjective:
         """Phi of the step phi^n -> phi^{n+1} with step k (k = inf: E_M itself)."""
         md = self.model
         c = 0.0 if np.isinf(k) else 1.0 / (md.gamma * k)
         return ProximalObjective(self.pf, self.prec, lambda phi: None, md.rigidity, md.alpha, md.beta,
-                                 np.zeros(2), np.array([md.M, md.M], float), Counters(), anchor=phi_n, c=c)
+                                 self.mu.copy(), np.array([md.M, md.M], float), Counters(), anchor=phi_n, c=c)
 
     def step(self, phi_n: np.ndarray, k: float, guess: np.ndarray) -> StepOutcome:
         md = self.model
