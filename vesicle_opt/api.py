@@ -120,7 +120,9 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         result = nk_solve.solve(scene, x0=_phi_start(x0, setup[0].n_nodes), options=options, setup=setup)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
-        so = lobpcg.check(scene, result, setup, rotations=True) if check_second_order and result.converged else None
+        # (a P1 scene keeps the P1 report, translations only, also where its tensor box runs on FFT)
+        rotations = scene.mesh.kind != "fem-p1"
+        so = lobpcg.check(scene, result, setup, rotations=rotations) if check_second_order and result.converged else None
     result = _second_order(result, so)
     result = _replace_extra(result, **topology.report(result.disc, result.phi))
     if throw and not result.converged:
