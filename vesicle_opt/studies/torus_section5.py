@@ -133,12 +133,16 @@ def case_rows(case: dict) -> list[dict]:
     # stage 3: multiplier shifts between flow stages, to the exact-constraint equilibrium
     exact_scene, exact_torus = _scene(n, RELAX_T_END, case["disk"], steps=relax.steps + RELAX_STEPS,
                                       extra=["solver.method='exact'", "solver.second_order=false"])
-    flow_exact, exact_run, exact_stages = flow_to_equilibrium(exact_scene, md, exact=True, resume_from=relax.state)
+    exact_laws: list[float] = []
+    flow_exact, exact_run, exact_stages = flow_to_equilibrium(
+        exact_scene, md, exact=True, resume_from=relax.state,
+        trackers=[lambda state, row: exact_laws.append(float(row["energy_law_residual"]))])
     exact_ref = solve(exact_torus)
     flow_eq = cert.result if cert.result is not None else cert.last
     eq = solve(torus_scene, x0=phi_flow)  # the polish: front door, penalty form (11), no second-order check
     ref = solve(torus_scene)
-    laws = [float(r["energy_law_residual"]) for r in hist] + [float(r["energy_law_residual"]) for r in relax_hist.rows]
+    laws = [float(r["energy_law_residual"]) for r in hist] + \
+        [float(r["energy_law_residual"]) for r in relax_hist.rows] + exact_laws
     topo = torus_check(eq.disc, eq.phi, eq.extra)
     s = fr.summary
     rows.append({
