@@ -73,7 +73,8 @@ class EquilibriumTracker(Tracker):
 
 
 def flow_to_equilibrium(scene, model: FlowModel, *, exact: bool = False, resume_from=None, phi0=None,
-                        trackers=(), max_stages: int = 12, tol: float | None = None):
+                        trackers=(), max_stages: int = 12, tol: float | None = None,
+                        constraint_margin: float = 1.0):
     """Run the (23) flow of ``scene`` to a certified equilibrium (module docstring): the penalty one
     (``exact`` False: one stage) or the exact-constraint one (multiplier shifts between stages).
 
@@ -81,7 +82,10 @@ def flow_to_equilibrium(scene, model: FlowModel, *, exact: bool = False, resume_
     ``converged`` says whether the equilibrium was certified), ``flow_result`` the last stage's
     ``FlowResult`` (its ``state`` continues the run), ``stages`` one dict per stage (mu, steps,
     constraint residuals, kkt_residual). Needs the Newton-Krylov (23) scheme (``flows.api.make_scheme``
-    with ``flow.scheme = 'backward-euler'`` on FD with solver.backend = 'newton-krylov' or spectral)."""
+    with ``flow.scheme = 'backward-euler'`` on FD with solver.backend = 'newton-krylov' or spectral).
+    ``constraint_margin``: the stages go on until also |A - alpha| <= margin tol |Omega| and
+    |B - beta| <= margin tol beta (0.1: the margin of the exact Newton-Krylov solve,
+    ``NewtonKrylovOptions.constraint_margin``, so both carry the same constraint error)."""
     scheme = make_scheme(scene, model)
     if not hasattr(scheme, "mu"):
         raise TypeError("flow_to_equilibrium needs the Newton-Krylov backward Euler scheme (23)")
@@ -101,7 +105,9 @@ def flow_to_equilibrium(scene, model: FlowModel, *, exact: bool = False, resume_
         if not exact:
             break
         result = tracker.certify(res.phi, res.steps, res.wall_time_s, exact=True)
-        if result.converged or res.status is Status.FAILED:
+        tight = abs(c[0]) <= constraint_margin * tracker.tol * model.disc.volume and \
+            abs(c[1]) <= constraint_margin * tracker.tol * abs(model.beta)
+        if (result.converged and tight) or res.status is Status.FAILED:
             break
         mu = mu - model.M * c  # the first-order multiplier update
     return result, res, stages
