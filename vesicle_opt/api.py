@@ -137,7 +137,9 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         so = second_order.check(nlp, result) if check_second_order and result.converged else None
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
-        setup = prepare(scene)  # built once: the solve and its second-order check
+        # built once: the solve and its second-order check (lumped P1 on a periodic tensor box goes
+        # to the FFT path it equals unless options.tensor_fft is False: nk.setup.fft_equivalent)
+        setup = prepare(scene, tensor_fft=(options or NewtonKrylovOptions.from_scene(scene)).tensor_fft)
         disc = setup[0]
         check_feasible(*constraint_data(scene, disc), scene, disc)  # before anything is logged
         _log_start(scene, chosen, backend, disc.n_nodes)
@@ -146,9 +148,11 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         result = run(scene, x0=_phi_start(x0, disc), options=options, setup=setup, check=False)
         # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
         # continuum's symmetries, excluded (second_order_excluded says which)
+        # (a P1 scene keeps the P1 report, translations only, also where its tensor box runs on FFT)
+        rotations = scene.mesh.kind != "fem-p1"
         if check_second_order and result.converged:
             log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
-        so = lobpcg.check(scene, result, setup, rotations=True) if check_second_order and result.converged else None
+        so = lobpcg.check(scene, result, setup, rotations=rotations) if check_second_order and result.converged else None
     result = _second_order(result, so)
     result = _replace_extra(result, **topology.report(result.disc, result.phi))
     if throw and not result.converged:

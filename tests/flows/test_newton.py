@@ -101,8 +101,16 @@ def test_spectral_oversized_step_is_rejected_not_nan():
     assert out.rejections >= 1 and out.status == "t_end" and np.all(np.isfinite(out.phi))
 
 
-def test_backward_euler_refused_on_spectral(tmp_path, capsys):
+def test_backward_euler_by_newton_krylov_refused_on_p1(tmp_path, capsys):
+    """(23) by Newton-Krylov runs on FD and spectral grids; asked for on P1 it is bad input (exit 2)."""
     rc = cli.main(["flow", "ellipse-2d", "--scheme", "backward-euler", "--out", str(tmp_path), "--quiet",
-                   "--set", "mesh.kind='spectral'"])
+                   "--set", "mesh.kind='fem-p1'", "--set", "solver.backend='newton-krylov'"])
     err = capsys.readouterr().err.strip()
-    assert rc == 2 and "flow.scheme" in err and len(err.splitlines()) == 1
+    assert rc == 2 and "solver.backend" in err and len(err.splitlines()) == 1
+
+
+def test_backward_euler_runs_on_spectral(tmp_path):
+    """(23) is no longer refused on spectral grids: its steps go to the Newton-Krylov minimiser."""
+    rc = cli.main(["flow", "ellipse-2d", "--scheme", "backward-euler", "--out", str(tmp_path), "--quiet",
+                   "--steps", "3", "--dt", "1e-3", "--set", "mesh.kind='spectral'", "--set", "mesh.n=24"])
+    assert rc == 0

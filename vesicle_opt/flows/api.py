@@ -31,6 +31,7 @@ from vesicle_opt.model.warm_start import load_warm_start, start_field
 from vesicle_opt.result import Status
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.flows.backward_euler import BackwardEulerScheme
+from vesicle_opt.flows.backward_euler_nk import STEP_TOL, BackwardEulerNKScheme
 from vesicle_opt.flows.discrete import FEATURE, WHY, FlowModel
 from vesicle_opt.flows.lagrange import LagrangeScheme
 from vesicle_opt.flows.penalty import PenaltyScheme
@@ -47,9 +48,9 @@ def check_supported(scene) -> None:
     if scene.mesh.kind not in ("fd", "fem-p1", "spectral"):
         raise InputError("mesh.kind", f"the gradient flows support 'fd', 'fem-p1' and 'spectral', "
                                       f"got {scene.mesh.kind!r}")
-    if scene.mesh.kind == "spectral" and scene.flow.scheme == "backward-euler":
-        raise InputError("flow.scheme", "'backward-euler' (23) goes through IPOPT, which needs assembled "
-                                        "matrices: use 'penalty' or 'lagrange' on spectral grids")
+    if scene.flow.scheme == "backward-euler" and matrix_free_steps(scene) and scene.mesh.kind == "fem-p1":
+        raise InputError("solver.backend", "'backward-euler' (23) by Newton-Krylov runs on 'fd' and 'spectral' "
+                                           "grids; on 'fem-p1' use solver.backend = 'ipopt'")
     require_lumped(FEATURE, scene.mesh.mass, scene.mesh.quadrature, WHY)
     resources.check(scene, "flow")
 
@@ -73,14 +74,26 @@ def initial_field(scene, md: FlowModel) -> np.ndarray:
     return phi0
 
 
+def matrix_free_steps(scene) -> bool:
+    """Whether (23) steps go to the Newton-Krylov minimiser (``flows.backward_euler_nk``) rather
+    than IPOPT: always on spectral grids (no assembled Laplacian), and where ``solver.backend`` is
+    'newton-krylov' (FD grids). 'auto' keeps IPOPT on FD/P1 (the flows' historical path)."""
+    return scene.mesh.kind == "spectral" or scene.solver.backend == "newton-krylov"
+
+
 def make_scheme(scene, md: FlowModel):
+    if scene.flow.scheme == "backward-euler" and matrix_free_steps(scene):
+        return BackwardEulerNKScheme(md, law_tol=scene.flow.law_tol, tol=min(STEP_TOL, scene.solver.tol))
     return SCHEMES[scene.flow.scheme](md, law_tol=scene.flow.law_tol)
 
 
-def stepper_options(scene) -> StepperOptions:
+def stepper_options(scene, scheme=None) -> StepperOptions:
+    """The scene's ``flow.*`` stepping keys; a scheme may name its own adaptive-k thresholds
+    (``scheme.controller``: what counts as an easy / hard solve in its iteration count)."""
     fl = scene.flow
-    return StepperOptions(dt=fl.dt, t_end=fl.t_end, max_steps=fl.steps, adaptive=fl.stepping == "adaptive",
+    opts = StepperOptions(dt=fl.dt, t_end=fl.t_end, max_steps=fl.steps, adaptive=fl.stepping == "adaptive",
                           dt_min=fl.dt_min, dt_max=fl.dt_max, steady_tol=fl.steady_tol)
+    return replace(opts, **getattr(scheme, "controller", {}))
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,7 +144,7 @@ def fingerprint(scene) -> str:
 
 
 def flow(scene, *, trackers=(), x0=None, phi0=None, resume_from: FlowState | str | Path | None = None,
-         throw: bool = False, model: FlowModel | None = None) -> FlowResult:
+         throw: bool = False, model: FlowModel | None = None, scheme=None) -> FlowResult:
     """Run ``scene.flow`` in memory and return a frozen ``FlowResult``.
 
     trackers: ``flows.trackers`` objects, or callables ``fn(state, row)`` (a True return stops the run).
@@ -142,10 +155,11 @@ def flow(scene, *, trackers=(), x0=None, phi0=None, resume_from: FlowState | str
     A = alpha, B = beta: ``flows.projection.project``). resume_from: a ``FlowState`` (e.g.
     ``result.state``) or a checkpoint file a ``CheckpointTracker`` wrote; the run continues from it
     bit-for-bit. throw: raise ``SolverError`` (carrying the result) when the run failed.
-    model: a ``build_model(scene)`` to reuse (e.g. the one a tracker evaluates energies with)."""
+    model: a ``build_model(scene)`` to reuse (e.g. the one a tracker evaluates energies with).
+    scheme: a ``make_scheme(scene, model)`` to reuse (e.g. one whose multiplier shift a caller sets)."""
     check_supported(scene)
     md = model if model is not None else build_model(scene)
-    scheme = make_scheme(scene, md)
+    scheme = scheme if scheme is not None else make_scheme(scene, md)
     trackers = tuple(as_tracker(tr) for tr in trackers)
     tag = fingerprint(scene)
     for tr in trackers:  # checkpoints say which problem they belong to
@@ -165,7 +179,7 @@ def flow(scene, *, trackers=(), x0=None, phi0=None, resume_from: FlowState | str
         phi_start = _field(md, start.phi, "resume_from")
     else:
         phi_start = initial_field(scene, md) if phi0 is None else _field(md, phi0, "phi0")
-    out = run(scheme, phi_start, stepper_options(scene), trackers, start=start)
+    out = run(scheme, phi_start, stepper_options(scene, scheme), trackers, start=start)
     history = next((tuple(tr.rows) for tr in trackers if isinstance(tr, HistoryTracker) and tr.keep), ())
     result = FlowResult(out.phi, out.t, out.step, out.status, out.message, out.rejections, out.wall_time_s,
                         md, scene.flow.scheme, scheme.law, scheme.observe(out.phi), history, out.state,

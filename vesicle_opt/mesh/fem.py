@@ -20,6 +20,12 @@ from vesicle_opt.mesh.base import Discretization
 from vesicle_opt.errors import InputError
 
 GAUSS_ORDER = 6  # exact for the degree-6 integrand r^2 of (6) with r cubic in phi
+STIFFNESS_ORDER = 1  # P1 gradients are constant per element: a one-point rule is exact (the matrix
+# equals the intorder-2 one to max difference 0.0, tests/mesh/test_fem.py)
+MASS_ORDER = 2  # phi_i phi_j is quadratic: the lowest exact order for the consistent mass
+CHUNK = 1 << 17  # elements per assembly chunk: the COO triplets of a chunk (16 per tetrahedron,
+# 24 bytes each) stay ~50 MB, so the peak is the matrices, not the triplets (one asm of the 64^3
+# torus held 1.1 GB of triplets and coo->csr copies at once)
 
 
 def _box_mesh(box, n):
@@ -51,6 +57,22 @@ def _gauss(basis) -> tuple[sp.csr_matrix, np.ndarray]:
     return P, basis.dx.ravel().copy()
 
 
+def _assemble(mesh, elem, form, intorder: int, dofs=None) -> sp.csr_matrix:
+    """``skfem.asm(form, Basis(mesh, elem, intorder))`` summed over element chunks of ``CHUNK``:
+    the same matrix (a sum over elements in another grouping: equal to round-off), with one chunk's
+    Basis and COO triplets alive at a time."""
+    n_elem = mesh.t.shape[1]
+    out = None
+    for start in range(0, n_elem, CHUNK):
+        elements = np.arange(start, min(start + CHUNK, n_elem))
+        basis = skfem.Basis(mesh, elem, intorder=intorder, elements=elements, dofs=dofs, disable_doflocs=True)
+        part = skfem.asm(form, basis).tocsr()
+        del basis
+        out = part if out is None else out + part
+        del part
+    return out.tocsr()
+
+
 def _max_edge(mesh) -> float:
     t = mesh.t
     return float(max(np.max(np.linalg.norm(mesh.p[:, t[i]] - mesh.p[:, t[j]], axis=0))
@@ -79,12 +101,13 @@ def p1(box, n, periodic: bool, mass: str = "lumped", quadrature: str = "nodal",
         mesh = _box_mesh(box, n)
     dim = mesh.p.shape[0]
     elem = skfem.ElementTriP1() if dim == 2 else skfem.ElementTetP1()
-    basis = skfem.Basis(mesh, elem, intorder=GAUSS_ORDER if quadrature == "gauss" else 2)
-    K = skfem.asm(laplace, basis).tocsr()
-    M = skfem.asm(mass_form, basis).tocsr()
+    dofs = skfem.assembly.Dofs(mesh, elem)
+    K = _assemble(mesh, elem, laplace, STIFFNESS_ORDER, dofs)
+    M = _assemble(mesh, elem, mass_form, MASS_ORDER, dofs)
     quad_P = quad_w = None
     if quadrature == "gauss":
-        quad_P, quad_w = _gauss(basis)
+        quad_P, quad_w = _gauss(skfem.Basis(mesh, elem, intorder=GAUSS_ORDER, dofs=dofs))
+    del dofs
     nodes = mesh.p.T
     unfold = None
     if periodic:

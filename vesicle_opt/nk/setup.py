@@ -2,7 +2,12 @@
 and the grids of nested iteration.
 
 ``prepare`` gives (disc, PhaseField, preconditioner, translations); FD grids are moved to FFT
-(``mesh.spectral.fourier_grid``, equal to the sparse FD operator to round-off). Translations d_i phi
+(``mesh.spectral.fourier_grid``, equal to the sparse FD operator to round-off), and so is lumped P1
+on a periodic tensor box (``fft_equivalent``): there the lumped P1 operator *is* the FD stencil
+(K and the lumped weights equal to round-off, ``tests/mesh/test_fd.py``), so the scene is never
+assembled; ``tensor_fft=False`` keeps it on the sparse path (``nk.precond.SparsePreconditioner``,
+Chebyshev in 3D), as every unstructured mesh is. ``discretization_path`` names the path taken
+(the summary's ``discretization_path``). Translations d_i phi
 are null modes only where the discrete problem is translation invariant (grid shifts of Fourier
 grids). ``coarse_levels`` and ``resample`` serve nested iteration on Fourier grids.
 """
@@ -25,9 +30,33 @@ def on_fourier_grid(disc):
     return disc
 
 
-def prepare(scene, disc=None):
-    """(disc, PhaseField, preconditioner, translations) for a scene; FD grids go to FFT."""
-    disc = on_fourier_grid(disc or discretize(scene))
+def fft_equivalent(scene) -> bool:
+    """Lumped P1 with nodal quadrature on a periodic tensor box (no mesh file): the FD stencil."""
+    return (scene.mesh.kind == "fem-p1" and scene.domain.boundary == "periodic" and not scene.mesh.file
+            and scene.mesh.mass == "lumped" and scene.mesh.quadrature == "nodal")
+
+
+def nk_discretization(scene, tensor_fft: bool = True):
+    """The discretisation the matrix-free backend runs a scene on (module docstring)."""
+    if tensor_fft and fft_equivalent(scene):
+        return fourier_grid(scene.domain.box, scene.mesh.n, "fd")
+    return on_fourier_grid(discretize(scene))
+
+
+def discretization_path(scene, disc, prec) -> str:
+    """'fft' (Fourier grids: spectral, FD), 'fft (lumped P1 on a periodic tensor box = FD stencil)',
+    or 'sparse (<S^-1 kind>)' for meshes on the sparse path."""
+    if getattr(disc, "fourier", None) is None:
+        return f"sparse ({getattr(prec, 'kind', 'model')})"
+    if scene.mesh.kind == "fem-p1":
+        return "fft (lumped P1 on a periodic tensor box = FD stencil)"
+    return "fft"
+
+
+def prepare(scene, disc=None, tensor_fft: bool = True):
+    """(disc, PhaseField, preconditioner, translations) for a scene; FD grids (and lumped P1 on a
+    periodic tensor box, unless ``tensor_fft`` is False) go to FFT."""
+    disc = on_fourier_grid(disc) if disc is not None else nk_discretization(scene, tensor_fft)
     ops = LumpedOperators(disc)
     pf = PhaseField(ops, scene.model.epsilon, scene.model.C)
     fourier = getattr(disc, "fourier", None)

@@ -53,7 +53,7 @@ from vesicle_opt.model.penalty import AL_REDUCTION, schedule
 from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters, Objective, hessian_solve, newton_minimize
 from vesicle_opt.nk.options import NewtonKrylovOptions
-from vesicle_opt.nk.setup import coarse_levels, on_fourier_grid, prepare, resample
+from vesicle_opt.nk.setup import coarse_levels, discretization_path, prepare, resample
 from vesicle_opt.result import Result, combine_stages
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.verify.certify import build_result
@@ -263,7 +263,9 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
     """
     opts = options or NewtonKrylovOptions.from_scene(scene)
     t0, cpu0 = time.perf_counter(), time.process_time()
-    disc = setup[0] if setup is not None else on_fourier_grid(disc or discretize(scene))
+    if setup is None:  # the fine level's operators, built once (a P1 tensor box goes to FFT: nk.setup)
+        setup = prepare(scene, disc, tensor_fft=opts.tensor_fft)
+    disc = setup[0]
     rig, eps, tol = scene.model.rigidity, scene.model.epsilon, opts.tol
     if check:  # the fine level's data, before any (coarse) solve
         check_feasible(*constraint_data(scene, disc), scene, disc)
@@ -299,6 +301,7 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
     bar.close()
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     method = scene.solver.method
+    path = discretization_path(scene, disc, setup[2])
 
     def pack(st: Stage, iterations: int, wall_s: float, deriv_s: float, history=None, extra=None) -> Result:
         penalty = st.M is not None
@@ -310,7 +313,8 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
             lam=None if penalty else tuple(st.lam), M=st.M, mu=st.mu,
             exact_constraints=method in ("exact", "augmented"), floor=floor,
             iterations=iterations, wall_time_s=wall_s, derivative_time_s=deriv_s, history=history,
-            extra={"backend": "newton-krylov", "mesh_kind": disc.kind, "kkt_dual": float(st.dual),
+            extra={"backend": "newton-krylov", "mesh_kind": disc.kind, "discretization_path": path,
+                   "kkt_dual": float(st.dual),
                    "kkt_l2_floor": floor, **(extra or {})})
 
     hist = dict(cnt.history)
