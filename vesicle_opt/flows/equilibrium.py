@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from vesicle_opt.model import functionals as F
+from vesicle_opt.model.penalty import residuals
 from vesicle_opt.nk.solve import l2_floor
 from vesicle_opt.verify.certify import build_result
 from vesicle_opt.result import Status
@@ -52,8 +53,10 @@ class EquilibriumTracker(Tracker):
         """The certificate of ``phi`` as a stationary point of the shifted E_M (``exact``: and with the
         constraints held to tol, the augmented Lagrangian's exact-constraint certificate)."""
         md = self.model
-        dE = F.gradients(md.disc, phi, md.epsilon, md.C)[0]
-        floor = l2_floor(md.disc, md.rigidity, dE, md.epsilon)
+        grads = F.gradients(md.disc, phi, md.epsilon, md.C)
+        res = residuals(md.disc, phi, md.epsilon, md.alpha, md.beta)
+        lam = (self.mu[0] - md.M * res[0], self.mu[1] - md.M * res[1])  # as build_result computes them
+        floor = l2_floor(md.disc, md.rigidity, md.epsilon, grads, lam)
         return build_result(scene=self.scene, disc=md.disc, alpha=md.alpha, beta=md.beta, phi=phi, tol=self.tol,
                             solver_status="steady", solver_success=True,
                             method="augmented" if exact else "penalty", M=(md.M, md.M), mu=self.mu,
