@@ -11,9 +11,10 @@ Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
     5  nlp | nk              the two solver backends; neither imports the other
     6  flows                 gradient flows (may use a backend's NLP pieces)
     7  api, backends         the front door and its backend table (api -> backends only)
-    8  studies               the studies and their registry
-    9  cli                   the command line (argparse; the study verb uses the registry)
-   10  vesicle_opt           the package's public namespace (__init__); nothing inside imports it
+    8  branch                branches of equilibria (continuation over the front door), energy diagrams
+    9  studies               the studies and their registry
+   10  cli                   the command line (argparse; the study verb uses the registry)
+   11  vesicle_opt           the package's public namespace (__init__); nothing inside imports it
 
 ``io`` stands aside: anyone may import it, and it imports nothing of the package but errors and
 result. Every intra-package import (module-level and function-local; ``cli``'s
@@ -36,8 +37,9 @@ LAYERS = {
     "nlp": 5, "nk": 5,
     "flows": 6,
     "api": 7, "backends": 7,
-    "studies": 8, "cli": 9,
-    "": 10,  # vesicle_opt/__init__.py
+    "branch": 8,
+    "studies": 9, "cli": 10,
+    "": 11,  # vesicle_opt/__init__.py
 }
 FREE = "io"  # imported by anyone; imports only errors and result
 IO_MAY_IMPORT = {"errors", "result"}
@@ -74,7 +76,7 @@ def test_every_unit_has_a_layer():
     units = {unit(m) for m in I.modules()}
     assert units <= set(LAYERS) | {FREE}, f"place these in LAYERS: {sorted(units - set(LAYERS) - {FREE})}"
     assert {"errors", "result", "scene", "mesh", "model", "verify", "nlp", "nk", "flows", "api", "io",
-            "studies", "cli"} <= units
+            "branch", "studies", "cli"} <= units
 
 
 def test_the_rule():
@@ -87,6 +89,9 @@ def test_the_rule():
     assert violation(P + "nk.solve", P + "nlp.ipopt")  # nlp | nk
     assert violation(P + "nlp.solve", P + "nk.solve")
     assert violation(P + "studies.table1", P + "cli")  # cli on top of studies
+    assert violation(P + "branch.run", P + "api") is None and violation(P + "api", P + "branch.run")
+    assert violation(P + "studies.energy_diagram", P + "branch") is None
+    assert violation(P + "branch.run", P + "studies.runner")  # branch below the studies
     assert violation(P + "cli", P + "studies") is None
     assert violation(P + "io.output", P + "scene.schema")  # io imports only errors, result
     assert violation(P + "io.output", P + "result") is None
