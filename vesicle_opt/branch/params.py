@@ -115,7 +115,7 @@ def check_range(par: Parameter, to: float, step: float | None) -> float:
         sign = "> 0" if direction > 0 else "< 0"
         raise InputError("--step", f"allowed range {sign} (from {par.name} = {par.start:.6g} towards "
                          f"--to {to!r}), nonzero, got {step!r}")
-    if abs(step) > abs(to - par.start):
+    if abs(step) > abs(to - par.start) * (1 + 1e-9):  # round-off of the difference
         raise InputError("--step", f"allowed range 0 < |step| <= |to - start| = {abs(to - par.start):.6g}, "
                          f"got {step!r}")
     return step
