@@ -14,7 +14,7 @@ joins its image (``wraps``).
 
 Each branch is one case of the study runner (any executor; each branch also resumes point by
 point in its own directory ``<out>/<case>/``). ``--quick``: the two 2D branches on a coarse grid
-(48^2, eps = 0.4, nu 0.95 -> 0.75). ``sharp_reduced_energy`` is left empty: the place of a
+(48^2, eps = 0.4, nu 0.95 -> 0.85, three points each). ``sharp_reduced_energy`` is left empty: the place of a
 sharp-interface reference (the ``reference`` argument of ``branch``).
 
 Writes ``energy_diagram.csv`` (all rows), ``energy_diagram.png``, ``energy_diagram.json``
@@ -55,7 +55,7 @@ def cases(quick: bool) -> list[dict]:
           "max_iter": 60}  # warm-started points take 2-8 IPOPT iterations, the start 6-9; a corrector
     # that jumps to another branch took 53-171 (measured): capped, it fails fast and the step halves
     if quick:
-        d2.update(n=48, epsilon=0.4, to=0.75, step=-0.05)
+        d2.update(n=48, epsilon=0.4, to=0.85, step=-0.05)
     out = [{**d2, "case": "elastica-2d", "initial": {"shape": "ellipse", "semi_axes": [1.45, 1.1]}},
            {**d2, "case": "symmetric-2d", "initial": {"shape": "circle", "radius": 1.27}}]
     if quick:
