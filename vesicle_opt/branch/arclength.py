@@ -161,9 +161,8 @@ def advance(track: Track, s: Settings, p_start: float, correct: Callable, weight
     if final or abs(t_p) >= s.turn:
         a = correct(s.to if final else p_pred, phi_pred)
         dev = _deviation(a, phi_pred, p_pred, theta, ds, weights) if a.converged else None
-        if not a.converged or dev > s.max_deviation:
-            return replace(track, ds=track.ds / 2), [Step(a, False, "natural", 1, track.ds / 2, theta,
-                                                          deviation=dev)]
+        if not a.converged or dev > s.max_deviation:  # half the ds used (clipped at the end: no repeat)
+            return replace(track, ds=ds / 2), [Step(a, False, "natural", 1, ds / 2, theta, deviation=dev)]
         new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s))
         return new, [Step(a, True, "natural", 1, new.ds, theta, deviation=dev)]
     return _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pred)
@@ -179,7 +178,7 @@ def _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pr
     for k in range(s.max_arc_solves):
         a = correct(p, phi_pred)
         if not a.converged:
-            return replace(track, ds=track.ds / 2), [Step(a, False, "arclength", k + 1, track.ds / 2, theta)]
+            return replace(track, ds=ds / 2), [Step(a, False, "arclength", k + 1, ds / 2, theta)]
         N = condition(a)
         trials.append((p, N, a))
         if abs(N) <= s.arc_tol * ds:
@@ -192,8 +191,8 @@ def _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pr
     p_best, N_best, a = min(trials, key=lambda tr: abs(tr[1]))
     dev = _deviation(a, phi_pred, p_pred, theta, ds, weights)
     if abs(N_best) > 0.5 * ds or dev > s.max_deviation:  # the hyperplane not reached, or another branch
-        return replace(track, ds=track.ds / 2), [Step(a, False, "arclength", len(trials), track.ds / 2, theta,
-                                                      N_best / ds, dev)]
+        return replace(track, ds=ds / 2), [Step(a, False, "arclength", len(trials), ds / 2, theta,
+                                                N_best / ds, dev)]
     new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s))
     return new, [Step(a, True, "arclength", len(trials), new.ds, theta, N_best / ds, dev)]
 

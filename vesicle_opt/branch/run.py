@@ -152,6 +152,9 @@ class _Run:
         point_scene = self.par.scene_at(sc, a.p)
         row["dE_dp"] = (res.lambda_volume * self.par.dalpha() + res.lambda_area * self.par.dbeta()
                         + explicit_derivative(self.par.name, res, point_scene))
+        if a.converged and not st.accepted:
+            row["event"] = (f"rejected: {st.deviation:.3g} ds from the prediction (another branch)"
+                            if st.deviation is not None else "rejected")
         prev = [r for r in rows if r["accepted"] and r["branch"] == branch]
         if st.accepted and prev:
             q = prev[-1]

@@ -14,8 +14,8 @@ joins its image (``wraps``).
 
 Each branch is one case of the study runner (any executor; each branch also resumes point by
 point in its own directory ``<out>/<case>/``). ``--quick``: the two 2D branches on a coarse grid
-(48^2, eps = 0.4, nu 0.95 -> 0.85, three points each). ``sharp_reduced_energy`` is left empty: the place of a
-sharp-interface reference (the ``reference`` argument of ``branch``).
+(48^2, eps = 0.4, nu 0.95 -> 0.85, three points each). ``sharp_reduced_energy`` is empty until
+``SHARP_REFERENCE`` is set (the ``reference`` argument of ``branch``).
 
 Writes ``energy_diagram.csv`` (all rows), ``energy_diagram.png``, ``energy_diagram.json``
 (points, certified counts, envelope residuals, wall times, the 3D crossing).
@@ -35,6 +35,10 @@ from vesicle_opt.studies._common import num, select
 from vesicle_opt.studies.runner import run_cases
 
 NAME = "energy_diagram"
+# The sharp-interface reference of the column ``sharp_reduced_energy``: a module-level function
+# f(param, value, dim) -> reduced energy or None (e.g. a 2D elastica / 3D axisymmetric solver). None:
+# the column stays empty. Wired here (not at run time) so that the spawned case workers see it.
+SHARP_REFERENCE = None
 EXTRA = [c for c in COLUMNS if c != "case"] + ["image_gap", "gap_over_eps", "branch_stopped"]
 
 
@@ -83,7 +87,8 @@ def image_gap(snapshot: dict, epsilon: float) -> tuple[float, float]:
 
 def run(case: dict) -> list[dict]:
     out = Path(case["out"]) / case["case"]
-    b = branch(scene(case), "reduced_volume", to=case["to"], step=case["step"], out=out, switch=False)
+    b = branch(scene(case), "reduced_volume", to=case["to"], step=case["step"], out=out, switch=False,
+               reference=SHARP_REFERENCE)
     rows = []
     for r in b.rows:
         row = {**r, "scene": case["case"], "method": "exact", "branch_stopped": b.stopped[r["branch"]]}
