@@ -199,3 +199,13 @@ def test_a_branch_killed_mid_way_resumes_without_a_lost_or_duplicated_row(tmp_pa
     assert 3 <= n_before < len(b)
     assert [r["point"] for r in a] == [str(k) for k in range(len(a))]  # none lost, none twice
     assert a == b
+
+
+def test_an_output_path_that_is_a_file_is_bad_input(tmp_path, capsys):
+    toml = tmp_path / "s.toml"
+    toml.write_text(_toml(raw_scene()))
+    target = tmp_path / "taken"
+    target.write_text("keep me\n")
+    code, err = _cli(["branch", str(toml), "--out", str(target), "--param", "reduced_volume", "--to", "0.9"], capsys)
+    assert code == 2 and len(err) == 1 and "--out" in err[0], err
+    assert target.read_text() == "keep me\n"
