@@ -69,13 +69,17 @@ def plot(series: list[tuple[str, list[dict], Path | None]], path: Path, xlabel: 
             axi._anchor_data = (x[j], y[j])
     ax.set_xlabel(xlabel)
     ax.set_ylabel("reduced energy E / E_sphere")
-    ax.set_title(title or "energy diagram (solid: minimum, dashed: saddle)")
+    ax.set_title(title or "energy diagram (solid: least reduced-Hessian eigenvalue > 0, dashed: < 0)")
     ax.legend(fontsize=8, loc="best")
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.93)
     fig.canvas.draw()
     for axi in fig.axes[1:]:  # the insets beside their points, in figure coordinates
         px, py = fig.transFigure.inverted().transform(ax.transData.transform(axi._anchor_data))
         w = axi.get_position().width
-        axi.set_position([px + 0.01, py + 0.01, w, w * fig.get_figwidth() / fig.get_figheight()])
+        h = w * fig.get_figwidth() / fig.get_figheight()
+        box = ax.get_position()  # kept inside the plot area
+        px = min(max(px + 0.01, box.x0), box.x1 - w)
+        py = min(max(py + 0.01, box.y0), box.y1 - h)
+        axi.set_position([px, py, w, h])
     fig.savefig(path, dpi=110)
     plt.close(fig)
