@@ -159,8 +159,8 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
     for c in case_list:
         b_dir = out / c["case"]
         acc = [r for r in select(rows, scene=c["case"]) if str(r.get("accepted")) in ("True", "true")]
-        parsed = [{"point": int(num(r["point"])), "target": num(r["target"]), "reduced_energy": num(r["reduced_energy"]),
-                   "second_order_min_eigenvalue": num(r.get("second_order_min_eigenvalue")), "accepted": True,
+        parsed = [{"point": int(num(r["point"])), "target": num(r["target"]),
+                   "reduced_energy": num(r["reduced_energy"]), "second_order_min_eigenvalue": num(r.get("second_order_min_eigenvalue")), "accepted": True,
                    "branch": 0} for r in acc]
         series.append((c["case"], parsed, b_dir / "points"))
     for dim in (2, 3):
