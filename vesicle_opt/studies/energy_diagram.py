@@ -41,7 +41,7 @@ NAME = "energy_diagram"
 # f(param, value, dim) -> reduced energy or None (e.g. a 2D elastica / 3D axisymmetric solver). None:
 # the column stays empty. Wired here (not at run time) so that the spawned case workers see it.
 SHARP_REFERENCE = None
-EXTRA = [c for c in COLUMNS if c != "case"] + ["image_gap", "gap_over_eps", "branch_stopped"]
+EXTRA = [c for c in COLUMNS if c != "case"] + ["image_gap", "gap_over_eps", "form", "aspect", "branch_stopped"]
 
 
 def scene(case: dict):
@@ -92,6 +92,25 @@ def image_gap(snapshot: dict, epsilon: float) -> tuple[float, float]:
     return g, g / epsilon
 
 
+def form(snapshot: dict) -> tuple[str, float]:
+    """(prolate | oblate | round, the ratio of the largest to the smallest principal semi-axis) of
+    {phi > 0} from the second moments of its grid nodes (the shapes here are centred and do not
+    wrap). 2D: "elongated" or "round"."""
+    grid = tuple(int(k) for k in np.atleast_1d(snapshot["grid_shape"]))
+    box = np.asarray(snapshot["box"], float)
+    axes = [np.linspace(lo, hi, k, endpoint=False) for (lo, hi), k in zip(box, grid)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(grid))
+    inside = pts[np.asarray(snapshot["phi"]).ravel() > 0]
+    ev = np.sort(np.linalg.eigvalsh(np.cov(inside.T)))
+    ratio = float(np.sqrt(ev[-1] / ev[0]))
+    if ratio < 1.05:
+        return "round", ratio
+    if len(grid) == 2:
+        return "elongated", ratio
+    # prolate: the middle axis near the smallest; oblate: near the largest
+    return ("prolate" if ev[1] - ev[0] < ev[2] - ev[1] else "oblate"), ratio
+
+
 def run(case: dict) -> list[dict]:
     out = Path(case["out"]) / case["case"]
     b = branch(scene(case), "reduced_volume", to=case["to"], step=case["step"], out=out, switch=False,
@@ -102,6 +121,7 @@ def run(case: dict) -> list[dict]:
         snap = load_npz(out / "points" / f"point-{int(r['point']):04d}.npz") if r["accepted"] else None
         if snap is not None:
             row["image_gap"], row["gap_over_eps"] = image_gap(snap, case["epsilon"])
+            row["form"], row["aspect"] = form(snap)
         rows.append(row)
     return rows
 
