@@ -57,7 +57,7 @@ def scene(case: dict):
 
 def cases(quick: bool) -> list[dict]:
     d2 = {"dim": 2, "half_box": 4.0, "mesh": "fd", "n": 128, "epsilon": 0.2, "area": 8.0, "start_v": 0.95,
-          "to": 0.5, "step": -0.0175, "backend": "ipopt",
+          "to": 0.5, "step": -0.015, "backend": "ipopt",
           "max_iter": 60}  # warm-started points take 2-8 IPOPT iterations, the start 6-9; a corrector
     # that jumps to another branch took 53-171 (measured): capped, it fails fast and the step halves
     if quick:
