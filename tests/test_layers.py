@@ -13,10 +13,11 @@ Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
                              arrays on JAX, imports nk's options/setup, nk never imports it)
     6  flows                 gradient flows (may use a backend's NLP pieces)
     7  api, backends         the front door and its backend table (api -> backends only)
-    8  studies               the studies and their registry
-    9  cli                   the command line (argparse; the study verb uses the registry)
-   10  vesicle_opt           the package's public namespace (__init__); nothing inside imports it
-   11  __main__              ``python -m vesicle_opt`` (the CLI's main)
+    8  branch                branches of equilibria (continuation over the front door), energy diagrams
+    9  studies               the studies and their registry
+   10  cli                   the command line (argparse; the study verb uses the registry)
+   11  vesicle_opt           the package's public namespace (__init__); nothing inside imports it
+   12  __main__              ``python -m vesicle_opt`` (the CLI's main)
 
 ``io`` stands aside: anyone may import it, and it imports nothing of the package but errors and
 result. Every intra-package import (module-level and function-local; ``cli``'s
@@ -39,9 +40,10 @@ LAYERS = {
     "nlp": 5, "nk": 5, "nk_jax": 5,
     "flows": 6,
     "api": 7, "backends": 7,
-    "studies": 8, "cli": 9,
-    "": 10,  # vesicle_opt/__init__.py
-    "__main__": 11,  # python -m vesicle_opt: runs the CLI
+    "branch": 8,
+    "studies": 9, "cli": 10,
+    "": 11,  # vesicle_opt/__init__.py
+    "__main__": 12,  # python -m vesicle_opt: runs the CLI
 }
 FREE = "io"  # imported by anyone; imports only errors and result
 IO_MAY_IMPORT = {"errors", "result"}
@@ -79,7 +81,7 @@ def test_every_unit_has_a_layer():
     units = {unit(m) for m in I.modules()}
     assert units <= set(LAYERS) | {FREE}, f"place these in LAYERS: {sorted(units - set(LAYERS) - {FREE})}"
     assert {"errors", "result", "scene", "mesh", "model", "verify", "nlp", "nk", "flows", "api", "io",
-            "studies", "cli"} <= units
+            "branch", "studies", "cli"} <= units
 
 
 def test_the_rule():
@@ -94,6 +96,9 @@ def test_the_rule():
     assert violation(P + "nk_jax.solver", P + "nk.setup") is None and violation(P + "nk.solve", P + "nk_jax.ops")
     assert violation(P + "nk_jax.solver", P + "nlp.exact")
     assert violation(P + "studies.table1", P + "cli")  # cli on top of studies
+    assert violation(P + "branch.run", P + "api") is None and violation(P + "api", P + "branch.run")
+    assert violation(P + "studies.energy_diagram", P + "branch") is None
+    assert violation(P + "branch.run", P + "studies.runner")  # branch below the studies
     assert violation(P + "cli", P + "studies") is None
     assert violation(P + "io.output", P + "scene.schema")  # io imports only errors, result
     assert violation(P + "io.output", P + "result") is None

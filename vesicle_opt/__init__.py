@@ -12,10 +12,12 @@ minimisation (energy (3)/(6), constraints (4)-(5)/(7)-(8) of the reference paper
 backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi NLP. ``flow`` runs
 ``scene.flow`` with trackers for output, progress, checkpoints and stop criteria
 (``vesicle_opt.flows.trackers``); ``run_study(name, out, quick)`` runs one of the studies
-(``vesicle_opt.studies.STUDIES``).
+(``vesicle_opt.studies.STUDIES``); ``branch(scene, param=, to=, step=, out=)`` follows a branch of
+equilibria in the reduced volume or c0 (``vesicle_opt.branch``).
 """
 
 from vesicle_opt.api import solve
+from vesicle_opt.branch import Branch, branch
 from vesicle_opt.io.files import package_version
 from vesicle_opt.flows.api import FlowResult, flow
 from vesicle_opt.errors import InfeasibleError, InputError, NotSupported, SolverError, VesicleError
@@ -27,6 +29,6 @@ from vesicle_opt.studies import run_study
 
 __version__ = package_version()
 
-__all__ = ["__version__", "solve", "flow", "FlowResult", "run_study", "load_scene", "Scene", "build_nlp", "NLP",
+__all__ = ["__version__", "solve", "branch", "Branch", "flow", "FlowResult", "run_study", "load_scene", "Scene", "build_nlp", "NLP",
            "IpoptOptions", "NewtonKrylovOptions", "Result", "Status", "VesicleError", "InputError",
            "InfeasibleError", "NotSupported", "SolverError"]

@@ -7,7 +7,8 @@ the same reports added here:
 
 * ``second_order``: ``minimum`` / ``saddle`` / ``not checked`` for converged exact-constraint
   solves with ``solver.second_order`` (IPOPT: ``verify.second_order``, assembled; Newton-Krylov:
-  ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``;
+  ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``; its eigenvector (the
+  M-normalised phi direction of the least eigenvalue) is ``history["second_order_mode"]``;
 * ``topology`` and its counts (``verify.topology.report``).
 
 ``solver.array = 'jax'`` runs the newton-krylov backend's arrays on JAX devices (``nk_jax``); its
@@ -97,8 +98,12 @@ def _second_order(result: Result, so) -> Result:
         return _replace_extra(result, second_order="not checked", second_order_min_eigenvalue=None,
                               second_order_excluded=None)
     extra = {"second_order_reason": so.reason} if so.reason else {}
-    return _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue,
-                          second_order_excluded=so.excluded, **extra)
+    result = _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue,
+                            second_order_excluded=so.excluded, **extra)
+    if so.lowest_mode is None:
+        return result
+    # the critical eigenvector (M-normalised phi direction), for branch switching (vesicle_opt.branch)
+    return dataclasses.replace(result, history={**result.history, "second_order_mode": so.lowest_mode})
 
 
 def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | None = None, x0=None,

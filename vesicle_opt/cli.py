@@ -1,6 +1,7 @@
 """Command line: ``vesicle-opt solve SCENE [--out DIR] [--set KEY=VALUE ...]`` (SCENE: a TOML path
 or a bundled name), ``vesicle-opt flow SCENE --scheme ... [--out DIR]`` (a gradient flow) and
-``vesicle-opt study NAME --out DIR [--quick]`` (``vesicle-opt study --list``: the names).
+``vesicle-opt study NAME --out DIR [--quick]`` (``vesicle-opt study --list``: the names) and
+``vesicle-opt branch SCENE --param reduced_volume|c0 --to VALUE [--step DS] [--out DIR]``.
 
 Exit codes: 0 converged; 1 the solver did not converge (results still written); 2 bad input
 (one line naming the key and the allowed range, no traceback).
@@ -24,6 +25,7 @@ from pathlib import Path
 from vesicle_opt import resources
 from vesicle_opt.api import solve
 from vesicle_opt.backends import choose_backend
+from vesicle_opt.branch import branch as follow_branch
 from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.flows.api import check_supported as check_flow_supported
 from vesicle_opt.flows.run import write_flow
@@ -129,6 +131,23 @@ def cmd_flow(args) -> int:
     return 0
 
 
+def cmd_branch(args) -> int:
+    """``vesicle-opt branch SCENE --param reduced_volume|c0 --to VALUE [--step DS] [--out DIR]``:
+    one line per point on stderr, branch.csv and the snapshots in --out (resumed after a kill)."""
+    sc = load_scene(args.scene, args.set)
+
+    def show(row):
+        print(f"point {row['point']} [{row['branch']}] {row['param']} = {row['target']:.6g}: "
+              f"converged={row['converged']}, reduced_energy={row.get('reduced_energy')}, "
+              f"{row.get('second_order')}, iterations={row['iterations']}", file=sys.stderr)
+    with _preflight(sc, args.out, choose_backend(sc)) as out:  # memory, --out and its lock first
+        b = follow_branch(sc, args.param, args.to, args.step, out, progress=show)
+    pts = b.points()
+    print(f"{sc.name}: {len(pts)} points, stopped {b.stopped}, all certified="
+          f"{all(r['converged'] for r in pts)} -> {args.out}/branch.csv")
+    return 0 if b.converged else 1
+
+
 def _flow_parser(sub) -> None:
     f = sub.add_parser("flow", help="run a gradient flow (17), (18) or (23) of a scene")
     f.add_argument("scene", help="scene TOML file or bundled scene name")
@@ -221,7 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"vesicle-opt {package_version()}")
     _add_verbosity(p)
-    sub = p.add_subparsers(dest="verb", required=True, parser_class=_Parser, metavar="{solve,study,flow}")
+    sub = p.add_subparsers(dest="verb", required=True, parser_class=_Parser, metavar="{solve,flow,branch,study}")
     s = sub.add_parser("solve", help="solve the equilibrium problem of a scene")
     s.add_argument("scene", help="scene TOML file or bundled scene name")
     s.add_argument("--out", default="out", help="output directory (default: out)")
@@ -240,6 +259,16 @@ def build_parser() -> argparse.ArgumentParser:
     _add_verbosity(st)
     st.set_defaults(func=cmd_study)
     _flow_parser(sub)
+    b = sub.add_parser("branch", help="follow a branch of equilibria in reduced_volume or c0")
+    b.add_argument("scene", help="scene TOML file or bundled scene name")
+    b.add_argument("--param", required=True, help="reduced_volume or c0")
+    b.add_argument("--to", required=True, type=float, help="end value (reduced_volume in (0, 1])")
+    b.add_argument("--step", type=float, help="first parameter step, signed towards --to (default: range/25)")
+    b.add_argument("--out", default="out", help="output directory, resumed when it holds the same run")
+    b.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key (dotted, value parsed as TOML); repeatable")
+    _add_verbosity(b)
+    b.set_defaults(func=cmd_branch)
     return p
 
 

@@ -27,6 +27,7 @@ DESCRIPTIONS = {
     "bench_overhead": "cost of the abstractions: bare CasADi model against build_nlp + solve",
     "diagonal": "Theorem 3.4: h -> 0 and M -> inf together; the rule M(h)",
     "energy_decay": "Figure 3 analogue: log(E_M - E_min) against t for k and k/2 (scheme (18))",
+    "energy_diagram": "branches of equilibria in reduced volume: 2D elastica, 3D prolate/oblate, their crossing",
     "flow_vs_nlp": "flows (17), (18), (23) against the NLP: time to reach the equilibrium",
     "h_refinement": "Theorem 3.3 / Corollary 3.2: convergence of the minimisers as h -> 0",
     "penalty_continuation": "Theorem 3.2: penalty minimisers approach the constrained one as M -> inf",

@@ -1,0 +1,19 @@
+"""Branches of equilibria and energy diagrams (issue: energy diagrams), above the front door.
+
+    import vesicle_opt as vo
+    scene = vo.load_scene("my-2d.toml")                    # constraints.reduced_volume + area
+    b = vo.branch(scene, param="reduced_volume", to=0.5, step=-0.0175, out="out/branch")
+    for r in b.points(): print(r["reduced_volume"], r["reduced_energy"], r["second_order"])
+
+* ``params``: the parameters (reduced volume at fixed area, c0) and their envelope terms;
+* ``arclength``: predictor (secant), corrector (natural / pseudo-arclength), step control; generic;
+* ``store``: branch.csv, the snapshots and the resume after a kill;
+* ``run``: ``branch(...)`` and its frozen result ``Branch``;
+* ``diagram``: the energy-diagram PNG (matplotlib is imported there only).
+"""
+
+from vesicle_opt.branch.params import PARAMS
+from vesicle_opt.branch.run import Branch, branch
+from vesicle_opt.branch.store import COLUMNS
+
+__all__ = ["PARAMS", "COLUMNS", "Branch", "branch"]

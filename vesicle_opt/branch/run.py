@@ -1,0 +1,243 @@
+"""``branch(scene, param=, to=, step=, out=)``: a branch of equilibria in the reduced volume or c0.
+
+Every point is an exact-constraint solve of the front door (``vesicle_opt.solve``, method
+``exact``: IPOPT, or Newton-Krylov with ``backend="newton-krylov"`` on spectral grids), warm-started
+from the predictor (``branch.arclength``); each carries the front door's certificate, its
+second-order verdict (``second_order``, ``second_order_min_eigenvalue`` in mu_ref units) and its
+topology. Per accepted point the row also holds
+
+* ``dE_dp`` = lambda_volume d alpha/dp + lambda_area d beta/dp + dE/dp|_phi (``branch.params``) and
+  ``envelope_residual`` = |Delta E - (dE_dp_{i-1} + dE_dp_i)/2 Delta p| / |(dE_dp_{i-1} + dE_dp_i)/2 Delta p|
+  on the interval from the previous accepted point: the envelope identity against the finite
+  difference of E along the branch, O(Delta p^2) (the trapezoid rule's error; ``Branch.envelope_central``
+  gives the three-point form at interior points);
+* ``event`` = ``stability change`` where ``second_order_min_eigenvalue`` (the least eigenvalue of
+  the reduced Hessian, symmetry modes excluded) changes sign from the previous accepted point;
+  ``Branch.events`` classifies each as a ``fold`` (the parameter turns back within one interval of
+  it) or a ``bifurcation``. With ``switch=True`` the run then starts a branch (``branch`` column 1,
+  2, ...) from the saddle's field pushed along its critical eigenvector (the front door's
+  ``history["second_order_mode"]``) and follows it towards ``to``.
+* ``sharp_reduced_energy``: the place of a sharp-interface reference (``reference(param, value,
+  dim)`` -> float or None, not computed here).
+
+A failed corrector is a row (``converged`` false, its ``outcome`` and ``status``), the step halves.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from vesicle_opt.api import solve
+from vesicle_opt.branch import arclength as arc
+from vesicle_opt.branch.params import Parameter, check_range, explicit_derivative, parameter
+from vesicle_opt.branch.store import Store
+from vesicle_opt.errors import InputError
+from vesicle_opt.mesh import discretize
+from vesicle_opt.scene.schema import Scene
+
+SWITCH_AMPLITUDE = 0.05  # the seed phi_s + a |phi_s|_M mode of a branch switch (mode M-normalised)
+
+
+@dataclass(frozen=True)
+class Branch:
+    """The rows of a branch run (``branch.store.COLUMNS``, parsed) and why each branch stopped."""
+
+    param: str
+    to: float
+    step: float
+    rows: tuple[dict, ...]
+    stopped: dict  # branch id -> reason
+    out: Path | None = None
+
+    def points(self, branch: int | None = None) -> list[dict]:
+        """The accepted (converged) points, of one branch when given."""
+        return [r for r in self.rows if r["accepted"] and (branch is None or r["branch"] == branch)]
+
+    @property
+    def converged(self) -> bool:
+        """Every branch reached ``to`` (or its end) and every accepted point is certified."""
+        return all(v in ("reached", "max_points") for v in self.stopped.values()) and \
+            all(r["converged"] for r in self.points())
+
+    def envelope_central(self, branch: int = 0) -> list[tuple[int, float]]:
+        """(point, |E'_FD - dE_dp| / |dE_dp|) at interior points, E'_FD the three-point derivative
+        on the nonuniform parameter grid (second order)."""
+        pts = self.points(branch)
+        out = []
+        for a, b, c in zip(pts, pts[1:], pts[2:]):
+            h1, h2 = b["target"] - a["target"], c["target"] - b["target"]
+            if h1 * h2 <= 0:
+                continue  # a fold between: E is not a function of p there
+            d = (-h2 / (h1 * (h1 + h2)) * a["energy"] + (h2 - h1) / (h1 * h2) * b["energy"]
+                 + h1 / (h2 * (h1 + h2)) * c["energy"])
+            out.append((b["point"], abs(d - b["dE_dp"]) / abs(b["dE_dp"])))
+        return out
+
+    def events(self, branch: int = 0) -> list[dict]:
+        """Each stability change: {point, kind ('fold' | 'bifurcation'), saddle (the point with the
+        negative eigenvalue)}."""
+        pts = self.points(branch)
+        out = []
+        for k in range(1, len(pts)):
+            if pts[k]["event"] != "stability change":
+                continue
+            dps = [pts[j + 1]["target"] - pts[j]["target"] for j in range(max(k - 2, 0), min(k + 1, len(pts) - 1))]
+            turned = any(x * y < 0 for x, y in zip(dps, dps[1:]))
+            saddle = pts[k] if pts[k]["second_order_min_eigenvalue"] < 0 else pts[k - 1]
+            out.append({"point": pts[k]["point"], "kind": "fold" if turned else "bifurcation",
+                        "saddle": saddle["point"], "target": saddle["target"]})
+        return out
+
+
+def _meta(scene: Scene, param: str, to: float, step: float, backend, switch: bool) -> dict:
+    return {"scene": scene.name, "scene_data": repr(scene), "param": param, "to": float(to),
+            "step": float(step), "backend": backend, "switch": bool(switch)}
+
+
+class _Run:
+    """One branch run: the corrector, the rows, the store (see ``branch``)."""
+
+    def __init__(self, scene, par: Parameter, settings, store: Store, backend, options, reference, progress):
+        self.scene, self.par, self.s, self.store = scene, par, settings, store
+        self.backend, self.options, self.reference, self.progress = backend, options, reference, progress
+        self.weights = discretize(scene).weights
+
+    def corrector(self, seed: np.ndarray | None) -> Callable:
+        def correct(p, phi_start):
+            t0 = time.perf_counter()
+            if phi_start is None and seed is None:
+                sc = self.scene  # the start: the scene as given
+            else:
+                phi_start = seed if phi_start is None else phi_start
+                if self.par.name == "reduced_volume" and not 0 < p <= 1:
+                    return arc.Attempt(p, phi_start, False, 0, (None, f"reduced_volume {p:.6g} outside (0, 1]", 0.0))
+                sc = self.par.scene_at(self.scene, p)
+            try:
+                res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
+            except InputError as exc:  # infeasible data beyond the range of a start: a failed point
+                if phi_start is None and seed is None:
+                    raise
+                return arc.Attempt(p, phi_start, False, 0, (None, str(exc), time.perf_counter() - t0))
+            return arc.Attempt(p, res.phi, res.converged, res.iterations, (res, None, time.perf_counter() - t0))
+        return correct
+
+    def row(self, branch: int, st: arc.Step) -> tuple[dict, object]:
+        a = st.attempt
+        res, message, wall = a.payload
+        rows = self.store.rows()
+        point = len(rows)
+        sc = self.scene
+        row = {"point": point, "branch": branch, "param": self.par.name, "target": a.p,
+               "accepted": st.accepted, "converged": bool(a.converged), "iterations": a.iterations,
+               "solves": st.solves, "corrector": st.corrector, "arc_step": st.arc_step,
+               "arc_theta": st.theta, "arc_condition": st.arc_condition, "deviation": st.deviation, "wall_time_s": wall,
+               "epsilon": sc.model.epsilon, "n": sc.mesh.n[0],
+               "c0": a.p if self.par.name == "c0" else sc.model.c0}
+        if res is None:
+            row.update({"outcome": "not_solved", "status": message})
+            return row, None
+        ex = res.extra
+        row.update({k: ex.get(k) for k in ("reduced_volume", "reduced_energy", "second_order",
+                                          "second_order_min_eigenvalue", "topology", "components",
+                                          "h", "alpha", "beta", "volume", "area")})
+        row["wraps"] = None if ex.get("wraps") is None else "".join("xyz"[i] for i in ex["wraps"]) or "none"
+        row.update({"energy": res.energy, "lambda_volume": res.lambda_volume, "lambda_area": res.lambda_area,
+                    "kkt_residual": res.kkt_residual, "outcome": str(res.outcome), "status": res.status})
+        point_scene = self.par.scene_at(sc, a.p)
+        row["dE_dp"] = (res.lambda_volume * self.par.dalpha() + res.lambda_area * self.par.dbeta()
+                        + explicit_derivative(self.par.name, res, point_scene))
+        if a.converged and not st.accepted:
+            row["event"] = (f"rejected: {st.deviation:.3g} ds from the prediction (another branch)"
+                            if st.deviation is not None else "rejected")
+        prev = [r for r in rows if r["accepted"] and r["branch"] == branch]
+        if st.accepted and prev:
+            q = prev[-1]
+            g, dp = (q["dE_dp"] + row["dE_dp"]) / 2, a.p - q["target"]
+            row["envelope_residual"] = abs(res.energy - q["energy"] - g * dp) / abs(g * dp) if g * dp else None
+            mu0, mu1 = q["second_order_min_eigenvalue"], row["second_order_min_eigenvalue"]
+            if mu0 is not None and mu1 is not None and mu0 * mu1 < 0:
+                row["event"] = "stability change"
+        if self.reference is not None:
+            row["sharp_reduced_energy"] = self.reference(self.par.name, a.p, sc.dim)
+        return row, res
+
+    def record(self, branch: int) -> Callable:
+        def rec(st: arc.Step):
+            row, res = self.row(branch, st)
+            self.store.append(row, res)
+            if self.progress is not None:
+                self.progress(row)
+        return rec
+
+    def follow(self, branch: int, p_start: float, seed: np.ndarray | None) -> str:
+        """Walk (or resume) one branch; returns why it stopped."""
+        mine = [r for r in self.store.rows() if r["branch"] == branch]
+        recs = [{"p": r["target"], "phi": self.store.phi(r["point"]) if r["accepted"] else None,
+                 "accepted": r["accepted"], "arc_step": r["arc_step"], "theta": r["arc_theta"]} for r in mine]
+        track = arc.replay(self.s.step, recs) if recs else None
+        _, why = arc.walk(self.s, p_start, self.corrector(seed), self.weights, track, self.record(branch))
+        return why
+
+
+def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None, step: float | None = None,
+           out=None, *, backend: str | None = None, options=None, max_points: int = 200, switch: bool = True,
+           reference: Callable | None = None, snapshots: bool = True,
+           progress: Callable[[dict], None] | None = None) -> Branch:
+    """Follow the branch of equilibria of ``scene`` in ``param`` from the scene's value to ``to``
+    (module docstring); ``step`` is the first (and largest) parameter step, signed towards ``to``
+    (default: a 25th of the range). ``out``: a directory for branch.csv and the snapshots, resumed
+    when it holds the same run. Bad input raises InputError (naming the flag) before any solve."""
+    if to is None:
+        raise InputError("--to", "missing: the end value of the parameter")
+    par = parameter(scene, param)
+    step = check_range(par, to, step)
+    if not (isinstance(max_points, int) and max_points >= 2):
+        raise InputError("max_points", f"allowed range >= 2, got {max_points!r}")
+    store = Store(None if out is None else Path(out), _meta(scene, param, to, step, backend, switch), snapshots)
+    settings = arc.Settings(step=step, to=float(to), max_points=max_points)
+    run = _Run(scene, par, settings, store, backend, options, reference, progress)
+    stopped = {0: run.follow(0, par.start, None)}
+    if switch:
+        for k, ev in enumerate([e for e in _result(par, to, step, store, stopped, out).events(0)
+                                if e["kind"] == "bifurcation"], start=1):
+            stopped[k] = _switch(run, store, k, ev)
+    result = _result(par, to, step, store, stopped, out)
+    if out is not None and snapshots:
+        write_diagram(result, Path(out) / "energy_diagram.png")
+    return result
+
+
+def write_diagram(b: Branch, path: Path, title: str = "") -> None:
+    """The energy-diagram PNG of a run's branches (``branch.diagram``)."""
+    # matplotlib loads with branch.diagram only: not with ``import vesicle_opt`` (a function-local
+    # import on purpose, as io.output is for the CLI)
+    from vesicle_opt.branch import diagram
+    points = None if b.out is None else b.out / "points"
+    series = [(f"branch {k}" if k else "branch", b.points(k), points) for k in sorted(b.stopped)]
+    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title)
+
+
+def _result(par, to, step, store, stopped, out) -> Branch:
+    return Branch(par.name, float(to), float(step), tuple(store.rows()), dict(stopped),
+                  None if out is None else Path(out))
+
+
+def _switch(run: _Run, store: Store, k: int, ev: dict) -> str:
+    """Branch k from the saddle of a bifurcation event pushed along its critical eigenvector."""
+    seed = store.seed(k)
+    if seed is None:
+        mode = store.mode(ev["saddle"])
+        if mode is None:
+            return "no eigenvector stored at the saddle"
+        phi = store.phi(ev["saddle"])
+        amp = SWITCH_AMPLITUDE * math.sqrt(float(np.dot(run.weights, phi * phi)))
+        store.save_seed(k, ev["target"], phi + amp * mode)
+        seed = store.seed(k)
+    return run.follow(k, float(seed["p"]), np.asarray(seed["phi"], float))
+

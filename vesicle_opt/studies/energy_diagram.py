@@ -1,0 +1,202 @@
+"""Energy diagrams: branches of equilibria in the reduced volume (``vesicle_opt.branch``).
+
+2D: the closed-elastica branch from nu = 0.95 down to 0.5 (FD 128^2, box [-4, 4]^2, eps = 0.2,
+perimeter S = 8, so R0 = S / 2 pi = 1.27), started from an ellipse; and the branch the solver
+finds from the symmetric (circle) start, a saddle, followed as far as it holds. 3D: the prolate
+branch from v = 0.95 down to 0.6 and the oblate branch from v = 0.65 up to 0.95 (Fourier spectral
+64^3, Newton-Krylov, box [-3, 3]^3, eps = 0.2, area 4 pi so R0 = 1), started from a prolate and an
+oblate ellipsoid (an oblate start at v = 0.95 relaxes onto the prolate branch; the oblate branch
+also runs down to 0.55 from the same start, case ``oblate-3d-low``); their
+crossing (v and reduced energy, linear interpolation of the difference of the two branches).
+
+Margin to the periodic images: every row has ``image_gap`` = the box side minus the extent of
+{phi > 0} along the worst axis (the free space between the shape and its image, in units of
+length; ``gap_over_eps`` = that over eps), and the topology columns of the branch say when a shape
+joins its image (``wraps``).
+
+Each branch is one case of the study runner (any executor; each branch also resumes point by
+point in its own directory ``<out>/<case>/``). ``--quick``: the two 2D branches on a coarse grid
+(48^2, eps = 0.4, nu 0.95 -> 0.85, three points each). ``sharp_reduced_energy`` is empty until
+``SHARP_REFERENCE`` is set (the ``reference`` argument of ``branch``).
+
+Writes ``energy_diagram.csv`` (all rows), ``energy_diagram.png``, ``energy_diagram.json``
+(points, certified counts, envelope residuals, wall times, the 3D crossing).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from vesicle_opt.branch import COLUMNS, branch, diagram
+from vesicle_opt.io.files import load_npz, write_json
+from vesicle_opt.scene.schema import from_dict
+from vesicle_opt.studies._common import num, select
+from vesicle_opt.studies.runner import run_cases
+
+NAME = "energy_diagram"
+# The sharp-interface reference of the column ``sharp_reduced_energy``: a module-level function
+# f(param, value, dim) -> reduced energy or None (e.g. a 2D elastica / 3D axisymmetric solver). None:
+# the column stays empty. Wired here (not at run time) so that the spawned case workers see it.
+SHARP_REFERENCE = None
+EXTRA = [c for c in COLUMNS if c != "case"] + ["image_gap", "gap_over_eps", "form", "aspect", "branch_stopped"]
+
+
+def scene(case: dict):
+    """The scene of a case (plain data, so that cases pickle)."""
+    L = case["half_box"]
+    raw = {"domain": {"box": [[-L, L]] * case["dim"], "boundary": "periodic"},
+           "mesh": {"kind": case["mesh"], "n": case["n"]}, "model": {"epsilon": case["epsilon"]},
+           "constraints": {"reduced_volume": case["start_v"], "area": case["area"]},
+           "initial": case["initial"],
+           "solver": {"method": "exact", "tol": 1e-8, "backend": case["backend"], "max_iter": case["max_iter"]}}
+    return from_dict(raw, case["case"])
+
+
+def cases(quick: bool) -> list[dict]:
+    d2 = {"dim": 2, "half_box": 4.0, "mesh": "fd", "n": 128, "epsilon": 0.2, "area": 8.0, "start_v": 0.95,
+          "to": 0.5, "step": -0.015, "backend": "ipopt",
+          "max_iter": 60}  # warm-started points take 2-8 IPOPT iterations, the start 6-9; a corrector
+    # that jumps to another branch took 53-171 (measured): capped, it fails fast and the step halves
+    if quick:
+        d2.update(n=48, epsilon=0.4, to=0.85, step=-0.05)
+    out = [{**d2, "case": "elastica-2d", "initial": {"shape": "ellipse", "semi_axes": [1.45, 1.1]}},
+           {**d2, "case": "symmetric-2d", "initial": {"shape": "circle", "radius": 1.27}}]
+    if quick:
+        return out
+    d3 = {"dim": 3, "half_box": 3.0, "mesh": "spectral", "n": 64, "epsilon": 0.2, "area": 4 * math.pi,
+          "start_v": 0.95, "to": 0.6, "step": -0.025, "backend": "newton-krylov",
+          "max_iter": 500}
+    return out + [{**d3, "case": "prolate-3d", "initial": {"shape": "ellipsoid", "semi_axes": [1.3, 0.9, 0.9]}},
+                  # an oblate start at v = 0.95 relaxes onto the prolate branch (measured at 32^3: the
+                  # same energies to 1e-10), so the oblate branch is followed upwards from v = 0.65
+                  {**d3, "case": "oblate-3d", "start_v": 0.65, "to": 0.95, "step": 0.025,
+                   "initial": {"shape": "ellipsoid", "semi_axes": [1.35, 1.35, 0.55]}},
+                  {**d3, "case": "oblate-3d-low", "start_v": 0.65, "to": 0.55, "step": -0.025,
+                   "initial": {"shape": "ellipsoid", "semi_axes": [1.35, 1.35, 0.55]}}]
+
+
+def image_gap(snapshot: dict, epsilon: float) -> tuple[float, float]:
+    """(box side - extent of {phi > 0}) on the worst axis, and that over eps, from a grid snapshot."""
+    grid = tuple(int(k) for k in np.atleast_1d(snapshot["grid_shape"]))
+    inside = np.asarray(snapshot["phi"]).reshape(grid) > 0
+    box = np.asarray(snapshot["box"], float)
+    gaps = []
+    for ax in range(len(grid)):
+        occupied = np.any(inside, axis=tuple(a for a in range(len(grid)) if a != ax))
+        side = box[ax, 1] - box[ax, 0]
+        gaps.append(side * (1 - occupied.sum() / grid[ax]))  # the free cells' length along this axis
+    g = float(min(gaps))
+    return g, g / epsilon
+
+
+def form(snapshot: dict) -> tuple[str, float]:
+    """(prolate | oblate | round, the ratio of the largest to the smallest principal semi-axis) of
+    {phi > 0} from the second moments of its grid nodes (the shapes here are centred and do not
+    wrap). 2D: "elongated" or "round"."""
+    grid = tuple(int(k) for k in np.atleast_1d(snapshot["grid_shape"]))
+    box = np.asarray(snapshot["box"], float)
+    axes = [np.linspace(lo, hi, k, endpoint=False) for (lo, hi), k in zip(box, grid)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(grid))
+    inside = pts[np.asarray(snapshot["phi"]).ravel() > 0]
+    ev = np.sort(np.linalg.eigvalsh(np.cov(inside.T)))
+    ratio = float(np.sqrt(ev[-1] / ev[0]))
+    if ratio < 1.05:
+        return "round", ratio
+    if len(grid) == 2:
+        return "elongated", ratio
+    # prolate: the middle axis near the smallest; oblate: near the largest
+    return ("prolate" if ev[1] - ev[0] < ev[2] - ev[1] else "oblate"), ratio
+
+
+def run(case: dict) -> list[dict]:
+    out = Path(case["out"]) / case["case"]
+    b = branch(scene(case), "reduced_volume", to=case["to"], step=case["step"], out=out, switch=False,
+               reference=SHARP_REFERENCE)
+    rows = []
+    for r in b.rows:
+        row = {**r, "scene": case["case"], "method": "exact", "branch_stopped": b.stopped[r["branch"]]}
+        snap = load_npz(out / "points" / f"point-{int(r['point']):04d}.npz") if r["accepted"] else None
+        if snap is not None:
+            row["image_gap"], row["gap_over_eps"] = image_gap(snap, case["epsilon"])
+            row["form"], row["aspect"] = form(snap)
+        rows.append(row)
+    return rows
+
+
+def crossing(a: list[dict], b: list[dict]) -> dict | None:
+    """Where the reduced energies of two branches cross (linear interpolation in v of their
+    difference on the overlap of their ranges); None when they do not."""
+    va, ea = (np.array([num(r["reduced_volume"]) for r in a]), np.array([num(r["reduced_energy"]) for r in a]))
+    vb, eb = (np.array([num(r["reduced_volume"]) for r in b]), np.array([num(r["reduced_energy"]) for r in b]))
+    if len(va) < 2 or len(vb) < 2:
+        return None
+    ia, ib = np.argsort(va), np.argsort(vb)
+    va, ea, vb, eb = va[ia], ea[ia], vb[ib], eb[ib]
+    lo, hi = max(va[0], vb[0]), min(va[-1], vb[-1])
+    v = np.unique(np.concatenate([va, vb]))
+    v = v[(v >= lo) & (v <= hi)]
+    d = np.interp(v, va, ea) - np.interp(v, vb, eb)
+    for k in range(len(v) - 1):
+        if d[k] == 0 or d[k] * d[k + 1] < 0:
+            t = d[k] / (d[k] - d[k + 1]) if d[k] != d[k + 1] else 0.0
+            vx = v[k] + t * (v[k + 1] - v[k])
+            return {"reduced_volume": float(vx), "reduced_energy": float(np.interp(vx, va, ea))}
+    return None
+
+
+def summary(rows: list[dict], case_list: list[dict]) -> dict:
+    out = {}
+    for c in case_list:
+        sel = select(rows, scene=c["case"])
+        acc = [r for r in sel if str(r.get("accepted")) in ("True", "true")]
+        env = [num(r.get("envelope_residual")) for r in acc if r.get("envelope_residual") not in (None, "")]
+        steps = [abs(num(x["target"]) - num(y["target"])) for x, y in zip(acc, acc[1:])]
+        out[c["case"]] = {
+            "points": len(acc), "attempts": len(sel),
+            "certified": sum(str(r.get("converged")) in ("True", "true") for r in acc),
+            "minimum": sum(r.get("second_order") == "minimum" for r in acc),
+            "saddle": sum(r.get("second_order") == "saddle" for r in acc),
+            "stopped": sel[-1].get("branch_stopped") if sel else None,
+            "reduced_volume_range": [num(acc[0]["reduced_volume"]), num(acc[-1]["reduced_volume"])] if acc else None,
+            "wall_time_s": float(np.nansum([num(r.get("wall_time_s")) for r in sel])),
+            "envelope_residual_max": max(env) if env else None,
+            "max_step": max(steps) if steps else None,
+            "envelope_over_step2_max": max(e / s**2 for e, s in zip(env, steps)) if env and steps else None,
+            "min_image_gap_over_eps": min((num(r.get("gap_over_eps")) for r in acc), default=None),
+        }
+    pro = select(rows, scene="prolate-3d")
+    obl = select(rows, scene="oblate-3d") + select(rows, scene="oblate-3d-low")
+    if pro and obl:
+        acc = lambda rs: [r for r in rs if str(r.get("accepted")) in ("True", "true")]  # noqa: E731
+        out["crossing_3d"] = crossing(acc(pro), acc(obl))
+    return out
+
+
+def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    case_list = [{**c, "out": str(out)} for c in cases(quick)]
+    rows = run_cases(NAME, case_list, run, out / f"{NAME}.csv", executor=executor, workers=workers,
+                     extra_columns=EXTRA)
+    info = summary(rows, case_list)
+    write_json(out / f"{NAME}.json", info)
+    series = []
+    for c in case_list:
+        b_dir = out / c["case"]
+        acc = [r for r in select(rows, scene=c["case"]) if str(r.get("accepted")) in ("True", "true")]
+        parsed = [{"point": int(num(r["point"])), "target": num(r["target"]),
+                   "reduced_energy": num(r["reduced_energy"]), "second_order_min_eigenvalue": num(r.get("second_order_min_eigenvalue")), "accepted": True,
+                   "branch": 0} for r in acc]
+        series.append((c["case"], parsed, b_dir / "points"))
+    for dim in (2, 3):
+        mine = [s for s, c in zip(series, case_list) if c["dim"] == dim]
+        if mine:
+            diagram.plot(mine, out / f"{NAME}-{dim}d.png", xlabel="reduced volume",
+                         title=f"{dim}D energy diagram (solid: stable, dashed: unstable)")
+    for name, v in info.items():
+        print(f"{NAME}: {name}: {v}")
+    ok = all(v["points"] >= 2 and v["certified"] == v["points"] for k, v in info.items() if k != "crossing_3d")
+    return 0 if ok else 1
