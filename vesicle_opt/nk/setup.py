@@ -10,10 +10,10 @@ grids). ``coarse_levels`` and ``resample`` serve nested iteration on Fourier gri
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import resample as fourier_resample
 
 from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.spectral import fourier_grid
+from vesicle_opt.mesh.spectral import resample as fourier_resample
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField
 from vesicle_opt.nk.precond import FourierPreconditioner, SparsePreconditioner
 
@@ -66,8 +66,6 @@ def coarse_levels(disc, epsilon: float, min_n: int = 16) -> list[tuple[int, ...]
 
 
 def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
-    """The trigonometric interpolant of a periodic grid field on another grid (same box)."""
-    v = phi.reshape(shape_from)
-    for axis, n in enumerate(shape_to):
-        v = fourier_resample(v, n, axis=axis)
-    return np.ascontiguousarray(v).ravel()
+    """The trigonometric interpolant of a periodic grid field on another grid (same box):
+    ``mesh.spectral.resample``."""
+    return fourier_resample(phi, shape_from, shape_to)
