@@ -2,24 +2,18 @@
 (matplotlib); the atomic json/npz files are ``io.files``.
 
 Nothing non-finite is ever written: ``Result.summary`` maps NaN/inf to null, and fields with
-non-finite values are refused here rather than written. matplotlib and meshio load with this module
-only (not with ``import vesicle_opt``: ~30 MB and ~0.4 s a library user need not pay).
+non-finite values are refused here rather than written. meshio loads with this module only (not
+with ``import vesicle_opt``), matplotlib (~0.4 s) and scipy.interpolate only when a PNG is drawn.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import meshio
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import matplotlib.tri as mtri  # noqa: E402
-import meshio  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.interpolate import griddata  # noqa: E402
-
-from vesicle_opt.io.files import write_json  # noqa: E402
+from vesicle_opt.io.files import write_json
 
 
 def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:
@@ -54,6 +48,10 @@ def write_vtk(path: Path, disc, phi: np.ndarray) -> None:
 
 def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
     """2D: phi with its zero level set; 3D: three central cut views (x=0, y=0, z=0 planes)."""
+    import matplotlib  # third-party, lazy: only a PNG needs it (~0.4 s at import)
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.tri as mtri
     box = disc.box
     if disc.dim == 2:
         fig, ax = plt.subplots(figsize=(5, 5))
@@ -100,6 +98,7 @@ def _sample_cut(disc, phi, axis: int, n: int = 64) -> np.ndarray:
     pts = np.zeros((n * n, 3))
     pts[:, axis] = 0.5 * (box[axis][0] + box[axis][1])
     pts[:, other[0]], pts[:, other[1]] = A.ravel(), B.ravel()
+    from scipy.interpolate import griddata  # third-party, lazy: only for the PNG's cuts of a mesh
     return griddata(disc.nodes, phi, pts, method="nearest").reshape(n, n)
 
 

@@ -18,7 +18,7 @@ from types import ModuleType
 
 from vesicle_opt.errors import InputError
 
-STUDIES = ("bench_3d", "bench_equilibrium", "bench_overhead", "diagonal", "energy_decay", "flow_vs_nlp",
+STUDIES = ("bench_3d", "bench_certificate", "bench_equilibrium", "bench_overhead", "diagonal", "energy_decay", "flow_vs_nlp",
            "h_refinement", "penalty_continuation", "penalty_vs_exact", "stress", "table1",
            "time_step_convergence", "torus_section5")
 NOT_STUDIES = ("_common", "_flowkit", "runner", "bare_casadi")

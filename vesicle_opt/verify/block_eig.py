@@ -24,7 +24,7 @@ DROP = 1e-10  # search directions whose Gram eigenvalue is below DROP times the 
 @dataclass
 class BlockResult:
     values: np.ndarray  # Ritz values, ascending
-    vectors: np.ndarray  # orthonormal Ritz vectors (columns, in V)
+    vectors: np.ndarray  # orthonormal Ritz vectors (rows, in V)
     a_vectors: np.ndarray  # A applied to them (recomputed exactly at the end)
     residuals: np.ndarray  # |A x - theta x| per pair (exact products)
     iterations: int
@@ -32,79 +32,82 @@ class BlockResult:
 
 
 def _project(U, Q):
-    return U if Q is None else U - Q @ (Q.T @ U)
+    """U (rows: vectors) minus its components along the rows of Q (orthonormal)."""
+    return U if Q is None else U - (U @ Q.T) @ Q
 
 
 def _orthonormal(S, *against):
-    """Orthonormal basis of span(S) with the components along the (orthonormal) ``against`` blocks
-    removed, twice (classical Gram-Schmidt, then SVQB with dropping of dependent directions);
-    returns (basis, coefficients) with basis = S @ coefficients (up to the removed components)."""
+    """Orthonormal rows spanning the rows of S with the components along the (orthonormal) rows of
+    ``against`` removed, twice (classical Gram-Schmidt, then SVQB with dropping of dependent
+    directions); returns (basis, coefficients) with basis = coefficients @ S (up to the removed
+    components)."""
     for _ in range(2):
         for B in against:
-            S = S - B @ (B.T @ S)
-    G = S.T @ S
-    w, V = np.linalg.eigh(G)
+            S = S - (S @ B.T) @ B
+    G = S @ S.T
+    w, V = np.linalg.eigh((G + G.T) / 2)
     keep = w > DROP * max(w.max(), np.finfo(float).tiny)
-    C = V[:, keep] / np.sqrt(w[keep])
-    return S @ C, C
+    C = (V[:, keep] / np.sqrt(w[keep])).T
+    return C @ S, C
 
 
 def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int, stop) -> BlockResult:
-    """LOBPCG for the smallest eigenpairs of A on {Q^T u = 0} from the block X0 (columns)."""
-    k = X0.shape[1]
+    """LOBPCG for the smallest eigenpairs of A on {Q u = 0} from the block X0. Blocks are stored
+    as rows (k x N, each vector contiguous: the FFTs and products read whole vectors)."""
+    k = X0.shape[0]
     X, _ = _orthonormal(_project(X0, Q))
     AX = _project(apply_a(X), Q)
-    theta, C = np.linalg.eigh(X.T @ AX)
-    X, AX = X @ C, AX @ C
+    theta, C = np.linalg.eigh((X @ AX.T + AX @ X.T) / 2)
+    X, AX = C.T @ X, C.T @ AX
     P = AP = None
     history = []
     it = 0
     for it in range(1, max_iter + 1):
-        R = AX - X * theta
-        res = np.linalg.norm(R, axis=0)
+        R = AX - theta[:, None] * X
+        res = np.linalg.norm(R, axis=1)
         history.append((float(theta[0]), float(res[0])))
         if stop(theta, res):
             break
         W = _project(apply_t(R), Q)
-        blocks = [W] if P is None else [W, P]
-        # W and P orthonormalised against X; [W, P] as one block (A on W exact, on P by linearity)
-        S_raw = np.hstack(blocks)
-        S, Cs = _orthonormal(S_raw, X)
+        del R
         AW = _project(apply_a(W), Q)
-        AS_raw = AW if P is None else np.hstack([AW, AP])
-        # A (S_raw - X X^T S_raw) applied twice-projected: A S = (A S_raw - A X (X^T S_raw)) C
-        S_raw_x = S_raw
-        for _ in range(2):
-            coef = X.T @ S_raw_x
-            AS_raw = AS_raw - AX @ coef
-            S_raw_x = S_raw_x - X @ coef
-        AS = AS_raw @ Cs
-        basis = np.hstack([X, S])
-        a_basis = np.hstack([AX, AS])
-        G = basis.T @ a_basis
-        G = (G + G.T) / 2
+        # S = [W; P] orthonormalised against X, A S by linearity from [A W; A P]
+        S = W if P is None else np.vstack([W, P])
+        AS = AW if P is None else np.vstack([AW, AP])
+        del W, AW, P, AP
+        coef = S @ X.T  # one pass: X is orthonormal and SVQB below drops what cancels
+        S -= coef @ X
+        AS -= coef @ AX
+        G = S @ S.T
+        w, Vg = np.linalg.eigh((G + G.T) / 2)
+        keep = w > DROP * max(float(w.max()), np.finfo(float).tiny)
+        C = (Vg[:, keep] / np.sqrt(w[keep])).T
+        S, AS = C @ S, C @ AS
+        # Rayleigh-Ritz on [X; S] from its blocks (no copies of the whole basis)
+        XAS = (X @ AS.T + AX @ S.T) / 2
+        SAS = S @ AS.T
+        G = np.block([[np.diag(theta), XAS], [XAS.T, (SAS + SAS.T) / 2]])
         vals, Y = np.linalg.eigh(G)
-        Y = Y[:, :k]
+        Y1, Y2 = Y[:k, :k], Y[k:, :k]
         theta = vals[:k]
-        X_new, AX_new = basis @ Y, a_basis @ Y
-        # the new P: the part of the update outside the old X
-        P, AP = S @ Y[k:], AS @ Y[k:]
-        X, AX = X_new, AX_new
-        if P.shape[1] == 0 or not np.all(np.isfinite(P)):
+        P, AP = Y2.T @ S, Y2.T @ AS  # the new P: the part of the update outside the old X
+        del S, AS
+        X = Y1.T @ X + P
+        AX = Y1.T @ AX + AP
+        if P.shape[0] == 0 or not np.all(np.isfinite(P)):
             P = AP = None
     # exact products for the reported residuals (the carried A X accumulates round-off)
     X, _ = _orthonormal(X)
     AX = _project(apply_a(X), Q)
-    theta, C = np.linalg.eigh((X.T @ AX + (X.T @ AX).T) / 2)
-    X, AX = X @ C, AX @ C
-    res = np.linalg.norm(AX - X * theta, axis=0)
+    theta, C = np.linalg.eigh((X @ AX.T + AX @ X.T) / 2)
+    X, AX = C.T @ X, C.T @ AX
+    res = np.linalg.norm(AX - theta[:, None] * X, axis=1)
     return BlockResult(theta, X, AX, res, it, history)
 
 
 def rayleigh_ritz(apply_a, X0: np.ndarray, Q: np.ndarray | None, k: int) -> np.ndarray:
-    """The k lowest Ritz vectors of A on span(X0) projected onto {Q^T u = 0} (a start block)."""
+    """The k lowest Ritz vectors (rows) of A on the span of X0's rows projected onto {Q u = 0}."""
     X, _ = _orthonormal(_project(X0, Q))
     AX = _project(apply_a(X), Q)
-    G = X.T @ AX
-    _, C = np.linalg.eigh((G + G.T) / 2)
-    return X @ C[:, :k]
+    _, C = np.linalg.eigh((X @ AX.T + AX @ X.T) / 2)
+    return C[:, :k].T @ X
