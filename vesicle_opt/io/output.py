@@ -111,7 +111,7 @@ def write_result(out: Path, scene, disc, result) -> dict:
         arrays = {"phi": result.phi, "nodes": disc.nodes}
         if result.w is not None:
             arrays["w"] = result.w
-        np.savez_compressed(out / "phi.npz", **arrays)
+        np.savez(out / "phi.npz", **arrays)  # uncompressed: doubles barely compress (1.0 s vs 0.13 s)
         write_vtk(out / "phi.vtu", disc, result.phi)
         write_png(out / "phi.png", disc, result.phi, title=f"{scene.name}: E = {result.energy:.6g}")
     summary["fields_written"] = bool(finite)

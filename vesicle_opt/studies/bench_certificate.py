@@ -113,6 +113,7 @@ def case_rows(case: dict) -> list[dict]:
     row = {"scene": "torus-table1-3d", "method": "exact", "kind": case["kind"], "n": case["n"],
            "repeats": case["repeats"], "load_average": round(load, 1),
            "converged": all(b["converged"] for b in bare + cert), "energy": c["energy"],
+           "status": "converged" if all(b["converged"] for b in bare + cert) else "not converged",
            "solve_s": solve_s, "wall_time_s": solve_s, "certificate_s": cert_s,
            "certificate_ratio": med(ratios) if ratios else float("nan"),
            "bare_peak_mb": bare_peak, "certified_peak_mb": cert_peak, "memory_ratio": cert_peak / bare_peak,
@@ -139,3 +140,37 @@ def main(out: Path, quick: bool = False, repeats: int | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/bench_certificate"), quick="--quick" in sys.argv))
+
+
+def fft_libraries(n: int, repeats: int = 15) -> dict:
+    """One rfftn + irfftn pair on an n^3 float64 grid, one thread: scipy.fft against pyFFTW (the
+    optional extra ``fftw``; planned once with FFTW_MEASURE and reused, as a solver would), medians
+    of ``repeats`` interleaved pairs; {} for pyfftw when it is not installed."""
+    import scipy.fft as sfft
+    v = np.random.default_rng(0).standard_normal((n, n, n))
+    out = {"n": n}
+    try:
+        import pyfftw  # optional extra, third-party: only this comparison uses it
+    except ImportError:
+        pyfftw = None
+    if pyfftw is not None:
+        a = pyfftw.empty_aligned((n, n, n), dtype="float64")
+        fwd = pyfftw.builders.rfftn(a, threads=1, planner_effort="FFTW_MEASURE")
+        b = pyfftw.empty_aligned(fwd.output_shape, dtype="complex128")
+        bwd = pyfftw.builders.irfftn(b, s=(n, n, n), threads=1, planner_effort="FFTW_MEASURE")
+    ts, tf = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        sfft.irfftn(sfft.rfftn(v, workers=1), s=v.shape, workers=1)
+        ts.append(time.perf_counter() - t0)
+        if pyfftw is not None:
+            t0 = time.perf_counter()
+            a[...] = v
+            b[...] = fwd()
+            bwd()
+            tf.append(time.perf_counter() - t0)
+    out["scipy_pair_ms"] = 1e3 * statistics.median(ts)
+    if tf:
+        out["pyfftw_pair_ms"] = 1e3 * statistics.median(tf)
+        out["pyfftw_speedup"] = out["scipy_pair_ms"] / out["pyfftw_pair_ms"]
+    return out

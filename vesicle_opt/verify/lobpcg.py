@@ -254,6 +254,7 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
     with threadpool_limits(limits=1, user_api="blas"):
         lev = _setup_level(disc, pf, prec, translations, scene, phi, cB, ref, rotations)
         rayleigh = _excluded_rayleigh(lev)
+        lev.modes = None  # in Qall now; N x 6 less at the peak
         coarse = []
         rows = None if X0 is None else np.asarray(X0, float).reshape(phi.size, -1).T
         if rows is None:
