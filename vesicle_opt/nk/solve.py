@@ -216,9 +216,10 @@ def l2_floor(disc, rig, dE, eps) -> float:
 def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
           check: bool = True, setup=None) -> Result:
     """``_solve`` (below) with one BLAS thread: its dense work is dot products and N x few
-    products, where a second OpenBLAS thread only spin-waits on a busy machine (measured, 64^3
-    torus: 3.3-14.3 s under load with the default two threads against 1.8-1.9 s with one; <= 4%
-    slower on a quiet machine). The FFTs are scipy's, one worker (``mesh.spectral.WORKERS``)."""
+    products, where a second OpenBLAS thread only spin-waits on a busy machine (measured, 48^3
+    torus, fresh processes interleaved, load average ~25 on 2 cores: 98.6 s median with the
+    default two threads against 27.0 s with one; the issue's quiet-machine figure: <= 4% slower).
+    The FFTs are scipy's, one worker (``mesh.spectral.WORKERS``)."""
     with threadpool_limits(limits=1, user_api="blas"):
         return _solve(scene, disc, x0=x0, options=options, check=check, setup=setup)
 
