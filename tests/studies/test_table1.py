@@ -37,7 +37,7 @@ def test_torus_check_accepts_a_torus_and_rejects_others():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["table1", "bench_3d", "bench_jax"])
+@pytest.mark.parametrize("name", ["table1", "bench_3d", "bench_jax", "bench_certificate"])
 def test_quick_3d_study_appends_and_resumes(tmp_path, name):
     import csv
     if name == "bench_jax":

@@ -23,7 +23,6 @@ equality law (22) does not hold for (23) (its defect is O(k), reported in the ex
 
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 
 from vesicle_opt.model import functionals as Fn
@@ -41,6 +40,7 @@ class BackwardEulerScheme(Scheme):
     law = LAW
 
     def __init__(self, model: FlowModel, law_tol: float, tol: float = 1e-10, max_iter: int = 200):
+        import casadi as ca  # third-party, lazy: only IPOPT paths need it (0.25 s at import)
         self.model, self.law_tol = model, law_tol
         md = model
         disc = md.disc

@@ -16,7 +16,6 @@ from B(phi_0)), never a field off the constraint set.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import brentq
 
 from vesicle_opt.errors import SolverError
 from vesicle_opt.flows.discrete import FlowModel
@@ -31,6 +30,7 @@ def project_volume(md: FlowModel, phi0: np.ndarray, alpha: float) -> np.ndarray:
     def A(c):
         return float(m @ np.clip(phi0 + c, -1.0, 1.0)) - alpha
 
+    from scipy.optimize import brentq  # third-party, lazy: scipy.optimize costs 0.2-0.5 s at import
     c = brentq(A, -2.0 - np.max(phi0), 2.0 - np.min(phi0), xtol=1e-15, rtol=4 * np.finfo(float).eps)
     for _ in range(5):  # exact linear solve on the active set (piecewise-linear A)
         free = np.abs(phi0 + c) < 1.0

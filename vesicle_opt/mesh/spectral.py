@@ -66,10 +66,14 @@ class FourierGrid:
             self._ik.append(1j * kk)
 
     # --- transforms -----------------------------------------------------------------------
+    transforms = 0  # real FFTs done by all grids in this process (benchmarks: the FFT count)
+
     def fft(self, v: np.ndarray) -> np.ndarray:
+        FourierGrid.transforms += 1
         return sfft.rfftn(v.reshape(self.shape), workers=WORKERS)
 
     def ifft(self, vh: np.ndarray) -> np.ndarray:
+        FourierGrid.transforms += 1
         return sfft.irfftn(vh, s=self.shape, workers=WORKERS).ravel()
 
     def apply_symbol(self, v: np.ndarray, sym: np.ndarray) -> np.ndarray:
@@ -107,6 +111,25 @@ class FourierDiscretization(Discretization):
 
     def apply_laplacian_transpose(self, v: np.ndarray) -> np.ndarray:
         return self.fourier.laplacian(np.asarray(v, float))
+
+
+def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
+    """The trigonometric interpolant of a periodic grid field on another grid of the same box
+    (C-ordered nodes): per axis, the rfft truncated or zero-padded, the unpaired Nyquist bin of an
+    even length split (up) or united (down), as ``scipy.signal.resample`` does, without importing
+    scipy.signal (0.3 s of start-up)."""
+    v = np.asarray(phi, float).reshape(shape_from)
+    for axis, num in enumerate(shape_to):
+        n_x = v.shape[axis]
+        if num == n_x:
+            continue
+        m = min(num, n_x)
+        X = sfft.rfft(v, axis=axis, workers=WORKERS)
+        X = X[(slice(None),) * axis + (slice(0, m // 2 + 1),)]
+        if m % 2 == 0:
+            X[(slice(None),) * axis + (m // 2,)] *= 2.0 if num < n_x else 0.5
+        v = sfft.irfft(X * (num / n_x), n=num, axis=axis, workers=WORKERS)
+    return np.ascontiguousarray(v).ravel()
 
 
 def fourier_grid(box, n, kind: str = "spectral") -> FourierDiscretization:

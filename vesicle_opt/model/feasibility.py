@@ -26,7 +26,6 @@ import math
 import warnings
 from functools import lru_cache
 
-import casadi as ca
 import numpy as np
 
 from vesicle_opt.errors import InfeasibleError
@@ -61,6 +60,7 @@ def radial_minimum(k: int, mass: float, epsilon: float, r_box: float) -> float:
     wn[[0, -1]] = dr / 2
     wn = S * wn * r ** (k - 1)  # trapezoid weights of the radial measure
     wm = S * dr * rm ** (k - 1)
+    import casadi as ca  # third-party, lazy (0.25 s at import): only this bound's small NLP needs it
     phi = ca.SX.sym("phi", n)
     grad = (phi[1:] - phi[:-1]) / dr
     B = epsilon / 2 * ca.dot(ca.DM(wm), grad**2) + ca.dot(ca.DM(wn), (phi**2 - 1) ** 2) / (4 * epsilon)

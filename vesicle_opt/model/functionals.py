@@ -21,7 +21,6 @@ CasADi, the matrix-free ``lumped`` model, the flows' Jacobians, the SCP baseline
 
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 
 from vesicle_opt.geometry import enclosed_volume, sphere_energy, surface_area  # noqa: F401 (Section 3.1, re-exported)
@@ -52,6 +51,7 @@ class CasadiOps:
     """Sparse constant matrices as CasADi DM inside MX graphs."""
 
     def __init__(self, disc: Discretization):
+        import casadi as ca  # third-party, lazy: only the IPOPT path builds graphs (0.25 s at import)
         self.disc = disc
         self.K = ca.DM(disc.K.tocsc())
         self.weights = ca.DM(disc.weights)
@@ -59,17 +59,21 @@ class CasadiOps:
         self.quad_w = ca.DM(disc.quad_w if disc.gauss else disc.weights)
 
     def at_quad(self, v):
+        import casadi as ca
         return ca.mtimes(self.P, v) if self.P is not None else v
 
     def integrate(self, values):
+        import casadi as ca
         return ca.dot(self.quad_w, values)
 
     @staticmethod
     def dot(a, b):
+        import casadi as ca
         return ca.dot(a, b)
 
     @staticmethod
     def matvec(A, v):
+        import casadi as ca
         return ca.mtimes(A, v)
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.spectral import fourier_grid
+from vesicle_opt.mesh.spectral import resample as fourier_resample
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField
 from vesicle_opt.model.warm_start import fourier_resample
 from vesicle_opt.nk.precond import FourierPreconditioner, SparsePreconditioner
@@ -95,5 +96,6 @@ def coarse_levels(disc, epsilon: float, min_n: int = 16) -> list[tuple[int, ...]
 
 
 def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
-    """The trigonometric interpolant of a periodic grid field on another grid (same box)."""
+    """The trigonometric interpolant of a periodic grid field on another grid (same box):
+    ``mesh.spectral.resample``."""
     return fourier_resample(phi, shape_from, shape_to)

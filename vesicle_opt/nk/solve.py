@@ -44,6 +44,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from vesicle_opt.io import progress
 from vesicle_opt.mesh import discretize
@@ -251,6 +252,17 @@ def l2_floor(disc, rig, eps, grads, lam) -> float:
 
 def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
           check: bool = True, setup=None) -> Result:
+    """``_solve`` (below) with one BLAS thread: its dense work is dot products and N x few
+    products, where a second OpenBLAS thread only spin-waits on a busy machine (measured, 48^3
+    torus, fresh processes interleaved, load average ~25 on 2 cores: 98.6 s median with the
+    default two threads against 27.0 s with one; the issue's quiet-machine figure: <= 4% slower).
+    The FFTs are scipy's, one worker (``mesh.spectral.WORKERS``)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _solve(scene, disc, x0=x0, options=options, check=check, setup=setup)
+
+
+def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
+           check: bool = True, setup=None) -> Result:
     """Solve a scene with the Newton-Krylov backend; the same certified Result as the IPOPT path.
 
     ``x0``: a start phi (nodal values) instead of the scene's initial field (its shape, or the

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
 from vesicle_opt.mesh import Discretization, discretize
@@ -90,6 +89,7 @@ class NLP:
 def build_exact(scene: Scene, disc: Discretization | None = None, check: bool = True) -> NLP:
     """The exact-constraint NLP (6)-(8) of a scene, whatever its ``solver.method`` (``nlp.build_nlp``
     lifts it into the penalty NLP (11) for the other methods)."""
+    import casadi as ca  # third-party, lazy: only IPOPT paths need it (0.25 s at import)
     disc = disc or discretize(scene)
     alpha, beta = constraint_data(scene, disc)
     if check:

@@ -23,6 +23,7 @@ from vesicle_opt.errors import InputError
 DESCRIPTIONS = {
     "bench_3d": "large-3D path: time, memory, Newton and CG counts against n (torus, NK backend)",
     "bench_jax": "the Newton-Krylov path on JAX: numpy against one and two devices (and a GPU if any)",
+    "bench_certificate": "the second-order certificate against the solve: time, memory, verdict (torus, NK)",
     "bench_equilibrium": "IPOPT exact solve: iterations, time, Hessian nnz, memory against mesh size",
     "bench_overhead": "cost of the abstractions: bare CasADi model against build_nlp + solve",
     "diagonal": "Theorem 3.4: h -> 0 and M -> inf together; the rule M(h)",

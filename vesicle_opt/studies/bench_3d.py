@@ -15,6 +15,9 @@ Every case runs in a fresh process (spawn), so ``peak_rss_mb`` is that solve's o
 memory (interpreter and libraries included, ~115 MB). The machine is shared, so timings are noisy:
 each case is repeated ``repeats`` times and the median wall time is written with the minimum, and
 the solver's own CPU time (``solve_cpu_s``, newton-krylov only) shows what an idle core would take.
+On Fourier grids each row also has the solve's FFT count (``mesh.spectral.FourierGrid.transforms``),
+one transform's time on that grid (``bench_certificate.transform_time``, same process), the FFT
+floor (count x transform), the FFT share of the solve and the solve's ratio to its floor.
 ``main(out, quick)`` writes ``bench_3d.csv``; quick = a reduced set.
 """
 
@@ -30,6 +33,8 @@ from pathlib import Path
 
 from vesicle_opt import scene
 from vesicle_opt.api import solve
+from vesicle_opt.mesh.spectral import FourierGrid
+from vesicle_opt.studies.bench_certificate import transform_time
 from vesicle_opt.studies.runner import in_fresh_process, run_cases
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
@@ -38,10 +43,16 @@ log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q h
 def _case(kind: str, n: int, backend: str) -> dict:
     sc = scene.load("torus-table1-3d",
                     [f"mesh.kind='{kind}'", f"mesh.n={n}", f"solver.backend='{backend}'"])
+    f0 = FourierGrid.transforms
     t0 = time.perf_counter()
     r = solve(sc)
     total = time.perf_counter() - t0
-    return {"kind": kind, "n": n, "backend": backend, "n_nodes": r.n_nodes, "energy": r.energy,
+    ffts = FourierGrid.transforms - f0
+    one = transform_time(r.disc)  # NaN on meshes
+    floor = ffts * one
+    return {"fft_count": ffts, "transform_ms": 1e3 * one, "fft_floor_s": floor,
+            "fft_share": floor / r.wall_time_s, "solve_over_fft_floor": r.wall_time_s / floor if floor else float("nan"),
+            "kind": kind, "n": n, "backend": backend, "n_nodes": r.n_nodes, "energy": r.energy,
             "status": r.status, "converged": r.converged, "kkt_residual": r.kkt_residual,
             "kkt_dual": r.extra.get("kkt_dual"), "newton": r.iterations,
             "cg": r.extra.get("cg_iterations"), "levels": r.extra.get("levels"),
@@ -61,7 +72,7 @@ def cases(quick: bool) -> list[tuple[str, int, str]]:
     return out
 
 
-EXTRA = ["kind", "backend", "n_nodes", "converged", "kkt_residual", "kkt_dual", "newton", "cg",
+EXTRA = ["fft_count", "transform_ms", "fft_floor_s", "fft_share", "solve_over_fft_floor", "kind", "backend", "n_nodes", "converged", "kkt_residual", "kkt_dual", "newton", "cg",
          "levels", "solve_wall_s", "solve_cpu_s", "total_wall_s", "peak_rss_mb", "repeats",
          "total_wall_median_s", "total_wall_min_s"]
 

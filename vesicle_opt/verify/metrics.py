@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import brentq
 
 from vesicle_opt.mesh.base import Discretization
 
@@ -100,6 +99,7 @@ def richardson(h, E) -> tuple[float, float]:
     q = (E2 - E1) / (E3 - E2)
     f = lambda p: (h1**p - h2**p) / (h2**p - h3**p) - q  # noqa: E731
     try:
+        from scipy.optimize import brentq  # third-party, lazy: scipy.optimize costs 0.2-0.5 s at import
         p = brentq(f, 0.25, 8.0)
     except ValueError:
         return math.nan, math.nan

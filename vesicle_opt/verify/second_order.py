@@ -20,7 +20,6 @@ relies on is checked independently in ``verify.kkt``.
 
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -36,6 +35,7 @@ MAX_SHIFTS = 4  # shift-invert passes: one at a minimum, two at the saddles seen
 
 def hessian(nlp, x, lam_g) -> sp.csr_matrix:
     """Physical Hessian of the Lagrangian: f_scale * Hessian(f + lam_g . g) (see the nlp.exact scaling)."""
+    import casadi as ca  # third-party, lazy: only IPOPT paths need it (0.25 s at import)
     lam = ca.MX.sym("lam", nlp.g.shape[0])
     H, _ = ca.hessian(nlp.f + ca.dot(lam, nlp.g), nlp.x)
     fun = ca.Function("lagrangian_hessian", [nlp.x, lam], [H])
@@ -54,6 +54,7 @@ def translation_modes(disc, phi: np.ndarray) -> list[np.ndarray]:
 
 def constraint_rows(nlp, x, trans, Mphi) -> sp.csr_matrix:
     """Jacobian of all NLP constraints at x, plus the translation rows t_i^T M (phi block only)."""
+    import casadi as ca  # third-party, lazy: only IPOPT paths need it (0.25 s at import)
     jac = ca.Function("constraint_jacobian", [nlp.x], [ca.jacobian(nlp.g, nlp.x)])
     J = sp.csr_matrix(jac(x).sparse())
     if trans:
