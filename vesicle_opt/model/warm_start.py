@@ -5,7 +5,7 @@ A start comes as a ``phi.npz`` written by ``vesicle-opt solve`` / ``flow`` (``in
 nodal values. On the same mesh it is used as it is. When both meshes are periodic tensor grids of
 the same box (FD, Fourier spectral, periodic P1: nodes x_j = lo + j h in C order) and only the
 number of cells differs, the field is carried over by its trigonometric interpolant (Fourier
-interpolation along each axis, ``scipy.signal.resample``): exact for band-limited fields and
+interpolation along each axis, ``mesh.spectral.resample``): exact for band-limited fields and
 spectrally accurate for a resolved tanh profile (Section 5's grids). Anything else (another box,
 an unstructured mesh, natural boundaries) is refused with one line naming both shapes.
 """
@@ -15,18 +15,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import resample as _fourier_resample
 
 from vesicle_opt.errors import InputError
-
-
-def fourier_resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
-    """The trigonometric interpolant of a periodic grid field on another grid of the same box."""
-    v = np.asarray(phi, float).reshape(tuple(shape_from))
-    for axis, n in enumerate(shape_to):
-        if v.shape[axis] != n:
-            v = _fourier_resample(v, int(n), axis=axis)
-    return np.ascontiguousarray(v).ravel()
+from vesicle_opt.mesh.spectral import resample as fourier_resample  # noqa: F401 (re-exported)
 
 
 def grid_of(nodes: np.ndarray, box) -> tuple[int, ...] | None:

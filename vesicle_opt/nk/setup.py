@@ -20,7 +20,6 @@ from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.mesh.spectral import resample as fourier_resample
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField
-from vesicle_opt.model.warm_start import fourier_resample
 from vesicle_opt.nk.precond import FourierPreconditioner, SparsePreconditioner
 
 

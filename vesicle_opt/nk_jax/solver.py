@@ -31,7 +31,7 @@ from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters
 from vesicle_opt.nk.options import NewtonKrylovOptions
-from vesicle_opt.nk.setup import coarse_levels, on_fourier_grid, resample
+from vesicle_opt.nk.setup import coarse_levels, discretization_path, on_fourier_grid, resample
 from vesicle_opt.nk.solve import l2_floor
 from vesicle_opt.nk_jax.layout import GridLayout
 from vesicle_opt.nk_jax.newton import DeviceObjective, newton_minimize
@@ -213,4 +213,5 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
         iterations=cnt.newton, wall_time_s=wall, derivative_time_s=cnt.deriv_time, history=hist,
         extra={"backend": "newton-krylov", "array": "jax", "devices": level.layout.count,
                "platform": level.layout.devices[0].platform, "mesh_kind": disc.kind,
-               "kkt_dual": float(dual), "kkt_l2_floor": floor, **totals})
+               "kkt_dual": float(dual), "kkt_l2_floor": floor,
+               "discretization_path": discretization_path(scene, disc, None), **totals})
