@@ -1,6 +1,7 @@
 """The energy_diagram study, --quick (2D only): both branches run through the study runner, every
 accepted point is certified and checked, the files are written, and the crossing finder works."""
 
+import csv
 import json
 
 import numpy as np
@@ -20,6 +21,14 @@ def test_quick_runs_and_writes_its_files(tmp_path):
     # the envelope identity holds to O(step^2): measured 1.5e-3 at step 0.05 (residual / step^2 ~ 0.6)
     assert el["envelope_residual_max"] < 10 * el["max_step"] ** 2
     assert el["min_image_gap_over_eps"] > 4  # far from the periodic image (measured ~10)
+    # the sharp-interface column (vesicle_opt.sharp.elastica) on the elastica branch, none on the
+    # saddle branch; the elastica's energy grows as nu falls (de/dnu = lam < 0), to round-off
+    rows = list(csv.DictReader((tmp_path / "energy_diagram.csv").open()))
+    sharp = [(float(r["reduced_volume"]), float(r["sharp_reduced_energy"])) for r in rows
+             if r["scene"] == "elastica-2d" and r["accepted"] == "True"]
+    assert len(sharp) == 3 and all(e > 1 for _, e in sharp)
+    assert all(e1 < e2 for (_, e1), (_, e2) in zip(sorted(sharp, reverse=True), sorted(sharp, reverse=True)[1:]))
+    assert all(r["sharp_reduced_energy"] == "" for r in rows if r["scene"] == "symmetric-2d")
     for name in ("energy_diagram.csv", "energy_diagram-2d.png", "elastica-2d/branch.csv",
                  "elastica-2d/points/point-0002.npz"):
         assert (tmp_path / name).stat().st_size > 0, name

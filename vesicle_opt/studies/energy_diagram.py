@@ -16,8 +16,10 @@ joins its image (``wraps``).
 
 Each branch is one case of the study runner (any executor; each branch also resumes point by
 point in its own directory ``<out>/<case>/``). ``--quick``: the two 2D branches on a coarse grid
-(48^2, eps = 0.4, nu 0.95 -> 0.85, three points each). ``sharp_reduced_energy`` is empty until
-``SHARP_REFERENCE`` is set (the ``reference`` argument of ``branch``).
+(48^2, eps = 0.4, nu 0.95 -> 0.85, three points each). ``sharp_reduced_energy`` is the eps -> 0
+reference of the point's reduced volume (``sharp_reference``: the 2D elastica, the 3D axisymmetric
+prolate / oblate vesicle), and the JSON's ``crossing_3d_sharp`` the sharp prolate/oblate crossing
+beside the phase-field ``crossing_3d``.
 
 Writes ``energy_diagram.csv`` (all rows), ``energy_diagram.png``, ``energy_diagram.json``
 (points, certified counts, envelope residuals, wall times, the 3D crossing).
@@ -33,14 +35,28 @@ import numpy as np
 from vesicle_opt.branch import COLUMNS, branch, diagram
 from vesicle_opt.io.files import load_npz, write_json
 from vesicle_opt.scene.schema import from_dict
+from vesicle_opt.sharp import axisymmetric, elastica
 from vesicle_opt.studies._common import num, select
 from vesicle_opt.studies.runner import run_cases
 
 NAME = "energy_diagram"
-# The sharp-interface reference of the column ``sharp_reduced_energy``: a module-level function
-# f(param, value, dim) -> reduced energy or None (e.g. a 2D elastica / 3D axisymmetric solver). None:
-# the column stays empty. Wired here (not at run time) so that the spawned case workers see it.
-SHARP_REFERENCE = None
+
+
+def sharp_reference(case: dict):
+    """The sharp-interface reference of a case's column ``sharp_reduced_energy``: f(param, value,
+    dim) -> the reduced energy of the eps -> 0 shape at that reduced volume, computed by
+    ``vesicle_opt.sharp`` (no code shared with the phase-field path): the 2D elastica (its 2-fold
+    minimum; the symmetric-start case follows a saddle branch and gets none), the 3D axisymmetric
+    prolate / oblate vesicle of the case's branch. None where no reference applies."""
+    which = {"elastica-2d": "elastica", "prolate-3d": "prolate"}.get(case["case"])
+    which = "oblate" if case["case"].startswith("oblate") else which
+
+    def f(param: str, value: float, dim: int):
+        if which is None or param != "reduced_volume" or not 0 < value < 1:
+            return None
+        sol = elastica.solve(value) if which == "elastica" else axisymmetric.solve(value, which)
+        return float(sol.reduced_energy) if sol.converged else None
+    return f
 EXTRA = [c for c in COLUMNS if c != "case"] + ["image_gap", "gap_over_eps", "form", "aspect", "branch_stopped"]
 
 
@@ -114,7 +130,7 @@ def form(snapshot: dict) -> tuple[str, float]:
 def run(case: dict) -> list[dict]:
     out = Path(case["out"]) / case["case"]
     b = branch(scene(case), "reduced_volume", to=case["to"], step=case["step"], out=out, switch=False,
-               reference=SHARP_REFERENCE)
+               reference=sharp_reference(case))
     rows = []
     for r in b.rows:
         row = {**r, "scene": case["case"], "method": "exact", "branch_stopped": b.stopped[r["branch"]]}
@@ -172,6 +188,8 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
     if pro and obl:
         acc = lambda rs: [r for r in rs if str(r.get("accepted")) in ("True", "true")]  # noqa: E731
         out["crossing_3d"] = crossing(acc(pro), acc(obl))
+        v_s, e_s = axisymmetric.crossing()  # the sharp-interface crossing (vesicle_opt.sharp)
+        out["crossing_3d_sharp"] = {"reduced_volume": v_s, "reduced_energy": e_s}
     return out
 
 
@@ -198,5 +216,5 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
                          title=f"{dim}D energy diagram (solid: stable, dashed: unstable)")
     for name, v in info.items():
         print(f"{NAME}: {name}: {v}")
-    ok = all(v["points"] >= 2 and v["certified"] == v["points"] for k, v in info.items() if k != "crossing_3d")
+    ok = all(v["points"] >= 2 and v["certified"] == v["points"] for k, v in info.items() if not k.startswith("crossing_3d"))
     return 0 if ok else 1
