@@ -1,7 +1,8 @@
 """Viewer files: complete periodic grids (.vti, .vtu with the wrap row/plane), the flow's .pvd series.
 
-Read back by readers that share no code with the writers: meshio for .vtu, ElementTree (through
-``io.vtk.read_vti``, which only parses XML) for .vti and .pvd."""
+Read back by readers that share no code with the writers: meshio for .vtu, VTK's own
+vtkXMLImageDataReader for .vti (test extra), and ElementTree (through ``io.vtk.read_vti``, which only
+parses XML) for the .pvd series and its files."""
 
 import xml.etree.ElementTree as ET
 
@@ -70,3 +71,30 @@ def test_flow_writes_a_pvd_series_over_its_steps(tmp_path):
     final = np.load(tmp_path / "phi.npz")["phi"].reshape(16, 16)
     assert np.array_equal(last["phi"][:16, :16, 0], final)
     assert len(list((tmp_path / "frames").glob("frame_*.png"))) == 5
+
+
+def test_vti_opens_in_vtk_itself(tmp_path):
+    """The .vti read by VTK's own XML reader (the library ParaView is built on; test extra), which
+    shares nothing with ``io.vtk``: extent, origin, spacing and every value of the complete image."""
+    vtkio = __import__("pytest").importorskip("vtkmodules.vtkIOXML")
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    for name, n in (("ellipse-2d", 8), ("sphere-3d", 6)):
+        d, phi = _disc_and_field(name, n)
+        vtk.write_vti(tmp_path / "f.vti", d, {"phi": phi})
+        reader = vtkio.vtkXMLImageDataReader()
+        reader.SetFileName(str(tmp_path / "f.vti"))
+        reader.Update()
+        img = reader.GetOutput()
+        dims = img.GetDimensions()
+        assert dims[: d.dim] == tuple(k + 1 for k in d.grid_shape)  # the wrap row/plane included
+        lo = [b[0] for b in d.box]
+        h = [(b[1] - b[0]) / k for b, k in zip(d.box, d.grid_shape)]
+        assert np.allclose(img.GetOrigin()[: d.dim], lo, rtol=0, atol=1e-15)
+        assert np.allclose(img.GetSpacing()[: d.dim], h, rtol=1e-15)
+        # VTK orders points x fastest; the discretisation's C order has the last axis fastest
+        F = vtk_to_numpy(img.GetPointData().GetArray("phi")).reshape(dims[::-1]).transpose()
+        if d.dim == 2:
+            F = F[:, :, 0]
+        G = phi.reshape(d.grid_shape)
+        assert np.array_equal(F[tuple(slice(0, k) for k in d.grid_shape)], G)  # exact: repr() floats
+        assert np.array_equal(F[-1], F[0])  # periodic wrap
