@@ -97,3 +97,15 @@ def test_table1_torus_agrees(n):
     assert abs(rj.energy - rn.energy) <= slack, (rj.energy, rn.energy, slack)
     en = _at_constraints(rn)
     assert abs(_at_constraints(rj) - en) <= 1e-11 * abs(en), (_at_constraints(rj), en)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("n", [32, 64])
+def test_table1_torus_agrees_raw_at_tight_tol(n):
+    """The issue's target on E itself, 10E of numpy and jax to 1e-11 relative, at tol 1e-10: the
+    raw E moves with the constraint residuals the stopping test leaves (lam . c), which shrink with
+    tol (at tol 1e-8 they gave 7.6e-11 at 64^3). Measured at tol 1e-10: 3.3e-12 (32^3), 5.6e-14
+    (64^3); Newton 16/16 and 18/18, CG 305/290 and 300/295 (within _compare's bounds)."""
+    sc_sets = ("torus-table1-3d", "mesh.kind='spectral'", f"mesh.n={n}", "solver.second_order=false",
+               "solver.tol=1e-10")
+    rn, rj = _compare(sc_sets, energy_rel=1e-11)  # the issue's 1e-11; measured margin >= 3x
