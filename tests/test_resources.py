@@ -51,3 +51,15 @@ def test_flows_and_the_cli_are_guarded_too(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert rc == 2 and len(err) == 1 and err[0].startswith("vesicle-opt: error: mesh.n")
         assert not (tmp_path / "o").exists()  # refused before the output directory is made
+
+
+def test_the_jax_array_adds_its_device_buffers():
+    """solver.array = "jax": the numpy footprint plus the Newton-CG program's device buffers, a
+    figure at least nk_jax's own (XLA's memory analysis, one device)."""
+    pytest.importorskip("jax")
+    from vesicle_opt.nk_jax.ops import memory_bytes_per_node
+    sc = vo.load_scene("torus-table1-3d", ["mesh.kind='spectral'", "mesh.n=32", "solver.backend='newton-krylov'"])
+    sj = vo.load_scene("torus-table1-3d", ["mesh.kind='spectral'", "mesh.n=32", "solver.backend='newton-krylov'",
+                                           "solver.array='jax'"])
+    extra = resources.bytes_per_node(sj, "newton-krylov") - resources.bytes_per_node(sc, "newton-krylov")
+    assert extra == resources.JAX_DEVICE_BYTES_PER_NODE[3] >= memory_bytes_per_node(3, 1)
