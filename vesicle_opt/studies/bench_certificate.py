@@ -21,6 +21,8 @@ the machine is shared, so the ratios, measured side by side, mean more than the 
 
 from __future__ import annotations
 
+import logging
+
 import os
 import resource
 import statistics
@@ -36,6 +38,8 @@ from vesicle_opt.mesh.spectral import FourierGrid
 from vesicle_opt.nk.setup import prepare
 from vesicle_opt.studies.runner import in_fresh_process, run_cases
 from vesicle_opt.verify import lobpcg
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 TRANSFORM_REPEATS = 20  # one transform's time: the median of this many rfftn / irfftn pairs
 
@@ -123,9 +127,9 @@ def case_rows(case: dict) -> list[dict]:
            "fft_share_solve": c["fft_solve"] * tr / solve_s if np.isfinite(tr) else float("nan"),
            "fft_share_certificate": (c.get("fft_certificate", 0) * tr / cert_s) if np.isfinite(tr) and ratios
            else float("nan")}
-    print(f"bench_certificate: {row['kind']:8s} n={row['n']:3d} solve={solve_s:.2f}s cert={cert_s:.2f}s "
+    log.info(f"bench_certificate: {row['kind']:8s} n={row['n']:3d} solve={solve_s:.2f}s cert={cert_s:.2f}s "
           f"ratio={row['certificate_ratio']:.2f} mem={row['memory_ratio']:.2f} {row['verdict']} "
-          f"mu={row['min_eigenvalue']} err={row['error_bound']} load={load:.1f}", flush=True)
+          f"mu={row['min_eigenvalue']} err={row['error_bound']} load={load:.1f}")
     return [row]
 
 

@@ -24,6 +24,8 @@ and written as ``not measured`` otherwise (peak device memory is then not in ``p
 
 from __future__ import annotations
 
+import logging
+
 import os
 import resource
 import statistics
@@ -34,6 +36,8 @@ from pathlib import Path
 from vesicle_opt import scene
 from vesicle_opt.api import solve
 from vesicle_opt.studies.runner import in_fresh_process, run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 VARIANTS = ("numpy", "jax-1", "jax-2")
 GPU_SIZES = (64, 128, 256, 512)
@@ -112,9 +116,9 @@ def case_rows(case: dict) -> list[dict]:
                     "at_constraints_rel_to_numpy": abs(row["energy_at_constraints"] - ec_np) / abs(ec_np),
                     "peak_rss_mb": max(r["peak_rss_mb"] for r in runs[v]),
                     "load_1min": statistics.median(loads)})
-        print(f"bench_jax: n={n:3d} {v:6s} E={row['energy']:.9f} newton={row['newton']} cg={row['cg']} "
+        log.info(f"bench_jax: n={n:3d} {v:6s} E={row['energy']:.9f} newton={row['newton']} cg={row['cg']} "
               f"wall(median of warm repeats)={med[v]:.2f}s cold={row['total_wall_cold_s']:.2f}s ratio={row['ratio_to_numpy']:.2f} "
-              f"rss={row['peak_rss_mb']:.0f}MB load={row['load_1min']:.1f}", flush=True)
+              f"rss={row['peak_rss_mb']:.0f}MB load={row['load_1min']:.1f}")
         rows.append(row)
     return rows
 

@@ -27,6 +27,8 @@ Writes ``energy_diagram.csv`` (all rows), ``energy_diagram.png``, ``energy_diagr
 
 from __future__ import annotations
 
+import logging
+
 import math
 from pathlib import Path
 
@@ -38,6 +40,8 @@ from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric, elastica
 from vesicle_opt.studies._common import num, select
 from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 NAME = "energy_diagram"
 
@@ -215,6 +219,6 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
             diagram.plot(mine, out / f"{NAME}-{dim}d.png", xlabel="reduced volume",
                          title=f"{dim}D energy diagram (solid: stable, dashed: unstable)")
     for name, v in info.items():
-        print(f"{NAME}: {name}: {v}")
+        log.info(f"{NAME}: {name}: {v}")
     ok = all(v["points"] >= 2 and v["certified"] == v["points"] for k, v in info.items() if not k.startswith("crossing_3d"))
     return 0 if ok else 1

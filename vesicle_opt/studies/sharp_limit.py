@@ -31,6 +31,8 @@ grids 96 x 64 ... 384 x 256). Quick: nu = 0.8 at eps = 0.6, 0.3, 0.15 (eps/h = 3
 
 from __future__ import annotations
 
+import logging
+
 import csv
 import math
 import warnings
@@ -46,6 +48,8 @@ from vesicle_opt.sharp import elastica
 from vesicle_opt.studies._common import column, plt, savefig
 from vesicle_opt.studies.runner import run_cases
 from vesicle_opt.verify.metrics import richardson
+
+log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 NAME = "sharp_limit"
 PERIMETER = 3 * math.pi
@@ -172,7 +176,7 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
         w.writeheader()
         w.writerows(summary)
     for s in summary:
-        print(f"nu = {s['nu']:g}: elastica {s['reference_energy']:.6f}, extrapolated {s['extrapolated']:.6f} "
+        log.info(f"nu = {s['nu']:g}: elastica {s['reference_energy']:.6f}, extrapolated {s['extrapolated']:.6f} "
               f"(order {s['observed_order']:.2f}, distance {s['distance']:.2e}; p = 2: {s['distance_p2']:.2e}; "
               f"orders 1, 2: {s['distance_orders12']:.2e}; "
               f"finest eps: {s['finest_distance']:.2e}) {s['status']}")
