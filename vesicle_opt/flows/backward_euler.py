@@ -35,6 +35,21 @@ from vesicle_opt.flows.discrete import FlowModel
 LAW = "(24)"
 
 
+def law_outcome(md: FlowModel, energy, phi_n, phi, k: float, law_tol: float, iterations: int,
+                **kwargs) -> StepOutcome:
+    """A solved (23) step checked against law (24), E(phi) - E(phi^n) + |phi - phi^n|^2/(2 gamma k)
+    <= 0 relative to |E(phi^n)|, with the defect of the equality law beside it; ``energy`` the step's
+    E_M. Both solvers of the step (IPOPT here, Newton-Krylov in ``backward_euler_nk``) end here."""
+    dd = md.norm2(phi - phi_n)
+    E0, E1 = energy(phi_n), energy(phi)
+    law = (E1 - E0 + dd / (2 * md.gamma * k)) / abs(E0)
+    ok = bool(np.isfinite(law) and law <= law_tol)
+    eq = (E1 - E0 + dd / (md.gamma * k)) / abs(E0)  # the defect of the equality law for (23)
+    return StepOutcome(phi, True, iterations, "converged" if ok else f"{LAW} violated: {law:.3g}",
+                       law_residual=law, law_ok=ok, rate=float(np.sqrt(dd)) / k,
+                       extra={"equality_law_defect": eq}, **kwargs)
+
+
 class BackwardEulerScheme(Scheme):
     name = "backward-euler"
     law = LAW
@@ -75,15 +90,7 @@ class BackwardEulerScheme(Scheme):
         iters = int(stats.get("iter_count", 0))
         if not (stats["success"] and np.all(np.isfinite(phi))):
             return StepOutcome(phi, False, iters, f"ipopt: {stats['return_status']}")
-        d = phi - phi_n
-        dd = md.norm2(d)
-        E0, E1 = self.energy(phi_n), self.energy(phi)
-        law = (E1 - E0 + dd / (2 * md.gamma * k)) / abs(E0)
-        ok = bool(np.isfinite(law) and law <= self.law_tol)
-        eq = (E1 - E0 + dd / (md.gamma * k)) / abs(E0)  # the defect of the equality law for (23)
-        return StepOutcome(phi, True, iters, "converged" if ok else f"{LAW} violated: {law:.3g}",
-                           law_residual=law, law_ok=ok, rate=float(np.sqrt(dd)) / k,
-                           extra={"equality_law_defect": eq})
+        return law_outcome(md, self.energy, phi_n, phi, k, self.law_tol, iters)
 
     def minimise(self, phi_start: np.ndarray) -> tuple[np.ndarray, bool, str]:
         """The k -> infinity limit of the step: a local minimiser of E_M from phi_start (IPOPT)."""

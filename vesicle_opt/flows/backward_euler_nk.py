@@ -34,10 +34,10 @@ from vesicle_opt.nk.newton_cg import Counters, newton_minimize
 from vesicle_opt.nk.precond import FourierPreconditioner, SparsePreconditioner
 from vesicle_opt.nk.proximal import ProximalObjective
 from vesicle_opt.nk.setup import on_fourier_grid
+from vesicle_opt.flows.backward_euler import LAW, law_outcome
 from vesicle_opt.flows.base import Scheme, StepOutcome
 from vesicle_opt.flows.discrete import FlowModel
 
-LAW = "(24)"
 STEP_TOL = 1e-9  # relative dual stationarity of each step: below the 1e-8 of the equilibrium solves,
 # so the flow's steady state meets the certificate's tol (measured step residuals then ~1e-10)
 MAX_NEWTON = 50  # Newton steps per time step (measured 1-8 on the Section 5 flow); more: reject, k/2
@@ -90,12 +90,5 @@ class BackwardEulerNKScheme(Scheme):
         if status != "converged" or not np.all(np.isfinite(phi)):
             return StepOutcome(phi, False, cnt.newton, f"newton-cg: {status} (dual {pt.rel:.2e})",
                                linear_iterations=cnt.cg)
-        d = phi - phi_n
-        dd = md.norm2(d)
-        E0, E1 = self.energy(phi_n), self.energy(phi)
-        law = (E1 - E0 + dd / (2 * md.gamma * k)) / abs(E0)
-        ok = bool(np.isfinite(law) and law <= self.law_tol)
-        eq = (E1 - E0 + dd / (md.gamma * k)) / abs(E0)  # the defect of the equality law for (23)
-        return StepOutcome(phi, True, cnt.newton, "converged" if ok else f"{LAW} violated: {law:.3g}",
-                           law_residual=law, law_ok=ok, rate=float(np.sqrt(dd)) / k,
-                           linear_iterations=cnt.cg, extra={"equality_law_defect": eq})
+        return law_outcome(md, self.energy, phi_n, phi, k, self.law_tol, cnt.newton,
+                           linear_iterations=cnt.cg)

@@ -85,8 +85,16 @@ class Objective:
         g = self.rig * dE - mu[0] * dA - mu[1] * dB
         dn = self.prec.dual_norm
         scale = self.rig * dn(dE) + abs(mu[0]) * dn(dA) + abs(mu[1]) * dn(dB)
+        extra = self.extra_gradient(phi)
+        if extra is not None:  # a term of a subclass's objective (nk.proximal), in the residual's scale too
+            g = g + extra
+            scale += dn(extra)
         self.cnt.deriv_time += time.perf_counter() - t0
         return Point(phi, st, f, c, dE, dA, dB, mu, g, dn(g) / max(scale, np.finfo(float).tiny))
+
+    def extra_gradient(self, phi):
+        """The gradient of a term a subclass adds to the objective (None: none)."""
+        return None
 
     def hvp(self, pt: Point):
         parts = self.pf.hessian_parts(pt.st)

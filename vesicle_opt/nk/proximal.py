@@ -27,8 +27,6 @@ rig |dE|_* + |mu_A| |dA|_* + |mu_B| |dB|_* + c |m (phi - phi^n)|_*.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from vesicle_opt.nk.krylov import SubspacePreconditioner
@@ -51,21 +49,9 @@ class ProximalObjective(Objective):
         f, st = super().value(phi)
         return f + self.proximal(phi), st
 
-    def point(self, phi, f=None, st=None) -> Point:
-        """As ``Objective.point`` with the proximal gradient c m (phi - anchor) added (one pass)."""
-        t0 = time.perf_counter()
-        if st is None:
-            f, st = self.value(phi)
-        self.cnt.evaluations += 1
-        c = np.array([st.A, st.B]) - self.target
-        dE, dA, dB = self.pf.gradients(st)
-        mu = self.lam - self.rho * c
-        shift = self.c * self.pf.m * (phi - self.anchor)
-        g = self.rig * dE - mu[0] * dA - mu[1] * dB + shift
-        dn = self.prec.dual_norm
-        scale = self.rig * dn(dE) + abs(mu[0]) * dn(dA) + abs(mu[1]) * dn(dB) + dn(shift)
-        self.cnt.deriv_time += time.perf_counter() - t0
-        return Point(phi, st, f, c, dE, dA, dB, mu, g, dn(g) / max(scale, np.finfo(float).tiny))
+    def extra_gradient(self, phi):
+        """The proximal gradient c m (phi - anchor), added by ``Objective.point`` (also to the scale)."""
+        return self.c * self.pf.m * (phi - self.anchor)
 
     def hvp(self, pt: Point):
         base = super().hvp(pt)
