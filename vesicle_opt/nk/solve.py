@@ -146,15 +146,24 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
         # refreshed when |c| fell by less than w_refresh over the last outer iteration
         if W is None or crel > opts.w_refresh * prev_c:
             W = _dual_hessian(obj, pt, opts.w_tol)
-        try:
-            obj.lam = obj.lam - np.linalg.solve(W, pt.c)
-        except (np.linalg.LinAlgError, ValueError):
-            W = None
-            obj.lam = obj.lam - obj.rho * pt.c
-        if crel > 0.25 * prev_c:
-            obj.rho = obj.rho * 10.0
+        W = dual_update(obj, W, pt.c, crel, prev_c)
         prev_c = crel
     return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy()))
+
+
+def dual_update(obj, W, c, crel: float, prev_c: float):
+    """The multiplier step of the exact-constraint loop, on ``obj.lam`` and ``obj.rho`` in place:
+    Newton on the dual, lam <- lam - W^{-1} c, or the first-order lam <- lam - rho c when W is
+    singular (then W is dropped: returned None); rho x 10 when |c| fell by less than 4x. Shared by
+    the numpy loop and ``nk_jax.solver``."""
+    try:
+        obj.lam = obj.lam - np.linalg.solve(W, c)
+    except (np.linalg.LinAlgError, ValueError):
+        W = None
+        obj.lam = obj.lam - obj.rho * c
+    if crel > 0.25 * prev_c:
+        obj.rho = obj.rho * 10.0
+    return W
 
 
 @dataclass

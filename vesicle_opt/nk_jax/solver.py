@@ -32,7 +32,7 @@ from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import coarse_levels, discretization_path, on_fourier_grid, resample
-from vesicle_opt.nk.solve import l2_floor
+from vesicle_opt.nk.solve import dual_update, l2_floor
 from vesicle_opt.nk_jax.layout import GridLayout
 from vesicle_opt.nk_jax.newton import DeviceObjective, newton_minimize
 from vesicle_opt.nk_jax.ops import GridOps
@@ -127,13 +127,7 @@ def _exact(level: Level, phi, tol, opts: NewtonKrylovOptions, volume, beta, log,
             break
         if W is None or crel > opts.w_refresh * prev_c:
             W = _dual_hessian(level, pt, opts.w_tol, opts.max_cg)
-        try:
-            obj.lam = obj.lam - np.linalg.solve(W, pt.c)
-        except (np.linalg.LinAlgError, ValueError):
-            W = None
-            obj.lam = obj.lam - obj.rho * pt.c
-        if crel > 0.25 * prev_c:
-            obj.rho = obj.rho * 10.0
+        W = dual_update(obj, W, pt.c, crel, prev_c)
         prev_c = crel
     return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy()))
 
