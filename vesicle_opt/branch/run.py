@@ -34,8 +34,10 @@ from typing import Callable
 import numpy as np
 
 from vesicle_opt.api import solve
+from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import arclength as arc
-from vesicle_opt.branch.params import Parameter, check_range, explicit_derivative, parameter
+from vesicle_opt.branch.corrector import IpoptCorrector
+from vesicle_opt.branch.params import Parameter, check_end, check_range, explicit_derivative, parameter
 from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
@@ -107,29 +109,62 @@ class _Run:
         self.scene, self.par, self.s, self.store = scene, par, settings, store
         self.backend, self.options, self.reference, self.progress = backend, options, reference, progress
         self.weights = discretize(scene).weights
+        # on IPOPT the NLP, its solver and the check's operators are built once (branch.corrector)
+        self.ipopt = IpoptCorrector(scene, options) if choose_backend(scene, backend) == "ipopt" else None
 
-    def corrector(self, seed: np.ndarray | None) -> Callable:
+    def multipliers(self, branch: int, p: float) -> tuple[float, float] | None:
+        """(lambda_volume, lambda_area) predicted at p: linear in p through the branch's last two
+        accepted points (the last one's with one; None before), read from the rows, so that a
+        resumed run starts each solve where the uninterrupted one did."""
+        acc = [r for r in self.store.rows() if r["accepted"] and r["branch"] == branch]
+        if not acc:
+            return None
+        b = acc[-1]
+        lam_b = np.array([b["lambda_volume"], b["lambda_area"]], float)
+        if len(acc) == 1 or acc[-2]["target"] == b["target"]:
+            return tuple(lam_b)
+        a = acc[-2]
+        lam_a = np.array([a["lambda_volume"], a["lambda_area"]], float)
+        return tuple(lam_b + (p - b["target"]) / (b["target"] - a["target"]) * (lam_b - lam_a))
+
+    def last_field(self, branch: int) -> np.ndarray | None:
+        """The field of the branch's last accepted point (None before the first)."""
+        acc = [r for r in self.store.rows() if r["accepted"] and r["branch"] == branch]
+        return self.store.phi(acc[-1]["point"]) if acc else None
+
+    def corrector(self, seed: np.ndarray | None, branch: int = 0) -> Callable:
         def correct(p, phi_start):
             t0 = time.perf_counter()
-            if phi_start is None and seed is None:
+            start = phi_start is None and seed is None
+            if start:
                 sc = self.scene  # the start: the scene as given
             else:
                 phi_start = seed if phi_start is None else phi_start
                 if self.par.name == "reduced_volume" and not 0 < p <= 1:
                     return arc.Attempt(p, phi_start, False, 0, (None, f"reduced_volume {p:.6g} outside (0, 1]", 0.0))
                 sc = self.par.scene_at(self.scene, p)
+            restarted = None
             try:
-                res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
+                if self.ipopt is None:
+                    res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
+                else:
+                    phi0 = self.ipopt.nlp.split(self.ipopt.nlp.x0)[0] if start else phi_start
+                    # the data are checked at the start and the end (``branch``); a point between
+                    # whose targets were infeasible fails in IPOPT: a failed row, the step halves
+                    res, restarted = self.ipopt.solve(sc, phi0, None if start else self.multipliers(branch, p),
+                                                      feasibility=start, restart=self.last_field(branch))
             except InputError as exc:  # infeasible data beyond the range of a start: a failed point
-                if phi_start is None and seed is None:
+                if start:
                     raise
                 return arc.Attempt(p, phi_start, False, 0, (None, str(exc), time.perf_counter() - t0))
-            return arc.Attempt(p, res.phi, res.converged, res.iterations, (res, None, time.perf_counter() - t0))
+            return arc.Attempt(p, res.phi, res.converged, res.iterations,
+                               (res, None, time.perf_counter() - t0, restarted))
         return correct
 
     def row(self, branch: int, st: arc.Step) -> tuple[dict, object]:
         a = st.attempt
-        res, message, wall = a.payload
+        res, message, wall, *more = a.payload
+        restarted = more[0] if more else None
         rows = self.store.rows()
         point = len(rows)
         sc = self.scene
@@ -138,13 +173,14 @@ class _Run:
                "solves": st.solves, "corrector": st.corrector, "arc_step": st.arc_step,
                "arc_theta": st.theta, "arc_condition": st.arc_condition, "deviation": st.deviation, "wall_time_s": wall,
                "epsilon": sc.model.epsilon, "n": sc.mesh.n[0],
-               "c0": a.p if self.par.name == "c0" else sc.model.c0}
+               "c0": a.p if self.par.name == "c0" else sc.model.c0, "restarted": restarted}
         if res is None:
             row.update({"outcome": "not_solved", "status": message})
             return row, None
         ex = res.extra
         row.update({k: ex.get(k) for k in ("reduced_volume", "reduced_energy", "second_order",
-                                          "second_order_min_eigenvalue", "topology", "components",
+                                          "second_order_min_eigenvalue", "second_order_excluded",
+                                          "rotation_rayleigh", "topology", "components",
                                           "h", "alpha", "beta", "volume", "area")})
         row["wraps"] = None if ex.get("wraps") is None else "".join("xyz"[i] for i in ex["wraps"]) or "none"
         row.update({"energy": res.energy, "lambda_volume": res.lambda_volume, "lambda_area": res.lambda_area,
@@ -181,7 +217,7 @@ class _Run:
         recs = [{"p": r["target"], "phi": self.store.phi(r["point"]) if r["accepted"] else None,
                  "accepted": r["accepted"], "arc_step": r["arc_step"], "theta": r["arc_theta"]} for r in mine]
         track = arc.replay(self.s.step, recs) if recs else None
-        _, why = arc.walk(self.s, p_start, self.corrector(seed), self.weights, track, self.record(branch))
+        _, why = arc.walk(self.s, p_start, self.corrector(seed, branch), self.weights, track, self.record(branch))
         return why
 
 
@@ -197,6 +233,7 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
         raise InputError("--to", "missing: the end value of the parameter")
     par = parameter(scene, param)
     step = check_range(par, to, step)
+    check_end(scene, par, to)
     if not (isinstance(max_points, int) and max_points >= 2):
         raise InputError("max_points", f"allowed range >= 2, got {max_points!r}")
     store = Store(None if out is None else Path(out), _meta(scene, param, to, step, backend, switch), snapshots)
