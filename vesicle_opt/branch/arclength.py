@@ -17,8 +17,11 @@ that this step's field change counts as much as its parameter change (theta |d p
   (dN/dp ~ 1/t_p) and secants, every trial solve started from phi_pred so that it stays on the
   predicted sheet. Limitation (measured on x^2 + p^2 = 1, ``tests/branch/test_arclength.py``):
   with a corrector that holds p fixed, the walk approaches a fold to |p - p_fold| ~ 1e-4 but does
-  not pass it (the trials beyond the fold have no point, those before it land on the same sheet);
-  passing a fold needs a corrector with p free (the bordered KKT system), not built.
+  not pass it (the trials beyond the fold have no point, those before it land on the same sheet).
+  Given a corrector with p free (``free``: the point on that hyperplane, p an unknown; for
+  vesicles the bordered Newton system of ``branch.bordered``) it replaces the scalar iteration,
+  and the walk passes the fold: after it t_p has changed sign and the natural steps go on on the
+  other sheet (p decreasing).
 * A converged corrector farther than ``max_deviation`` ds from the prediction has jumped to
   another branch (measured on a smooth 2D branch, 48², step 0.05: 0.07-0.14): rejected like a
   failure.
@@ -126,8 +129,11 @@ def _controlled(ds: float, iterations: int, s: Settings) -> float:
     return min(ds * factor, math.sqrt(2.0) * abs(s.step))
 
 
-def advance(track: Track, s: Settings, p_start: float, correct: Callable, weights) -> tuple[Track, list[Step]]:
-    """One accepted point or one failed attempt (module docstring): the new track and its records."""
+def advance(track: Track, s: Settings, p_start: float, correct: Callable, weights,
+            free: Callable | None = None) -> tuple[Track, list[Step]]:
+    """One accepted point or one failed attempt (module docstring): the new track and its records.
+    ``free(phi_pred, p_pred, t_phi, t_p, theta)``: a corrector with p free (an Attempt on the
+    hyperplane), used instead of the scalar iteration where |t_p| < ``turn``."""
     if not track.started:
         a = correct(p_start, None)
         new = replace(track, started=True, first=s.step)
@@ -165,7 +171,23 @@ def advance(track: Track, s: Settings, p_start: float, correct: Callable, weight
             return replace(track, ds=ds / 2), [Step(a, False, "natural", 1, ds / 2, theta, deviation=dev)]
         new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s))
         return new, [Step(a, True, "natural", 1, new.ds, theta, deviation=dev)]
+    if free is not None:
+        return _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred)
     return _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pred)
+
+
+def _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred):
+    """The pseudo-arclength corrector with p free (module docstring): one call, then the same
+    acceptance as a natural step (converged, near the prediction), and the hyperplane residual."""
+    a = free(phi_pred, p_pred, t_phi, t_p, theta)
+    if not a.converged:
+        return replace(track, ds=ds / 2), [Step(a, False, "arclength", 1, ds / 2, theta)]
+    N = theta**2 * float(np.dot(weights, (a.phi - phi_pred) * t_phi)) + (a.p - p_pred) * t_p
+    dev = _deviation(a, phi_pred, p_pred, theta, ds, weights)
+    if dev > s.max_deviation:
+        return replace(track, ds=ds / 2), [Step(a, False, "arclength", 1, ds / 2, theta, N / ds, dev)]
+    new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s))
+    return new, [Step(a, True, "arclength", 1, new.ds, theta, N / ds, dev)]
 
 
 def _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pred):
@@ -202,12 +224,12 @@ def _deviation(a: Attempt, phi_pred, p_pred: float, theta: float, ds: float, wei
 
 
 def walk(s: Settings, p_start: float, correct: Callable, weights, track: Track | None = None,
-         record: Callable[[Step], None] | None = None) -> tuple[Track, str]:
-    """Advance until ``finished``; ``record`` sees every attempt as it happens. Returns the final
-    track and why it stopped."""
+         record: Callable[[Step], None] | None = None, free: Callable | None = None) -> tuple[Track, str]:
+    """Advance until ``finished``; ``record`` sees every attempt as it happens; ``free``: the
+    corrector with p free (``advance``). Returns the final track and why it stopped."""
     track = track or Track()
     while (why := finished(track, s, p_start)) is None:
-        track, steps = advance(track, s, p_start, correct, weights)
+        track, steps = advance(track, s, p_start, correct, weights, free)
         for st in steps:
             if record is not None:
                 record(st)

@@ -63,6 +63,14 @@ class Parameter:
     def dbeta(self) -> float:
         return 0.0
 
+    def affine(self, base: Scene) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
+        """(alpha, beta, C) as (value at p = 0, slope) pairs: all three are affine in p (the
+        bordered corrector's data, ``branch.bordered.Affine``)."""
+        if self.name == "c0":
+            return (self.alpha0, 0.0), (self.beta, 0.0), (0.0, math.sqrt(2.0))
+        a1 = self.dalpha()  # alpha = 2 V(v) - |Omega|, V linear in v through 0
+        return (-self.domain_volume, a1), (self.beta, 0.0), (base.model.C, 0.0)
+
 
 def explicit_derivative(name: str, result, scene: Scene) -> float:
     """dE/dp at fixed phi: 0 for the reduced volume; rigidity dE_h/dc0 = rigidity sqrt(2) dE_h/dC

@@ -36,7 +36,8 @@ import numpy as np
 from vesicle_opt.api import solve
 from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import arclength as arc
-from vesicle_opt.branch.corrector import IpoptCorrector
+from vesicle_opt.branch.bordered import Affine, BorderedCorrector
+from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
 from vesicle_opt.branch.params import Parameter, check_end, check_range, explicit_derivative, parameter
 from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
@@ -111,6 +112,32 @@ class _Run:
         self.weights = discretize(scene).weights
         # on IPOPT the NLP, its solver and the check's operators are built once (branch.corrector)
         self.ipopt = IpoptCorrector(scene, options) if choose_backend(scene, backend) == "ipopt" else None
+        self._bordered = None  # branch.bordered, built when the walk first nears a fold (IPOPT, lumped)
+
+    def free_corrector(self, branch: int) -> Callable | None:
+        """The corrector with p free (``branch.bordered``, then the fixed-p IPOPT solve at the p
+        found, which certifies the point); None where it does not apply (Newton-Krylov backend,
+        consistent mass): the walk then uses its scalar iteration (``branch.arclength``)."""
+        if self.ipopt is None or self.ipopt.disc.consistent:
+            return None
+
+        def free(phi_pred, p_pred, t_phi, t_p, theta):
+            t0 = time.perf_counter()
+            if self._bordered is None:
+                a, b, c = self.par.affine(self.scene)
+                self._bordered = BorderedCorrector(self.ipopt.scene, self.ipopt.disc, Affine(a, b, c))
+            lam = self.multipliers(branch, p_pred)
+            if lam is None:
+                lam = least_squares_multipliers(self.scene, self.ipopt.disc, phi_pred)
+            nw = self._bordered.solve(phi_pred, p_pred, lam, t_phi, t_p, theta)
+            if not nw.converged or (self.par.name == "reduced_volume" and not 0 < nw.p <= 1):
+                why = nw.message or f"reduced_volume {nw.p:.6g} outside (0, 1]"
+                return arc.Attempt(nw.p, phi_pred, False, nw.iterations,
+                                   (None, f"bordered Newton: {why}", time.perf_counter() - t0, None))
+            res, _ = self.ipopt.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, feasibility=False)
+            return arc.Attempt(nw.p, res.phi, res.converged, nw.iterations + res.iterations,
+                               (res, None, time.perf_counter() - t0, False))
+        return free
 
     def multipliers(self, branch: int, p: float) -> tuple[float, float] | None:
         """(lambda_volume, lambda_area) predicted at p: linear in p through the branch's last two
@@ -151,8 +178,12 @@ class _Run:
                     phi0 = self.ipopt.nlp.split(self.ipopt.nlp.x0)[0] if start else phi_start
                     # the data are checked at the start and the end (``branch``); a point between
                     # whose targets were infeasible fails in IPOPT: a failed row, the step halves
+                    # after a restart the branch goes on cold from its last point (``corrector``);
+                    # read from the rows, so that a resumed run makes the same choice
+                    acc = [r for r in self.store.rows() if r["accepted"] and r["branch"] == branch]
                     res, restarted = self.ipopt.solve(sc, phi0, None if start else self.multipliers(branch, p),
-                                                      feasibility=start, restart=self.last_field(branch))
+                                                      feasibility=start, restart=self.last_field(branch),
+                                                      cold_first=bool(acc and acc[-1].get("restarted")))
             except InputError as exc:  # infeasible data beyond the range of a start: a failed point
                 if start:
                     raise
@@ -217,14 +248,15 @@ class _Run:
         recs = [{"p": r["target"], "phi": self.store.phi(r["point"]) if r["accepted"] else None,
                  "accepted": r["accepted"], "arc_step": r["arc_step"], "theta": r["arc_theta"]} for r in mine]
         track = arc.replay(self.s.step, recs) if recs else None
-        _, why = arc.walk(self.s, p_start, self.corrector(seed, branch), self.weights, track, self.record(branch))
+        _, why = arc.walk(self.s, p_start, self.corrector(seed, branch), self.weights, track, self.record(branch),
+                          free=self.free_corrector(branch))
         return why
 
 
 def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None, step: float | None = None,
            out=None, *, backend: str | None = None, options=None, max_points: int = 200, switch: bool = True,
            reference: Callable | None = None, snapshots: bool = True,
-           progress: Callable[[dict], None] | None = None) -> Branch:
+           progress: Callable[[dict], None] | None = None, turn: float = arc.Settings.turn) -> Branch:
     """Follow the branch of equilibria of ``scene`` in ``param`` from the scene's value to ``to``
     (module docstring); ``step`` is the first (and largest) parameter step, signed towards ``to``
     (default: a 25th of the range). ``out``: a directory for branch.csv and the snapshots, resumed
@@ -236,8 +268,13 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     check_end(scene, par, to)
     if not (isinstance(max_points, int) and max_points >= 2):
         raise InputError("max_points", f"allowed range >= 2, got {max_points!r}")
-    store = Store(None if out is None else Path(out), _meta(scene, param, to, step, backend, switch), snapshots)
-    settings = arc.Settings(step=step, to=float(to), max_points=max_points)
+    meta = _meta(scene, param, to, step, backend, switch)
+    if turn != arc.Settings.turn:
+        meta["turn"] = float(turn)
+    store = Store(None if out is None else Path(out), meta, snapshots)
+    if not (isinstance(turn, (int, float)) and 0 <= turn):
+        raise InputError("turn", f"allowed range >= 0 (|t_p| below which the arclength corrector runs), got {turn!r}")
+    settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn))
     run = _Run(scene, par, settings, store, backend, options, reference, progress)
     stopped = {0: run.follow(0, par.start, None)}
     if switch:
