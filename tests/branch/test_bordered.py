@@ -28,8 +28,8 @@ def test_the_bordered_point_is_a_fixed_p_kkt_point(name, p1):
     sc = scene()
     par = parameter(sc, name)
     corr = IpoptCorrector(sc)
-    a, _ = corr.solve(sc, corr.nlp.x0)
-    b, _ = corr.solve(par.scene_at(sc, p1), a.phi, (a.lambda_volume, a.lambda_area))
+    a = corr.solve(sc, corr.nlp.x0)
+    b = corr.solve(par.scene_at(sc, p1), a.phi, (a.lambda_volume, a.lambda_area))
     assert a.converged and b.converged
     w = corr.disc.weights
     # the secant tangent in the arclength metric theta^2 <.,.>_w + dp^2 (theta as branch.arclength)
@@ -48,6 +48,24 @@ def test_the_bordered_point_is_a_fixed_p_kkt_point(name, p1):
     at = par.scene_at(sc, nw.p)
     kkt = kkt_residual(corr.disc, nw.phi, at.model.epsilon, at.model.C, at.model.rigidity, *nw.lam)
     assert kkt < 1e-10, kkt  # stationarity at round-off (relative L2; measured 6e-14, 1.2e-13), far below tol 1e-8
-    res, _ = corr.solve(at, nw.phi, nw.lam)
+    res = corr.solve(at, nw.phi, nw.lam)
     assert res.converged and res.iterations <= 1, (res.iterations, res.reason)  # already a KKT point (measured 0)
     assert np.sqrt(w @ (res.phi - nw.phi) ** 2) < 1e-6 * np.sqrt(w @ nw.phi**2)  # IPOPT did not move it
+
+
+def test_newton_at_fixed_p_finds_the_ipopt_point():
+    """The fallback of the IPOPT corrector (``BorderedCorrector.fixed``): Newton at fixed nu from the
+    previous point lands on the point IPOPT finds there (two solvers, one KKT point)."""
+    sc = scene()
+    par = parameter(sc, "reduced_volume")
+    corr = IpoptCorrector(sc)
+    a = corr.solve(sc, corr.nlp.x0)
+    at = par.scene_at(sc, 0.925)
+    b = corr.solve(at, a.phi, (a.lambda_volume, a.lambda_area))
+    nw = BorderedCorrector(corr.scene, corr.disc, Affine(*par.affine(sc))).fixed(a.phi, 0.925,
+                                                                                   (a.lambda_volume, a.lambda_area))
+    assert nw.converged and nw.p == 0.925
+    w = corr.disc.weights
+    gap = np.sqrt(w @ (nw.phi - b.phi) ** 2) / np.sqrt(w @ b.phi**2)
+    assert gap < 1e-8, gap  # IPOPT stops at tol 1e-8 on the scaled gradient (measured gap 1e-12: its last step is Newton too)
+    assert nw.lam == pytest.approx((b.lambda_volume, b.lambda_area), rel=1e-8)  # measured 1e-11

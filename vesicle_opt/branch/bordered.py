@@ -86,6 +86,12 @@ class BorderedCorrector:
         self._fun = ca.Function("bordered_kkt", [phi, lam_a, lam_b, p], [R, J])
         self.n = n
 
+    def fixed(self, phi0, p: float, lam0) -> Newton:
+        """Newton at fixed p (the hyperplane p = const: t_phi = 0, t_p = 1) from (phi0, lam0): the
+        fallback of the IPOPT corrector, which as a minimiser may wander near a saddle of the
+        discrete problem; Newton converges to the KKT point whatever its inertia."""
+        return self.solve(phi0, p, lam0, np.zeros(self.n), 1.0, 0.0)
+
     def solve(self, phi_pred, p_pred: float, lam_pred, t_phi, t_p: float, theta: float) -> Newton:
         """Newton from the prediction (phi_pred, p_pred, lam_pred) onto the hyperplane through it
         orthogonal to the tangent (t_phi, t_p) in the metric theta^2 <., .>_w + dp^2."""

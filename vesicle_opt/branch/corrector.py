@@ -51,9 +51,10 @@ from vesicle_opt.verify.verdict import SecondOrder
 WARM = (("ipopt.warm_start_init_point", "yes"),)  # IPOPT takes the given multipliers (cold, it would
 # replace them by its least-squares estimate); no bounds, no inequalities: nothing else to warm
 WARM_MAX_ITER = 8  # a warm-started point takes 3-4 IPOPT iterations (measured, 128^2 elastica); one
-# that needs more has a poor prediction (measured near nu = 0.53, where the branch bends sharply: 60
-# iterations without convergence from the secant, 4 from the last point cold), so it is cut here and
-# restarted cold (``IpoptCorrector.solve``)
+# that needs more is cut here and handed to the Newton fallback (``branch.run``): below nu ~ 0.66 the
+# grid-aligned elastica at 128^2 is a saddle of the discrete problem along the (grid-broken) rotation,
+# and IPOPT, a minimiser, then sometimes wanders (measured nu 0.58 - 0.51: 60 iterations without
+# convergence from the secant, from the last point, warm or cold)
 
 
 def least_squares_multipliers(scene: Scene, disc, phi: np.ndarray) -> tuple[float, float]:
@@ -80,16 +81,12 @@ class IpoptCorrector:
         self.fourier = on_fourier_grid(self.disc) if self.matrix_free else None
 
     def solve(self, scene: Scene, phi0: np.ndarray, lam0: tuple[float, float] | None = None,
-              feasibility: bool = True, restart: np.ndarray | None = None,
-              cold_first: bool = False) -> tuple[Result, bool]:
-        """(the certified, second-order checked point of ``scene``, restarted?) for a point scene of
-        the branch (same mesh, other constraints or c0) from the field ``phi0`` and multipliers
-        ``lam0`` (physical), warm (at most ``WARM_MAX_ITER`` iterations; ``lam0`` None: cold, with
-        IPOPT's own multipliers and the scene's max_iter, as the front door); if that fails and ``restart`` (a field: the last accepted point) is given, once
-        more from it cold, as the front door would start (the iterations add up); ``cold_first``
-        (with ``restart``): that cold solve only (the branch's choice after a restart: where the
-        warm start failed once it failed at the next points too, measured nu 0.525 - 0.51 at 128^2,
-        20 wasted iterations each). ``feasibility``: refuse infeasible targets (InputError) first."""
+              feasibility: bool = True) -> Result:
+        """The certified, second-order checked point of ``scene`` (a point scene of the branch:
+        same mesh, other constraints or c0) from the field ``phi0`` and multipliers ``lam0``
+        (physical): warm, at most ``WARM_MAX_ITER`` iterations; ``lam0`` None: cold, with IPOPT's
+        own multipliers and the scene's max_iter, as the front door starts. ``feasibility``: refuse
+        infeasible targets (InputError) first."""
         scene = scene.replace(solver=dataclasses.replace(scene.solver, method="exact"))
         alpha, beta = constraint_data(scene, self.disc)
         if feasibility:
@@ -97,21 +94,13 @@ class IpoptCorrector:
         nlp = at_point(self.nlp, scene, alpha, beta)
         p = parameter_values(scene, self.disc, alpha, beta)
         if lam0 is None:  # no prediction (the start): cold, as the front door starts
-            return self.reports(scene, nlp, self._cold_solve(nlp, phi0, p)), False
-        if cold_first and restart is not None:
-            return self.reports(scene, nlp, self._cold_solve(nlp, restart, p)), True
+            return self.reports(scene, nlp, self._cold_solve(nlp, phi0, p))
         lam_g0 = -np.asarray(lam0, float) * nlp.g_scale / nlp.f_scale  # inverse of NLP.multipliers
         if nlp.lbg.size > 2:  # the consistent-mass rows M w + K phi = 0: no estimate, start at 0
             lam_g0 = np.concatenate([lam_g0, np.zeros(nlp.lbg.size - 2)])
         res = solve_exact(nlp, x0=nlp.from_phi(np.asarray(phi0, float)), lam_g0=lam_g0, solver=self.solver,
                           options=self.options, p=p)
-        restarted = not res.converged and restart is not None
-        if restarted:
-            first = res
-            res = self._cold_solve(nlp, restart, p)
-            res = dataclasses.replace(res, iterations=first.iterations + res.iterations,
-                                      wall_time_s=first.wall_time_s + res.wall_time_s)
-        return self.reports(scene, nlp, res), restarted
+        return self.reports(scene, nlp, res)
 
     def _cold_solve(self, nlp, phi0, p) -> Result:
         if self._cold is None:
