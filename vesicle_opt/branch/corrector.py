@@ -9,8 +9,8 @@ Every point of a branch is the exact-constraint problem (6)-(8) of the same mesh
 * the Fourier-grid operators of the matrix-free second-order check (``verify.lobpcg``).
 
 Per point: IPOPT warm-started at the predicted field with the predicted multipliers
-(``ipopt.warm_start_init_point``; without a prediction, the least-squares multipliers of the start,
-which is what IPOPT computes by itself cold), the common certificate (``verify.certify``, inside
+(``ipopt.warm_start_init_point``; the start, with no prediction, cold as the front door), the
+common certificate (``verify.certify``, inside
 ``nlp.solve.solve_exact``), then the second-order check and the topology, reported exactly as the
 front door reports them (``api.with_reports``).
 
@@ -50,7 +50,7 @@ from vesicle_opt.verify.verdict import SecondOrder
 
 WARM = (("ipopt.warm_start_init_point", "yes"),)  # IPOPT takes the given multipliers (cold, it would
 # replace them by its least-squares estimate); no bounds, no inequalities: nothing else to warm
-WARM_MAX_ITER = 8  # a warm-started point takes 3-4 IPOPT iterations (measured, 128^2 elastica); one
+WARM_MAX_ITER = 6  # a warm-started point takes 2-4 IPOPT iterations (measured, 128^2 elastica); one
 # that needs more is cut here and handed to the Newton fallback (``branch.run``): below nu ~ 0.66 the
 # grid-aligned elastica at 128^2 is a saddle of the discrete problem along the (grid-broken) rotation,
 # and IPOPT, a minimiser, then sometimes wanders (measured nu 0.58 - 0.51: 60 iterations without

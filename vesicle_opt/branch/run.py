@@ -1,10 +1,24 @@
 """``branch(scene, param=, to=, step=, out=)``: a branch of equilibria in the reduced volume or c0.
 
-Every point is an exact-constraint solve of the front door (``vesicle_opt.solve``, method
-``exact``: IPOPT, or Newton-Krylov with ``backend="newton-krylov"`` on spectral grids), warm-started
-from the predictor (``branch.arclength``); each carries the front door's certificate, its
-second-order verdict (``second_order``, ``second_order_min_eigenvalue`` in mu_ref units) and its
-topology. Per accepted point the row also holds
+Every point is an exact-constraint solve, warm-started from the predictor (``branch.arclength``),
+with the front door's certificate, its second-order verdict (``second_order``,
+``second_order_min_eigenvalue`` in mu_ref units, ``second_order_excluded``) and its topology:
+
+* on IPOPT (2D, small 3D): ``branch.corrector``, the NLP, the solver and the check's operators
+  built once per branch, the predicted multipliers (linear in p through the last two points) as
+  IPOPT's warm start; on FD grids the check removes the rotation as it removes the translations
+  (``rotation_rayleigh``: the rotation's Rayleigh quotient on T, mu_ref units, reported beside it);
+  if warm IPOPT fails (at most ``corrector.WARM_MAX_ITER`` = 6 iterations), Newton at fixed p on the
+  bordered system (``branch.bordered``) from the prediction, certified by IPOPT from Newton's point
+  (``restarted`` true);
+* near a fold (|t_p| < ``turn``) on IPOPT with lumped mass: the pseudo-arclength corrector with p
+  free (``branch.bordered``: Newton on the KKT system bordered by the arclength equation), its
+  point then certified at its own p by the fixed-p IPOPT solve, so a branch passes a turning point;
+* otherwise (Newton-Krylov with ``backend="newton-krylov"`` on spectral grids): the front door
+  (``vesicle_opt.solve``) at fixed p, and near a fold the scalar iteration on p of
+  ``branch.arclength`` (which approaches a fold but does not pass it).
+
+Per accepted point the row also holds
 
 * ``dE_dp`` = lambda_volume d alpha/dp + lambda_area d beta/dp + dE/dp|_phi (``branch.params``) and
   ``envelope_residual`` = |Delta E - (dE_dp_{i-1} + dE_dp_i)/2 Delta p| / |(dE_dp_{i-1} + dE_dp_i)/2 Delta p|
@@ -161,26 +175,21 @@ class _Run:
     def ipopt_point(self, branch: int, sc: Scene, p: float, phi0: np.ndarray):
         """(result, restarted) at fixed p on IPOPT: warm from the prediction; if that fails (lumped
         mass), Newton at fixed p from the prediction (``BorderedCorrector.fixed``) and IPOPT warm
-        from Newton's point, which certifies it (0 iterations where Newton converged).
-        After a restart the branch goes on Newton-first (IPOPT failed there once, it fails at the
-        next points too: measured nu 0.58 - 0.51 at 128^2), read from the rows, so that a resumed
-        run makes the same choice. The data are checked at the start and the end (``branch``); a
-        point between whose targets were infeasible fails: a failed row, the step halves."""
-        acc = [r for r in self.store.rows() if r["accepted"] and r["branch"] == branch]
+        from Newton's point, which certifies it (0 iterations where Newton converged); the
+        iterations add up. (Measured, 128^2 elastica: warm IPOPT failed once, at nu = 0.576, and took
+        2-3 iterations at the next eight points from the secant; a Newton-first rule after a
+        fallback cost 4-8 s a point there.) The data are checked at the start and the end
+        (``branch``); a point between whose targets were infeasible fails: a failed row."""
         lam0 = self.multipliers(branch, p)
-        newton_first = bool(acc and acc[-1].get("restarted")) and not self.ipopt.disc.consistent
-        if not newton_first:
-            res = self.ipopt.solve(sc, phi0, lam0, feasibility=False)
-            if res.converged or self.ipopt.disc.consistent:
-                return res, False
+        res = self.ipopt.solve(sc, phi0, lam0, feasibility=False)
+        if res.converged or self.ipopt.disc.consistent:
+            return res, False
         lam_n = lam0 if lam0 is not None else least_squares_multipliers(sc, self.ipopt.disc, phi0)
         nw = self.bordered().fixed(phi0, p, lam_n)
         if not nw.converged:
-            res = self.ipopt.solve(sc, phi0, lam0, feasibility=False) if newton_first else res
             return res, True
-        first = 0 if newton_first else res.iterations
         polish = self.ipopt.solve(sc, nw.phi, nw.lam, feasibility=False)
-        return dataclasses.replace(polish, iterations=first + nw.iterations + polish.iterations), True
+        return dataclasses.replace(polish, iterations=res.iterations + nw.iterations + polish.iterations), True
 
     def corrector(self, seed: np.ndarray | None, branch: int = 0) -> Callable:
         def correct(p, phi_start):
