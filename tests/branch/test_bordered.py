@@ -41,13 +41,13 @@ def test_the_bordered_point_is_a_fixed_p_kkt_point(name, p1):
     phi_pred, p_pred = b.phi + ds * t_phi, p1 + ds * t_p
     bordered = BorderedCorrector(corr.scene, corr.disc, Affine(*par.affine(sc)))
     nw = bordered.solve(phi_pred, p_pred, (b.lambda_volume, b.lambda_area), t_phi, t_p, theta)
-    assert nw.converged and nw.iterations <= 8, nw  # quadratic from the secant (measured 3 in nu, 5 in c0)
+    assert nw.converged and nw.iterations <= 20, nw  # Newton and chord steps from the secant (measured 5 in nu, 11 in c0)
     N = theta**2 * w @ ((nw.phi - phi_pred) * t_phi) + (nw.p - p_pred) * t_p
     assert abs(N) < 1e-12 * ds  # on the hyperplane to round-off (a linear row of the system)
     assert abs(nw.p - p_pred) > 1e-6 * ds  # p moved off the prediction: it is an unknown
     at = par.scene_at(sc, nw.p)
     kkt = kkt_residual(corr.disc, nw.phi, at.model.epsilon, at.model.C, at.model.rigidity, *nw.lam)
-    assert kkt < 1e-10, kkt  # stationarity at round-off (relative L2; measured 6e-14, 1.2e-13), far below tol 1e-8
+    assert kkt < 1e-10, kkt  # stationarity at round-off (relative L2; measured 1.8e-12, 1.2e-13), far below tol 1e-8
     res = corr.solve(at, nw.phi, nw.lam)
     assert res.converged and res.iterations <= 1, (res.iterations, res.reason)  # already a KKT point (measured 0)
     assert np.sqrt(w @ (res.phi - nw.phi) ** 2) < 1e-6 * np.sqrt(w @ nw.phi**2)  # IPOPT did not move it
