@@ -9,7 +9,14 @@ Every point of a branch is the exact-constraint problem (6)-(8) of the same mesh
 * the Fourier-grid operators of the matrix-free second-order check (``verify.lobpcg``).
 
 Per point: IPOPT warm-started at the predicted field with the predicted multipliers
-(``ipopt.warm_start_init_point``; the start, with no prediction, cold as the front door), the
+(``ipopt.warm_start_init_point``; the start, with no prediction, cold as the front door); on 2D FD
+grids the warm solves hold the orientation of the prediction by one linear row (``pinned``,
+``rotation_row``): below nu ~ 0.66 the grid-aligned 128^2 elastica is a saddle of the discrete
+problem along the grid-broken rotation (Rayleigh quotient -2e-4 ... -6e-4 mu_ref), and IPOPT, a
+minimiser, then wandered at a few points (measured nu 0.58 - 0.51: 6-60 iterations without
+convergence, warm or cold, from the prediction or the last point; pinned: 2-3 iterations at all of
+them). The row's multiplier vanishes at shapes symmetric under the axis reflections, and the
+certificate recomputes stationarity without it (``rotation_multiplier`` in extra). Then the
 common certificate (``verify.certify``, inside
 ``nlp.solve.solve_exact``), then the second-order check and the topology, reported exactly as the
 front door reports them (``api.with_reports``).
@@ -34,6 +41,7 @@ import numpy as np
 from vesicle_opt.api import with_reports
 from vesicle_opt.backends import supports
 from vesicle_opt.mesh import discretize
+from vesicle_opt.mesh.spectral import FourierGrid
 from vesicle_opt.model import functionals as F
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
@@ -51,10 +59,7 @@ from vesicle_opt.verify.verdict import SecondOrder
 WARM = (("ipopt.warm_start_init_point", "yes"),)  # IPOPT takes the given multipliers (cold, it would
 # replace them by its least-squares estimate); no bounds, no inequalities: nothing else to warm
 WARM_MAX_ITER = 6  # a warm-started point takes 2-4 IPOPT iterations (measured, 128^2 elastica); one
-# that needs more is cut here and handed to the Newton fallback (``branch.run``): below nu ~ 0.66 the
-# grid-aligned elastica at 128^2 is a saddle of the discrete problem along the (grid-broken) rotation,
-# and IPOPT, a minimiser, then sometimes wanders (measured nu 0.58 - 0.51: 60 iterations without
-# convergence from the secant, from the last point, warm or cold)
+# that needs more is cut here and handed to the Newton fallback (``branch.run``)
 
 
 def least_squares_multipliers(scene: Scene, disc, phi: np.ndarray) -> tuple[float, float]:
@@ -63,6 +68,32 @@ def least_squares_multipliers(scene: Scene, disc, phi: np.ndarray) -> tuple[floa
     dE, dA, dB = F.gradients(disc, np.asarray(phi, float), scene.model.epsilon, scene.model.C)
     lam, *_ = np.linalg.lstsq(np.column_stack([dA, dB]), scene.model.rigidity * dE, rcond=None)
     return float(lam[0]), float(lam[1])
+
+
+def rotation_row(disc, phi: np.ndarray) -> np.ndarray:
+    """c with c . phi = <r, phi>_w / sqrt|Omega|, r the infinitesimal rotation about the centroid of
+    {phi > 0}, (x - x_c) d_y phi - (y - y_c) d_x phi (spectral derivatives), normalised |r|_w = 1:
+    the row c . (phi - phi0) = 0 of the warm solves holds the shape's orientation at the
+    prediction's (a relative change, so IPOPT's constraint tolerance means the same at any size)."""
+    dx, dy = FourierGrid(disc.box, disc.grid_shape).derivatives(phi)
+    w = disc.weights
+    inside = w * (1 + phi) / 2
+    xc = (inside @ disc.nodes) / inside.sum()
+    r = (disc.nodes[:, 0] - xc[0]) * dy - (disc.nodes[:, 1] - xc[1]) * dx
+    return w * r / np.sqrt(w @ (r * r)) / np.sqrt(disc.volume)
+
+
+def pinned(nlp):
+    """The parametric NLP with one more linear row c . x - d = 0, (c, d) appended to its parameters
+    (``rotation_row``). At a shape symmetric under the reflections of the axes its multiplier is
+    zero (the Lagrangian's gradient is even, the rotation odd): the point is a KKT point of the
+    unpinned problem, and the certificate, which recomputes stationarity without that row, says so
+    (a nonzero multiplier would show as kkt_residual, and the point would not be certified)."""
+    import casadi as ca  # third-party, lazy: only the IPOPT path builds graphs (0.25 s at import)
+    n = nlp.disc.n_nodes
+    c, d = ca.MX.sym("rotation", n), ca.MX.sym("rotation_at", 1)
+    return dataclasses.replace(nlp, g=ca.vertcat(nlp.g, ca.dot(c, nlp.x[:n]) - d), p=ca.vertcat(nlp.p, c, d),
+                               lbg=np.zeros(nlp.lbg.size + 1), ubg=np.zeros(nlp.ubg.size + 1))
 
 
 class IpoptCorrector:
@@ -75,7 +106,11 @@ class IpoptCorrector:
         self.cold_options = options or IpoptOptions.from_scene(self.scene)
         self.options = dataclasses.replace(self.cold_options, max_iter=min(WARM_MAX_ITER, self.cold_options.max_iter),
                                            extra=WARM + tuple(self.cold_options.extra))
-        self.solver = make_solver(self.nlp, self.options)
+        # FD grids: the warm solves hold the rotation (``rotation_row``); elsewhere none is near-null
+        self.pin = self.disc.kind == "fd" and self.disc.grid_shape is not None and self.disc.dim == 2 \
+            and not self.disc.consistent
+        self.warm_nlp = pinned(self.nlp) if self.pin else self.nlp
+        self.solver = make_solver(self.warm_nlp, self.options)
         self._cold = None  # the cold solver (the scene's max_iter, IPOPT's own multipliers): on demand
         self.matrix_free = supports(self.scene, "newton-krylov")
         self.fourier = on_fourier_grid(self.disc) if self.matrix_free else None
@@ -95,11 +130,20 @@ class IpoptCorrector:
         p = parameter_values(scene, self.disc, alpha, beta)
         if lam0 is None:  # no prediction (the start): cold, as the front door starts
             return self.reports(scene, nlp, self._cold_solve(nlp, phi0, p))
+        phi0 = np.asarray(phi0, float)
+        if self.pin:  # the rotation row: its multiplier starts at 0 (it vanishes at symmetric shapes)
+            nlp = at_point(self.warm_nlp, scene, alpha, beta)
+            c = rotation_row(self.disc, phi0)
+            p = np.concatenate([p, c, [c @ phi0]])
         lam_g0 = -np.asarray(lam0, float) * nlp.g_scale / nlp.f_scale  # inverse of NLP.multipliers
-        if nlp.lbg.size > 2:  # the consistent-mass rows M w + K phi = 0: no estimate, start at 0
+        if nlp.lbg.size > 2:  # the consistent-mass rows M w + K phi = 0 or the rotation row: start at 0
             lam_g0 = np.concatenate([lam_g0, np.zeros(nlp.lbg.size - 2)])
-        res = solve_exact(nlp, x0=nlp.from_phi(np.asarray(phi0, float)), lam_g0=lam_g0, solver=self.solver,
+        res = solve_exact(nlp, x0=nlp.from_phi(phi0), lam_g0=lam_g0, solver=self.solver,
                           options=self.options, p=p)
+        if self.pin:  # the result in the unpinned NLP's layout, as the front door's; the row's
+            # multiplier (IPOPT's scaled units) in extra, for the record
+            res = dataclasses.replace(res, lam_g=res.lam_g[:-1],
+                                      extra={**res.extra, "rotation_multiplier": float(res.lam_g[-1])})
         return self.reports(scene, nlp, res)
 
     def _cold_solve(self, nlp, phi0, p) -> Result:
