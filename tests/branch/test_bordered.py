@@ -7,6 +7,7 @@ volume (alpha moves) and in c0 (C moves: the explicit p column of the Jacobian).
 import numpy as np
 import pytest
 
+from vesicle_opt.branch import branch
 from vesicle_opt.branch.bordered import Affine, BorderedCorrector
 from vesicle_opt.branch.corrector import IpoptCorrector
 from vesicle_opt.branch.params import parameter
@@ -69,3 +70,19 @@ def test_newton_at_fixed_p_finds_the_ipopt_point():
     gap = np.sqrt(w @ (nw.phi - b.phi) ** 2) / np.sqrt(w @ b.phi**2)
     assert gap < 1e-8, gap  # IPOPT stops at tol 1e-8 on the scaled gradient (measured gap 1e-12: its last step is Newton too)
     assert nw.lam == pytest.approx((b.lambda_volume, b.lambda_area), rel=1e-8)  # measured 1e-11
+
+
+def test_a_branch_walked_by_arclength_with_p_free_meets_the_natural_one():
+    """``turn`` above 1 makes every step after the first a pseudo-arclength step with p free
+    (``branch.run``: bordered Newton, then IPOPT at its p): the points are certified, lie on their
+    hyperplanes, and the end point (a natural step onto nu = 0.85) is the natural walk's."""
+    sc = scene()
+    free = branch(sc, "reduced_volume", to=0.85, step=-0.025, turn=1.01)
+    natural = branch(sc, "reduced_volume", to=0.85, step=-0.025)
+    pts = free.points()
+    assert free.stopped == {0: "reached"} and all(r["converged"] for r in pts)
+    arcs = [r for r in pts if r["corrector"] == "arclength"]
+    assert len(arcs) >= 2 and all(abs(r["arc_condition"]) < 1e-10 for r in arcs)  # measured <= 1e-15
+    assert pts[-1]["target"] == natural.points()[-1]["target"] == 0.85
+    # two certified KKT points at tol 1e-8 (measured 1e-10 relative)
+    assert pts[-1]["energy"] == pytest.approx(natural.points()[-1]["energy"], rel=1e-8)
