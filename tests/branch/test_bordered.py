@@ -11,17 +11,21 @@ from vesicle_opt.branch import branch
 from vesicle_opt.branch.bordered import Affine, BorderedCorrector
 from vesicle_opt.branch.corrector import IpoptCorrector
 from vesicle_opt.branch.params import parameter
+from vesicle_opt.io.files import load_npz
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.verify.kkt import kkt_residual
 
 
+_RAW = {"domain": {"box": [[-4.0, 4.0], [-4.0, 4.0]], "boundary": "periodic"},
+        "mesh": {"kind": "fd", "n": 32}, "model": {"epsilon": 0.5},
+        "constraints": {"reduced_volume": 0.95, "area": 8.0},
+        "initial": {"shape": "ellipse", "semi_axes": [1.45, 1.1]},
+        "solver": {"method": "exact", "tol": 1e-8, "second_order": False, "max_iter": 60}}
+
+
 def scene():
-    return from_dict({"domain": {"box": [[-4.0, 4.0], [-4.0, 4.0]], "boundary": "periodic"},
-                      "mesh": {"kind": "fd", "n": 32}, "model": {"epsilon": 0.5},
-                      "constraints": {"reduced_volume": 0.95, "area": 8.0},
-                      "initial": {"shape": "ellipse", "semi_axes": [1.45, 1.1]},
-                      "solver": {"method": "exact", "tol": 1e-8, "second_order": False, "max_iter": 60}},
-                     "small-2d")
+    return from_dict(_RAW, "small-2d")
+
 
 
 @pytest.mark.parametrize("name, p1", [("reduced_volume", 0.925), ("c0", 0.2)])
@@ -86,3 +90,30 @@ def test_a_branch_walked_by_arclength_with_p_free_meets_the_natural_one():
     assert pts[-1]["target"] == natural.points()[-1]["target"] == 0.85
     # two certified KKT points at tol 1e-8 (measured 1e-10 relative)
     assert pts[-1]["energy"] == pytest.approx(natural.points()[-1]["energy"], rel=1e-8)
+
+
+@pytest.mark.slow
+def test_a_vesicle_branch_is_followed_through_its_turning_point_in_c0(tmp_path):
+    """The 48^2 (eps = 0.4) branch in c0 from the nu = 0.95 ellipse turns back at c0 ~ 0.687: the
+    walk, pseudo-arclength with p free there, goes through it; p rises then falls, every point
+    certified at its own c0 (measured: the top at point 119, c0 = 0.68740, least eigenvalue
+    1.7e-5 mu_ref there, positive on both sheets). The returning sheet is the forward one reflected
+    in the diagonal (the shape turns from the x axis towards the diagonal, a lattice-orientation
+    family of this coarse grid, eps / h = 2.4): at equal c0 the fields are transposes."""
+    b = branch(from_dict({**_RAW, "mesh": {"kind": "fd", "n": 48}, "model": {"epsilon": 0.4},
+                          "solver": {**_RAW["solver"], "second_order": True}}, "c0-48"),
+               "c0", to=1.5, step=0.02, max_points=135, out=tmp_path / "b", snapshots=False)
+    pts = b.points()
+    assert all(r["converged"] for r in pts)
+    p = np.array([r["target"] for r in pts])
+    top = int(np.argmax(p))
+    assert 0 < top < len(p) - 5 and 0.6 < p[top] < 0.8, (top, p[top])  # a turning point inside the walk
+    assert np.all(np.diff(p[top:]) < 0) and p[-1] < p[top] - 1e-3  # then p falls
+    assert any(r["corrector"] == "arclength" for r in pts[top - 3: top + 3])  # passed with p free
+    shape = (48, 48)
+    k = top - 10
+    j = min(range(top, len(pts)), key=lambda i: abs(p[i] - p[k]))
+    fwd, back = (load_npz(tmp_path / "b" / "points" / f"point-{int(pts[i]['point']):04d}.npz")["phi"].reshape(shape)
+                 for i in (k, j))
+    # the sheets: mirror images (measured |back - fwd^T| 8e-4 at |dc0| 3e-5, |back - fwd| 0.16)
+    assert np.abs(back - fwd.T).max() < 0.1 * np.abs(back - fwd).max()
