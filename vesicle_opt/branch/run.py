@@ -286,7 +286,9 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     """Follow the branch of equilibria of ``scene`` in ``param`` from the scene's value to ``to``
     (module docstring); ``step`` is the first (and largest) parameter step, signed towards ``to``
     (default: a 25th of the range). ``out``: a directory for branch.csv and the snapshots, resumed
-    when it holds the same run. Bad input raises InputError (naming the flag) before any solve."""
+    when it holds the same run. ``turn``: |t_p| below which the pseudo-arclength corrector runs
+    (``branch.arclength``; above 1: every step after the first). Bad input raises InputError (naming
+    the flag) before any solve."""
     if to is None:
         raise InputError("--to", "missing: the end value of the parameter")
     par = parameter(scene, param)
