@@ -106,6 +106,14 @@ def _second_order(result: Result, so) -> Result:
     return dataclasses.replace(result, history={**result.history, "second_order_mode": so.lowest_mode})
 
 
+def with_reports(result: Result, so) -> Result:
+    """The second-order keys (``so``: a ``verdict.SecondOrder`` or None: not checked) and the topology
+    keys every front-door result carries; for callers that run a backend's pieces themselves
+    (``vesicle_opt.branch`` reuses one IPOPT solver along a branch) and report the same way."""
+    result = _second_order(result, so)
+    return _replace_extra(result, **topology.report(result.disc, result.phi))
+
+
 def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | None = None, x0=None,
           options: IpoptOptions | NewtonKrylovOptions | None = None, throw: bool = False) -> Result:
     """Minimise rigidity * E_h subject to A = alpha, B = beta (or its penalty form); see the module
@@ -158,8 +166,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         if check_second_order and result.converged:
             log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
         so = lobpcg.check(scene, result, setup, rotations=rotations) if check_second_order and result.converged else None
-    result = _second_order(result, so)
-    result = _replace_extra(result, **topology.report(result.disc, result.phi))
+    result = with_reports(result, so)
     if throw and not result.converged:
         raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
                           f"{result.kkt_residual:.3g}, A-alpha {result.volume_residual:.3g}, "

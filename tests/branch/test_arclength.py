@@ -81,3 +81,40 @@ def test_a_failed_corrector_halves_the_step_and_is_recorded():
     assert failed == [2]
     assert records[2].arc_step == records[1].arc_step / 2  # halved exactly
     assert records[-1].attempt.p == 0.6 and records[-1].accepted  # the end is hit exactly
+
+
+def circle_free_corrector():
+    """The point of x^2 + p^2 = 1 on the predictor's hyperplane, p free: Newton on the 2x2 bordered
+    system [x^2 + p^2 - 1, theta^2 (x - x_pred) t_x + (p - p_pred) t_p] (the vesicle's is
+    ``branch.bordered``)."""
+    def free(phi_pred, p_pred, t_phi, t_p, theta):
+        x, p = float(phi_pred[0]), float(p_pred)
+        for k in range(1, 40):
+            F = np.array([x * x + p * p - 1, theta**2 * (x - phi_pred[0]) * t_phi[0] + (p - p_pred) * t_p])
+            J = np.array([[2 * x, 2 * p], [theta**2 * t_phi[0], t_p]])
+            dx, dp = np.linalg.solve(J, -F)
+            x, p = x + dx, p + dp
+            if abs(dx) + abs(dp) < 1e-14:
+                return arc.Attempt(p, np.array([x, 0.0]), True, k)
+        return arc.Attempt(p, np.array([x, 0.0]), False, 40)
+    return free
+
+
+def test_a_corrector_with_p_free_passes_the_fold():
+    """With p free near the fold the walk goes through it: p rises to the fold (p = 1) and falls
+    on the other sheet (x < 0), every accepted point on the curve; it stops when p turns back
+    past the start."""
+    s = arc.Settings(step=0.1, to=2.0, max_points=60)
+    records = []
+    track, why = arc.walk(s, 0.6, circle_corrector(), WEIGHTS, record=records.append,
+                          free=circle_free_corrector())
+    acc = [st for st in records if st.accepted]
+    p = np.array([st.attempt.p for st in acc])
+    x = np.array([st.attempt.phi[0] for st in acc])
+    assert np.max(np.abs(x * x + p * p - 1)) < 1e-12  # on the curve (Newton to 1e-14)
+    top = int(np.argmax(p))
+    assert 0 < top < len(p) - 1 and 1 - p[top] < 0.05, p  # a turning point inside the walk, near p = 1
+    assert np.all(np.diff(p[: top + 1]) > 0) and np.all(np.diff(p[top:]) < 0), p  # up, then down
+    assert x[0] > 0 and x[-1] < 0  # the other sheet
+    assert any(st.corrector == "arclength" for st in acc)
+    assert why == "left the range (turned back past the start)", why

@@ -7,6 +7,10 @@
 
 * ``params``: the parameters (reduced volume at fixed area, c0) and their envelope terms;
 * ``arclength``: predictor (secant), corrector (natural / pseudo-arclength), step control; generic;
+* ``corrector``: the fixed-p IPOPT corrector built once per branch (parametric NLP, one solver,
+  warm multipliers, the matrix-free second-order check with the rotation removed on FD grids);
+* ``bordered``: Newton on the KKT system bordered by the arclength equation, p free (passes folds),
+  or at fixed p (the IPOPT corrector's fallback);
 * ``store``: branch.csv, the snapshots and the resume after a kill;
 * ``run``: ``branch(...)`` and its frozen result ``Branch``;
 * ``diagram``: the energy-diagram PNG (matplotlib is imported there only).

@@ -17,13 +17,17 @@ that this step's field change counts as much as its parameter change (theta |d p
   (dN/dp ~ 1/t_p) and secants, every trial solve started from phi_pred so that it stays on the
   predicted sheet. Limitation (measured on x^2 + p^2 = 1, ``tests/branch/test_arclength.py``):
   with a corrector that holds p fixed, the walk approaches a fold to |p - p_fold| ~ 1e-4 but does
-  not pass it (the trials beyond the fold have no point, those before it land on the same sheet);
-  passing a fold needs a corrector with p free (the bordered KKT system), not built.
+  not pass it (the trials beyond the fold have no point, those before it land on the same sheet).
+  Given a corrector with p free (``free``: the point on that hyperplane, p an unknown; for
+  vesicles the bordered Newton system of ``branch.bordered``) it replaces the scalar iteration,
+  and the walk passes the fold: after it t_p has changed sign and the natural steps go on on the
+  other sheet (p decreasing).
 * A converged corrector farther than ``max_deviation`` ds from the prediction has jumped to
   another branch (measured on a smooth 2D branch, 48², step 0.05: 0.07-0.14): rejected like a
   failure.
-* Step: ds <- ds * clip(sqrt(target_iterations / iterations), 0.5, 1.5), at most the first step's
-  ds; a failed corrector halves ds (and the attempt is recorded, never skipped); below
+* Step: ds <- ds * clip(min(sqrt(target_iterations / iterations), sqrt(target_deviation /
+  deviation)), 0.5, 1.5), at most the first step's ds (the deviation |u - u_pred| / ds of the
+  secant grows like the branch's curvature times ds: where the branch bends the step shrinks); a failed corrector halves ds (and the attempt is recorded, never skipped); below
   ``min_step_factor`` times the first ds the branch stops.
 
 The state of the walk (``Track``) is a function of what is recorded (the last two accepted points,
@@ -50,6 +54,9 @@ class Settings:
     turn: float = 0.35  # |t_p| below which the pseudo-arclength corrector runs
     arc_tol: float = 1e-3  # |N| <= arc_tol * ds ends the scalar iteration
     max_arc_solves: int = 4
+    target_deviation: float = 0.08  # |u - u_pred| / ds the step control aims at where the branch bends
+    # (measured on the 128^2 elastica: 0.05 on the smooth part, 0.1-0.26 at nu 0.63-0.56, where
+    # lambda_area dips and the envelope residual / step^2 rose from ~0.4 to ~200 at a fixed step)
     max_deviation: float = 2.0  # |u - u_pred| / ds above which a converged corrector has left the
     # predicted branch (a jump to another branch): rejected as a failed attempt, the step halves
 
@@ -121,13 +128,18 @@ def finished(track: Track, s: Settings, p_start: float) -> str | None:
     return None
 
 
-def _controlled(ds: float, iterations: int, s: Settings) -> float:
-    factor = min(max(math.sqrt(s.target_iterations / max(iterations, 1)), 0.5), 1.5)
-    return min(ds * factor, math.sqrt(2.0) * abs(s.step))
+def _controlled(ds: float, iterations: int, s: Settings, deviation: float | None = None) -> float:
+    factor = math.sqrt(s.target_iterations / max(iterations, 1))
+    if deviation is not None and deviation > 0:  # the secant's error is ~ curvature ds^2: its
+        factor = min(factor, math.sqrt(s.target_deviation / deviation))  # relative size ~ ds
+    return min(ds * min(max(factor, 0.5), 1.5), math.sqrt(2.0) * abs(s.step))
 
 
-def advance(track: Track, s: Settings, p_start: float, correct: Callable, weights) -> tuple[Track, list[Step]]:
-    """One accepted point or one failed attempt (module docstring): the new track and its records."""
+def advance(track: Track, s: Settings, p_start: float, correct: Callable, weights,
+            free: Callable | None = None) -> tuple[Track, list[Step]]:
+    """One accepted point or one failed attempt (module docstring): the new track and its records.
+    ``free(phi_pred, p_pred, t_phi, t_p, theta)``: a corrector with p free (an Attempt on the
+    hyperplane), used instead of the scalar iteration where |t_p| < ``turn``."""
     if not track.started:
         a = correct(p_start, None)
         new = replace(track, started=True, first=s.step)
@@ -163,9 +175,25 @@ def advance(track: Track, s: Settings, p_start: float, correct: Callable, weight
         dev = _deviation(a, phi_pred, p_pred, theta, ds, weights) if a.converged else None
         if not a.converged or dev > s.max_deviation:  # half the ds used (clipped at the end: no repeat)
             return replace(track, ds=ds / 2), [Step(a, False, "natural", 1, ds / 2, theta, deviation=dev)]
-        new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s))
+        new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s, dev))
         return new, [Step(a, True, "natural", 1, new.ds, theta, deviation=dev)]
+    if free is not None:
+        return _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred)
     return _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pred)
+
+
+def _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred):
+    """The pseudo-arclength corrector with p free (module docstring): one call, then the same
+    acceptance as a natural step (converged, near the prediction), and the hyperplane residual."""
+    a = free(phi_pred, p_pred, t_phi, t_p, theta)
+    if not a.converged:
+        return replace(track, ds=ds / 2), [Step(a, False, "arclength", 1, ds / 2, theta)]
+    N = theta**2 * float(np.dot(weights, (a.phi - phi_pred) * t_phi)) + (a.p - p_pred) * t_p
+    dev = _deviation(a, phi_pred, p_pred, theta, ds, weights)
+    if dev > s.max_deviation:
+        return replace(track, ds=ds / 2), [Step(a, False, "arclength", 1, ds / 2, theta, N / ds, dev)]
+    new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s, dev))
+    return new, [Step(a, True, "arclength", 1, new.ds, theta, N / ds, dev)]
 
 
 def _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pred):
@@ -193,7 +221,7 @@ def _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pr
     if abs(N_best) > 0.5 * ds or dev > s.max_deviation:  # the hyperplane not reached, or another branch
         return replace(track, ds=ds / 2), [Step(a, False, "arclength", len(trials), ds / 2, theta,
                                                 N_best / ds, dev)]
-    new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s))
+    new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s, dev))
     return new, [Step(a, True, "arclength", len(trials), new.ds, theta, N_best / ds, dev)]
 
 
@@ -202,12 +230,12 @@ def _deviation(a: Attempt, phi_pred, p_pred: float, theta: float, ds: float, wei
 
 
 def walk(s: Settings, p_start: float, correct: Callable, weights, track: Track | None = None,
-         record: Callable[[Step], None] | None = None) -> tuple[Track, str]:
-    """Advance until ``finished``; ``record`` sees every attempt as it happens. Returns the final
-    track and why it stopped."""
+         record: Callable[[Step], None] | None = None, free: Callable | None = None) -> tuple[Track, str]:
+    """Advance until ``finished``; ``record`` sees every attempt as it happens; ``free``: the
+    corrector with p free (``advance``). Returns the final track and why it stopped."""
     track = track or Track()
     while (why := finished(track, s, p_start)) is None:
-        track, steps = advance(track, s, p_start, correct, weights)
+        track, steps = advance(track, s, p_start, correct, weights, free)
         for st in steps:
             if record is not None:
                 record(st)

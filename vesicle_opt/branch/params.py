@@ -24,6 +24,7 @@ from vesicle_opt import geometry
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
 from vesicle_opt.model import functionals as F
+from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.scene.schema import Constraints, Scene
 
@@ -61,6 +62,14 @@ class Parameter:
 
     def dbeta(self) -> float:
         return 0.0
+
+    def affine(self, base: Scene) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
+        """(alpha, beta, C) as (value at p = 0, slope) pairs: all three are affine in p (the
+        bordered corrector's data, ``branch.bordered.Affine``)."""
+        if self.name == "c0":
+            return (self.alpha0, 0.0), (self.beta, 0.0), (0.0, math.sqrt(2.0))
+        a1 = self.dalpha()  # alpha = 2 V(v) - |Omega|, V linear in v through 0
+        return (-self.domain_volume, a1), (self.beta, 0.0), (base.model.C, 0.0)
 
 
 def explicit_derivative(name: str, result, scene: Scene) -> float:
@@ -119,3 +128,14 @@ def check_range(par: Parameter, to: float, step: float | None) -> float:
         raise InputError("--step", f"allowed range 0 < |step| <= |to - start| = {abs(to - par.start):.6g}, "
                          f"got {step!r}")
     return step
+
+
+def check_end(base: Scene, par: Parameter, to: float) -> None:
+    """InputError (``--to``) when the targets at the end value are infeasible
+    (``model.feasibility.check_feasible``), before any solve; the start's are checked by its solve."""
+    sc = par.scene_at(base, to)
+    disc = discretize(sc)
+    try:
+        check_feasible(*constraint_data(sc, disc), sc, disc)
+    except InputError as exc:
+        raise InputError("--to", f"{par.name} = {to!r}: {exc}") from None

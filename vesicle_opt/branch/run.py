@@ -1,10 +1,24 @@
 """``branch(scene, param=, to=, step=, out=)``: a branch of equilibria in the reduced volume or c0.
 
-Every point is an exact-constraint solve of the front door (``vesicle_opt.solve``, method
-``exact``: IPOPT, or Newton-Krylov with ``backend="newton-krylov"`` on spectral grids), warm-started
-from the predictor (``branch.arclength``); each carries the front door's certificate, its
-second-order verdict (``second_order``, ``second_order_min_eigenvalue`` in mu_ref units) and its
-topology. Per accepted point the row also holds
+Every point is an exact-constraint solve, warm-started from the predictor (``branch.arclength``),
+with the front door's certificate, its second-order verdict (``second_order``,
+``second_order_min_eigenvalue`` in mu_ref units, ``second_order_excluded``) and its topology:
+
+* on IPOPT (2D, small 3D): ``branch.corrector``, the NLP, the solver and the check's operators
+  built once per branch, the predicted multipliers (linear in p through the last two points) as
+  IPOPT's warm start; on FD grids the check removes the rotation as it removes the translations
+  (``rotation_rayleigh``: the rotation's Rayleigh quotient on T, mu_ref units, reported beside it);
+  if warm IPOPT fails (at most ``corrector.WARM_MAX_ITER`` = 6 iterations), Newton at fixed p on the
+  bordered system (``branch.bordered``) from the prediction, certified by IPOPT from Newton's point
+  (``restarted`` true);
+* near a fold (|t_p| < ``turn``) on IPOPT with lumped mass: the pseudo-arclength corrector with p
+  free (``branch.bordered``: Newton on the KKT system bordered by the arclength equation), its
+  point then certified at its own p by the fixed-p IPOPT solve, so a branch passes a turning point;
+* otherwise (Newton-Krylov with ``backend="newton-krylov"`` on spectral grids): the front door
+  (``vesicle_opt.solve``) at fixed p, and near a fold the scalar iteration on p of
+  ``branch.arclength`` (which approaches a fold but does not pass it).
+
+Per accepted point the row also holds
 
 * ``dE_dp`` = lambda_volume d alpha/dp + lambda_area d beta/dp + dE/dp|_phi (``branch.params``) and
   ``envelope_residual`` = |Delta E - (dE_dp_{i-1} + dE_dp_i)/2 Delta p| / |(dE_dp_{i-1} + dE_dp_i)/2 Delta p|
@@ -25,6 +39,7 @@ A failed corrector is a row (``converged`` false, its ``outcome`` and ``status``
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -34,8 +49,11 @@ from typing import Callable
 import numpy as np
 
 from vesicle_opt.api import solve
+from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import arclength as arc
-from vesicle_opt.branch.params import Parameter, check_range, explicit_derivative, parameter
+from vesicle_opt.branch.bordered import Affine, BorderedCorrector
+from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
+from vesicle_opt.branch.params import Parameter, check_end, check_range, explicit_derivative, parameter
 from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
@@ -107,29 +125,103 @@ class _Run:
         self.scene, self.par, self.s, self.store = scene, par, settings, store
         self.backend, self.options, self.reference, self.progress = backend, options, reference, progress
         self.weights = discretize(scene).weights
+        # on IPOPT the NLP, its solver and the check's operators are built once (branch.corrector)
+        self.ipopt = IpoptCorrector(scene, options) if choose_backend(scene, backend) == "ipopt" else None
+        self._bordered = None  # branch.bordered, built when the walk first nears a fold (IPOPT, lumped)
 
-    def corrector(self, seed: np.ndarray | None) -> Callable:
+    def free_corrector(self, branch: int) -> Callable | None:
+        """The corrector with p free (``branch.bordered``, then the fixed-p IPOPT solve at the p
+        found, which certifies the point); None where it does not apply (Newton-Krylov backend,
+        consistent mass): the walk then uses its scalar iteration (``branch.arclength``)."""
+        if self.ipopt is None or self.ipopt.disc.consistent:
+            return None
+
+        def free(phi_pred, p_pred, t_phi, t_p, theta):
+            t0 = time.perf_counter()
+            lam = self.multipliers(branch, p_pred)
+            if lam is None:
+                lam = least_squares_multipliers(self.scene, self.ipopt.disc, phi_pred)
+            nw = self.bordered().solve(phi_pred, p_pred, lam, t_phi, t_p, theta)
+            if not nw.converged or (self.par.name == "reduced_volume" and not 0 < nw.p <= 1):
+                why = nw.message or f"reduced_volume {nw.p:.6g} outside (0, 1]"
+                return arc.Attempt(nw.p, phi_pred, False, nw.iterations,
+                                   (None, f"bordered Newton: {why}", time.perf_counter() - t0, None))
+            res = self.ipopt.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, feasibility=False)
+            return arc.Attempt(nw.p, res.phi, res.converged, nw.iterations + res.iterations,
+                               (res, None, time.perf_counter() - t0, False))
+        return free
+
+    def multipliers(self, branch: int, p: float) -> tuple[float, float] | None:
+        """(lambda_volume, lambda_area) predicted at p: linear in p through the branch's last two
+        accepted points (the last one's with one; None before), read from the rows, so that a
+        resumed run starts each solve where the uninterrupted one did."""
+        acc = [r for r in self.store.rows() if r["accepted"] and r["branch"] == branch]
+        if not acc:
+            return None
+        b = acc[-1]
+        lam_b = np.array([b["lambda_volume"], b["lambda_area"]], float)
+        if len(acc) == 1 or acc[-2]["target"] == b["target"]:
+            return tuple(lam_b)
+        a = acc[-2]
+        lam_a = np.array([a["lambda_volume"], a["lambda_area"]], float)
+        return tuple(lam_b + (p - b["target"]) / (b["target"] - a["target"]) * (lam_b - lam_a))
+
+    def bordered(self) -> BorderedCorrector:
+        if self._bordered is None:
+            a, b, c = self.par.affine(self.scene)
+            self._bordered = BorderedCorrector(self.ipopt.scene, self.ipopt.disc, Affine(a, b, c))
+        return self._bordered
+
+    def ipopt_point(self, branch: int, sc: Scene, p: float, phi0: np.ndarray):
+        """(result, restarted) at fixed p on IPOPT: warm from the prediction; if that fails (lumped
+        mass), Newton at fixed p from the prediction (``BorderedCorrector.fixed``) and IPOPT warm
+        from Newton's point, which certifies it (0 iterations where Newton converged); the
+        iterations add up. (Measured, 128^2 elastica: warm IPOPT failed once, at nu = 0.576, and took
+        2-3 iterations at the next eight points from the secant; a Newton-first rule after a
+        fallback cost 4-8 s a point there.) The data are checked at the start and the end
+        (``branch``); a point between whose targets were infeasible fails: a failed row."""
+        lam0 = self.multipliers(branch, p)
+        res = self.ipopt.solve(sc, phi0, lam0, feasibility=False)
+        if res.converged or self.ipopt.disc.consistent:
+            return res, False
+        lam_n = lam0 if lam0 is not None else least_squares_multipliers(sc, self.ipopt.disc, phi0)
+        nw = self.bordered().fixed(phi0, p, lam_n)
+        if not nw.converged:
+            return res, True
+        polish = self.ipopt.solve(sc, nw.phi, nw.lam, feasibility=False)
+        return dataclasses.replace(polish, iterations=res.iterations + nw.iterations + polish.iterations), True
+
+    def corrector(self, seed: np.ndarray | None, branch: int = 0) -> Callable:
         def correct(p, phi_start):
             t0 = time.perf_counter()
-            if phi_start is None and seed is None:
+            start = phi_start is None and seed is None
+            if start:
                 sc = self.scene  # the start: the scene as given
             else:
                 phi_start = seed if phi_start is None else phi_start
                 if self.par.name == "reduced_volume" and not 0 < p <= 1:
                     return arc.Attempt(p, phi_start, False, 0, (None, f"reduced_volume {p:.6g} outside (0, 1]", 0.0))
                 sc = self.par.scene_at(self.scene, p)
+            restarted = None
             try:
-                res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
+                if self.ipopt is None:
+                    res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
+                elif start:
+                    res = self.ipopt.solve(sc, self.ipopt.nlp.split(self.ipopt.nlp.x0)[0])  # cold
+                else:
+                    res, restarted = self.ipopt_point(branch, sc, p, phi_start)
             except InputError as exc:  # infeasible data beyond the range of a start: a failed point
-                if phi_start is None and seed is None:
+                if start:
                     raise
                 return arc.Attempt(p, phi_start, False, 0, (None, str(exc), time.perf_counter() - t0))
-            return arc.Attempt(p, res.phi, res.converged, res.iterations, (res, None, time.perf_counter() - t0))
+            return arc.Attempt(p, res.phi, res.converged, res.iterations,
+                               (res, None, time.perf_counter() - t0, restarted))
         return correct
 
     def row(self, branch: int, st: arc.Step) -> tuple[dict, object]:
         a = st.attempt
-        res, message, wall = a.payload
+        res, message, wall, *more = a.payload
+        restarted = more[0] if more else None
         rows = self.store.rows()
         point = len(rows)
         sc = self.scene
@@ -138,13 +230,14 @@ class _Run:
                "solves": st.solves, "corrector": st.corrector, "arc_step": st.arc_step,
                "arc_theta": st.theta, "arc_condition": st.arc_condition, "deviation": st.deviation, "wall_time_s": wall,
                "epsilon": sc.model.epsilon, "n": sc.mesh.n[0],
-               "c0": a.p if self.par.name == "c0" else sc.model.c0}
+               "c0": a.p if self.par.name == "c0" else sc.model.c0, "restarted": restarted}
         if res is None:
             row.update({"outcome": "not_solved", "status": message})
             return row, None
         ex = res.extra
         row.update({k: ex.get(k) for k in ("reduced_volume", "reduced_energy", "second_order",
-                                          "second_order_min_eigenvalue", "topology", "components",
+                                          "second_order_min_eigenvalue", "second_order_excluded",
+                                          "rotation_rayleigh", "topology", "components",
                                           "h", "alpha", "beta", "volume", "area")})
         row["wraps"] = None if ex.get("wraps") is None else "".join("xyz"[i] for i in ex["wraps"]) or "none"
         row.update({"energy": res.energy, "lambda_volume": res.lambda_volume, "lambda_area": res.lambda_area,
@@ -181,26 +274,35 @@ class _Run:
         recs = [{"p": r["target"], "phi": self.store.phi(r["point"]) if r["accepted"] else None,
                  "accepted": r["accepted"], "arc_step": r["arc_step"], "theta": r["arc_theta"]} for r in mine]
         track = arc.replay(self.s.step, recs) if recs else None
-        _, why = arc.walk(self.s, p_start, self.corrector(seed), self.weights, track, self.record(branch))
+        _, why = arc.walk(self.s, p_start, self.corrector(seed, branch), self.weights, track, self.record(branch),
+                          free=self.free_corrector(branch))
         return why
 
 
 def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None, step: float | None = None,
            out=None, *, backend: str | None = None, options=None, max_points: int = 200, switch: bool = True,
            reference: Callable | None = None, snapshots: bool = True,
-           progress: Callable[[dict], None] | None = None) -> Branch:
+           progress: Callable[[dict], None] | None = None, turn: float = arc.Settings.turn) -> Branch:
     """Follow the branch of equilibria of ``scene`` in ``param`` from the scene's value to ``to``
     (module docstring); ``step`` is the first (and largest) parameter step, signed towards ``to``
     (default: a 25th of the range). ``out``: a directory for branch.csv and the snapshots, resumed
-    when it holds the same run. Bad input raises InputError (naming the flag) before any solve."""
+    when it holds the same run. ``turn``: |t_p| below which the pseudo-arclength corrector runs
+    (``branch.arclength``; above 1: every step after the first). Bad input raises InputError (naming
+    the flag) before any solve."""
     if to is None:
         raise InputError("--to", "missing: the end value of the parameter")
     par = parameter(scene, param)
     step = check_range(par, to, step)
+    check_end(scene, par, to)
     if not (isinstance(max_points, int) and max_points >= 2):
         raise InputError("max_points", f"allowed range >= 2, got {max_points!r}")
-    store = Store(None if out is None else Path(out), _meta(scene, param, to, step, backend, switch), snapshots)
-    settings = arc.Settings(step=step, to=float(to), max_points=max_points)
+    meta = _meta(scene, param, to, step, backend, switch)
+    if turn != arc.Settings.turn:
+        meta["turn"] = float(turn)
+    store = Store(None if out is None else Path(out), meta, snapshots)
+    if not (isinstance(turn, (int, float)) and 0 <= turn):
+        raise InputError("turn", f"allowed range >= 0 (|t_p| below which the arclength corrector runs), got {turn!r}")
+    settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn))
     run = _Run(scene, par, settings, store, backend, options, reference, progress)
     stopped = {0: run.follow(0, par.start, None)}
     if switch:

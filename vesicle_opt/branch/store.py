@@ -27,7 +27,8 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            "second_order_min_eigenvalue", "event", "topology", "components", "wraps", "converged",
            "accepted", "outcome", "status", "iterations", "solves", "corrector", "arc_condition", "deviation",
            "wall_time_s", "epsilon", "n", "h", "alpha", "beta", "volume", "area", "kkt_residual",
-           "arc_step", "arc_theta", "sharp_reduced_energy"]
+           "arc_step", "arc_theta", "sharp_reduced_energy", "second_order_excluded", "rotation_rayleigh",
+           "restarted"]
 
 
 def _text(v) -> str:

@@ -31,7 +31,7 @@ by lambda_A = -k lam_g[0] / |Omega|, lambda_B = -k lam_g[1] / beta (``NLP.multip
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -86,9 +86,15 @@ class NLP:
         return float(-k * lam[0] / self.g_scale[0]), float(-k * lam[1] / self.g_scale[1])
 
 
-def build_exact(scene: Scene, disc: Discretization | None = None, check: bool = True) -> NLP:
+def build_exact(scene: Scene, disc: Discretization | None = None, check: bool = True,
+                parametric: bool = False) -> NLP:
     """The exact-constraint NLP (6)-(8) of a scene, whatever its ``solver.method`` (``nlp.build_nlp``
-    lifts it into the penalty NLP (11) for the other methods)."""
+    lifts it into the penalty NLP (11) for the other methods).
+
+    ``parametric``: the targets, C and the objective scale are the NLP's parameters
+    p = (alpha, beta, C, f_scale) (``parameter_values``) instead of constants, so that one graph and
+    one IPOPT solver serve every point of a branch (``vesicle_opt.branch``); ``at_point`` gives the
+    NLP of another scene on it. With p = ``parameter_values(scene, ...)`` it is the same NLP."""
     import casadi as ca  # third-party, lazy: only IPOPT paths need it (0.25 s at import)
     disc = disc or discretize(scene)
     alpha, beta = constraint_data(scene, disc)
@@ -104,18 +110,35 @@ def build_exact(scene: Scene, disc: Discretization | None = None, check: bool = 
         lap = x[n:]
     else:
         lap = ca.mtimes(ca.DM(disc.laplacian.tocsc()), phi)
-    E = F.energy(ops, phi, lap, eps, C)
-    A = F.volume_functional(ops, phi)
-    B = F.area_functional(ops, phi, eps)
     f_scale = objective_scale(disc, scene.model.rigidity, eps, alpha, beta)
     g_scale = np.array([disc.volume, beta])
-    rows = [(A - alpha) / g_scale[0], (B - beta) / g_scale[1]]
+    p = ca.MX.sym("p", 4 if parametric else 0)
+    a_, b_, c_, k_ = (p[0], p[1], p[2], p[3]) if parametric else (alpha, beta, C, f_scale)
+    E = F.energy(ops, phi, lap, eps, c_)
+    A = F.volume_functional(ops, phi)
+    B = F.area_functional(ops, phi, eps)
+    rows = [(A - a_) / g_scale[0], (B - b_) / b_]
     if disc.consistent:
         rows.append(eps**2 / m_bar * (ca.mtimes(ca.DM(disc.M.tocsc()), lap) + ca.mtimes(ops.K, phi)))
     g = ca.vertcat(*rows)
     ng = g.shape[0]
     inf = np.full(x.shape[0], np.inf)
     return NLP(scene=scene, disc=disc, alpha=alpha, beta=beta, x=x,
-               f=scene.model.rigidity * E / f_scale, g=g, p=ca.MX.sym("p", 0),
+               f=scene.model.rigidity * E / k_, g=g, p=p,
                x0=initial_guess(scene, disc), lbx=-inf, ubx=inf, lbg=np.zeros(ng), ubg=np.zeros(ng),
                f_scale=f_scale, g_scale=g_scale)
+
+
+def parameter_values(scene: Scene, disc: Discretization, alpha: float, beta: float) -> np.ndarray:
+    """p = (alpha, beta, C, f_scale) of a parametric NLP (``build_exact(parametric=True)``) for a
+    scene's targets (alpha, beta) and C; f_scale is the scaling contract's k at those targets."""
+    k = objective_scale(disc, scene.model.rigidity, scene.model.epsilon, alpha, beta)
+    return np.array([alpha, beta, scene.model.C, k], float)
+
+
+def at_point(nlp: NLP, scene: Scene, alpha: float, beta: float, x0: np.ndarray | None = None) -> NLP:
+    """The parametric ``nlp`` (same graph) as the NLP of ``scene`` with targets (alpha, beta): its
+    scales and multiplier conversion at those targets (pass ``parameter_values`` as p to IPOPT)."""
+    k = parameter_values(scene, nlp.disc, alpha, beta)[3]
+    return replace(nlp, scene=scene, alpha=float(alpha), beta=float(beta), f_scale=float(k),
+                   g_scale=np.array([nlp.disc.volume, beta]), x0=nlp.x0 if x0 is None else x0)

@@ -30,11 +30,13 @@ def _pack(nlp: NLP, solver, sol, stats, wall, x, *, tol: float, method: str, **k
 
 
 def solve_exact(nlp: NLP, *, x0=None, lam_x0=None, lam_g0=None, solver=None,
-                options: IpoptOptions | None = None) -> Result:
-    """Minimise rigidity E_h subject to A = alpha, B = beta exactly (one IPOPT call)."""
+                options: IpoptOptions | None = None, p=None) -> Result:
+    """Minimise rigidity E_h subject to A = alpha, B = beta exactly (one IPOPT call); ``p``: the
+    parameter values of a parametric NLP (``nlp.exact.parameter_values``)."""
     options = options or IpoptOptions.from_scene(nlp.scene)
     solver = solver or make_solver(nlp, options)
-    sol, stats, wall, x = run_ipopt(solver, nlp, nlp.x0 if x0 is None else x0, lam_x0=lam_x0, lam_g0=lam_g0)
+    sol, stats, wall, x = run_ipopt(solver, nlp, nlp.x0 if x0 is None else x0, p=p, lam_x0=lam_x0,
+                                    lam_g0=lam_g0)
     lam = nlp.multipliers(np.asarray(sol["lam_g"]))
     return _pack(nlp, solver, sol, stats, wall, x, tol=options.tol, method="exact", lam=lam)
 

@@ -78,8 +78,9 @@ def scene(case: dict):
 def cases(quick: bool) -> list[dict]:
     d2 = {"dim": 2, "half_box": 4.0, "mesh": "fd", "n": 128, "epsilon": 0.2, "area": 8.0, "start_v": 0.95,
           "to": 0.5, "step": -0.015, "backend": "ipopt",
-          "max_iter": 60}  # warm-started points take 2-8 IPOPT iterations, the start 6-9; a corrector
-    # that jumps to another branch took 53-171 (measured): capped, it fails fast and the step halves
+          "max_iter": 400}  # the cold start only: warm points are capped at 6 IPOPT iterations by the
+    # branch's corrector (branch.corrector.WARM_MAX_ITER; they take 2-4). Measured at 128^2: the
+    # ellipse start 14 iterations, the circle start 160 (60 left it unconverged: "start failed")
     if quick:
         d2.update(n=48, epsilon=0.4, to=0.85, step=-0.05)
     out = [{**d2, "case": "elastica-2d", "initial": {"shape": "ellipse", "semi_axes": [1.45, 1.1]}},

@@ -1,0 +1,179 @@
+"""The fixed-parameter corrector of a branch on IPOPT, built once per branch.
+
+Every point of a branch is the exact-constraint problem (6)-(8) of the same mesh with other targets
+(alpha, beta) or another C = sqrt(2) c0. ``IpoptCorrector`` builds what does not change once:
+
+* one parametric CasADi NLP (``nlp.exact.build_exact(parametric=True)``: p = (alpha, beta, C,
+  f_scale), the scaling contract of ``nlp.exact`` evaluated at each point's targets, so each solve
+  is the NLP the front door would build for that point) and one IPOPT solver on it;
+* the Fourier-grid operators of the matrix-free second-order check (``verify.lobpcg``).
+
+Per point: IPOPT warm-started at the predicted field with the predicted multipliers
+(``ipopt.warm_start_init_point``; the start, with no prediction, cold as the front door); on 2D FD
+grids the warm solves hold the orientation of the prediction by one linear row (``pinned``,
+``rotation_row``): below nu ~ 0.66 the grid-aligned 128^2 elastica is a saddle of the discrete
+problem along the grid-broken rotation (Rayleigh quotient -2e-4 ... -6e-4 mu_ref), and IPOPT, a
+minimiser, then wandered at a few points (measured nu 0.58 - 0.51: 6-60 iterations without
+convergence, warm or cold, from the prediction or the last point; pinned: 2-3 iterations at all of
+them). The row's multiplier vanishes at shapes symmetric under the axis reflections, and the
+certificate recomputes stationarity without it (``rotation_multiplier`` in extra). Then the
+common certificate (``verify.certify``, inside
+``nlp.solve.solve_exact``), then the second-order check and the topology, reported exactly as the
+front door reports them (``api.with_reports``).
+
+Second-order check: the matrix-free check wherever it applies (lumped mass and nodal quadrature):
+on FD grids it excludes the translations *and the rotation* (the infinitesimal rotation
+(x - x_c) d_y phi - (y - y_c) d_x phi, spectral derivatives; about any centre x_c, since the
+translations are excluded too), the rule of the front door's matrix-free path. The FD grid breaks
+the rotation symmetry only weakly: kept, its soft mode (~2e-3 mu_ref) is the least eigenvalue of
+the assembled check and changes sign along the 2D elastica branch near nu ~ 0.70 (a grid effect,
+not a fold). Elsewhere (consistent mass, Gauss quadrature) the assembled check of the front door
+(translations only). Measured at 128^2 (FD, eps = 0.2): assembled 2.5 s, matrix-free 0.17 s per point,
+the same eigenvalues to 1e-9 mu_ref (``tests/branch/test_corrector.py`` ties them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from vesicle_opt.api import with_reports
+from vesicle_opt.backends import supports
+from vesicle_opt.mesh import discretize
+from vesicle_opt.mesh.spectral import FourierGrid
+from vesicle_opt.model import functionals as F
+from vesicle_opt.model.feasibility import check_feasible
+from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.nk.setup import on_fourier_grid, prepare
+from vesicle_opt.nlp import IpoptOptions, build_nlp
+from vesicle_opt.nlp.exact import at_point, build_exact, parameter_values
+from vesicle_opt.nlp.ipopt import make_solver
+from vesicle_opt.nlp.solve import solve_exact
+from vesicle_opt.result import Result
+from vesicle_opt.scene.schema import Scene
+from vesicle_opt.verify import lobpcg, second_order
+from vesicle_opt.verify import verdict as V
+from vesicle_opt.verify.verdict import SecondOrder
+
+WARM = (("ipopt.warm_start_init_point", "yes"),)  # IPOPT takes the given multipliers (cold, it would
+# replace them by its least-squares estimate); no bounds, no inequalities: nothing else to warm
+WARM_MAX_ITER = 6  # a warm-started point takes 2-4 IPOPT iterations (measured, 128^2 elastica); one
+# that needs more is cut here and handed to the Newton fallback (``branch.run``)
+
+
+def least_squares_multipliers(scene: Scene, disc, phi: np.ndarray) -> tuple[float, float]:
+    """argmin |rigidity dE - lambda_A dA - lambda_B dB| at phi (hand gradients, ``functionals``): the
+    estimate IPOPT starts from when cold (``constr_mult_init``), for starts with no prediction."""
+    dE, dA, dB = F.gradients(disc, np.asarray(phi, float), scene.model.epsilon, scene.model.C)
+    lam, *_ = np.linalg.lstsq(np.column_stack([dA, dB]), scene.model.rigidity * dE, rcond=None)
+    return float(lam[0]), float(lam[1])
+
+
+def rotation_row(disc, phi: np.ndarray) -> np.ndarray:
+    """c with c . phi = <r, phi>_w / sqrt|Omega|, r the infinitesimal rotation about the centroid of
+    {phi > 0}, (x - x_c) d_y phi - (y - y_c) d_x phi (spectral derivatives), normalised |r|_w = 1:
+    the row c . (phi - phi0) = 0 of the warm solves holds the shape's orientation at the
+    prediction's (a relative change, so IPOPT's constraint tolerance means the same at any size)."""
+    dx, dy = FourierGrid(disc.box, disc.grid_shape).derivatives(phi)
+    w = disc.weights
+    inside = w * (1 + phi) / 2
+    xc = (inside @ disc.nodes) / inside.sum()
+    r = (disc.nodes[:, 0] - xc[0]) * dy - (disc.nodes[:, 1] - xc[1]) * dx
+    return w * r / np.sqrt(w @ (r * r)) / np.sqrt(disc.volume)
+
+
+def pinned(nlp):
+    """The parametric NLP with one more linear row c . x - d = 0, (c, d) appended to its parameters
+    (``rotation_row``). At a shape symmetric under the reflections of the axes its multiplier is
+    zero (the Lagrangian's gradient is even, the rotation odd): the point is a KKT point of the
+    unpinned problem, and the certificate, which recomputes stationarity without that row, says so
+    (a nonzero multiplier would show as kkt_residual, and the point would not be certified)."""
+    import casadi as ca  # third-party, lazy: only the IPOPT path builds graphs (0.25 s at import)
+    n = nlp.disc.n_nodes
+    c, d = ca.MX.sym("rotation", n), ca.MX.sym("rotation_at", 1)
+    return dataclasses.replace(nlp, g=ca.vertcat(nlp.g, ca.dot(c, nlp.x[:n]) - d), p=ca.vertcat(nlp.p, c, d),
+                               lbg=np.zeros(nlp.lbg.size + 1), ubg=np.zeros(nlp.ubg.size + 1))
+
+
+class IpoptCorrector:
+    """The exact-constraint solve of any point of a branch of ``scene`` (module docstring)."""
+
+    def __init__(self, scene: Scene, options: IpoptOptions | None = None):
+        self.scene = scene.replace(solver=dataclasses.replace(scene.solver, method="exact"))
+        self.disc = discretize(self.scene)
+        self.nlp = build_exact(self.scene, self.disc, check=False, parametric=True)
+        self.cold_options = options or IpoptOptions.from_scene(self.scene)
+        self.options = dataclasses.replace(self.cold_options, max_iter=min(WARM_MAX_ITER, self.cold_options.max_iter),
+                                           extra=WARM + tuple(self.cold_options.extra))
+        # FD grids: the warm solves hold the rotation (``rotation_row``); elsewhere none is near-null
+        self.pin = self.disc.kind == "fd" and self.disc.grid_shape is not None and self.disc.dim == 2 \
+            and not self.disc.consistent
+        self.warm_nlp = pinned(self.nlp) if self.pin else self.nlp
+        self.solver = make_solver(self.warm_nlp, self.options)
+        self._cold = None  # the cold solver (the scene's max_iter, IPOPT's own multipliers): on demand
+        self.matrix_free = supports(self.scene, "newton-krylov")
+        self.fourier = on_fourier_grid(self.disc) if self.matrix_free else None
+
+    def solve(self, scene: Scene, phi0: np.ndarray, lam0: tuple[float, float] | None = None,
+              feasibility: bool = True) -> Result:
+        """The certified, second-order checked point of ``scene`` (a point scene of the branch:
+        same mesh, other constraints or c0) from the field ``phi0`` and multipliers ``lam0``
+        (physical): warm, at most ``WARM_MAX_ITER`` iterations; ``lam0`` None: cold, with IPOPT's
+        own multipliers and the scene's max_iter, as the front door starts. ``feasibility``: refuse
+        infeasible targets (InputError) first."""
+        scene = scene.replace(solver=dataclasses.replace(scene.solver, method="exact"))
+        alpha, beta = constraint_data(scene, self.disc)
+        if feasibility:
+            check_feasible(alpha, beta, scene, self.disc)
+        nlp = at_point(self.nlp, scene, alpha, beta)
+        p = parameter_values(scene, self.disc, alpha, beta)
+        if lam0 is None:  # no prediction (the start): cold, as the front door starts
+            return self.reports(scene, nlp, self._cold_solve(nlp, phi0, p))
+        phi0 = np.asarray(phi0, float)
+        if self.pin:  # the rotation row: its multiplier starts at 0 (it vanishes at symmetric shapes)
+            nlp = at_point(self.warm_nlp, scene, alpha, beta)
+            c = rotation_row(self.disc, phi0)
+            p = np.concatenate([p, c, [c @ phi0]])
+        lam_g0 = -np.asarray(lam0, float) * nlp.g_scale / nlp.f_scale  # inverse of NLP.multipliers
+        if nlp.lbg.size > 2:  # the consistent-mass rows M w + K phi = 0 or the rotation row: start at 0
+            lam_g0 = np.concatenate([lam_g0, np.zeros(nlp.lbg.size - 2)])
+        res = solve_exact(nlp, x0=nlp.from_phi(phi0), lam_g0=lam_g0, solver=self.solver,
+                          options=self.options, p=p)
+        if self.pin:  # the result in the unpinned NLP's layout, as the front door's; the row's
+            # multiplier (IPOPT's scaled units) in extra, for the record
+            res = dataclasses.replace(res, lam_g=res.lam_g[:-1],
+                                      extra={**res.extra, "rotation_multiplier": float(res.lam_g[-1])})
+        return self.reports(scene, nlp, res)
+
+    def _cold_solve(self, nlp, phi0, p) -> Result:
+        if self._cold is None:
+            self._cold = make_solver(self.nlp, self.cold_options)
+        return solve_exact(nlp, x0=nlp.from_phi(np.asarray(phi0, float)), solver=self._cold,
+                           options=self.cold_options, p=p)
+
+    def reports(self, scene: Scene, nlp, res: Result) -> Result:
+        """``res`` with the second-order and topology reports of the front door (module docstring)."""
+        so = None
+        if scene.solver.second_order and res.converged:
+            if self.matrix_free:
+                so = rotation_modulo(lobpcg.check(scene, res, prepare(scene, self.fourier),
+                                                  rotations=scene.mesh.kind != "fem-p1"), scene.dim)
+            else:  # the front door's assembled check on the point's own (constant) NLP
+                so = second_order.check(build_nlp(scene, self.disc, check=False), res)
+        res = with_reports(res, so)
+        if so is not None and so.excluded == V.TRANSLATIONS_ROTATIONS:
+            res = dataclasses.replace(res, extra={**res.extra, "rotation_rayleigh": min(so.excluded_rayleigh[scene.dim:])})
+        return res
+
+
+def rotation_modulo(so: SecondOrder, dim: int) -> SecondOrder:
+    """The verdict with the rotations removed as the translations are: from the least eigenvalue
+    on T minus all symmetry modes and the translations' Rayleigh quotients, not the rotations'
+    (``verdict.classify`` counts every excluded mode's; on a grid the rotation's quotient is a
+    soft +-2e-3 mu_ref whose sign is a grid effect, module docstring). The rotations' quotients
+    stay in ``excluded_rayleigh`` (the branch's column ``rotation_rayleigh``)."""
+    if so.excluded != V.TRANSLATIONS_ROTATIONS or not so.errors:
+        return so
+    verdict, reason = V.classify(so.relative_min_eigenvalue, so.errors[0], so.excluded_rayleigh[:dim])
+    return dataclasses.replace(so, verdict=verdict, reason=reason)
