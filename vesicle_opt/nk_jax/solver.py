@@ -48,8 +48,9 @@ def _ls_kernel(ops, rig):
     def kernel(dE, dA, dB):
         G = (dA, dB)
         PG = [ops._apply_inverse(v, 1.0, 0.0, 0.0) for v in G]
-        N = jnp.array([[jnp.sum(G[i] * PG[j]) for j in range(2)] for i in range(2)])
-        rhs = jnp.array([rig * jnp.sum(dE * PG[i]) for i in range(2)])
+        dot = ops.layout.dot
+        N = jnp.array([[dot(G[i], PG[j]) for j in range(2)] for i in range(2)])
+        rhs = jnp.array([rig * dot(dE, PG[i]) for i in range(2)])
         return N, rhs
     return jax.jit(kernel)
 
@@ -74,7 +75,7 @@ class Level:
         self.obj = DeviceObjective(self.ops, rig, alpha, beta, np.zeros(2), np.zeros(2), cnt)
         self._ls = _ls_kernel(self.ops, rig)
         self._dual = _dual_kkt_kernel(self.ops, rig)
-        self._gpg = jax.jit(lambda g, cE: jnp.sum(g * self.ops._apply_inverse(g, cE, 0.0, 0.0)))
+        self._gpg = jax.jit(lambda g, cE: self.layout.dot(g, self.ops._apply_inverse(g, cE, 0.0, 0.0)))
 
     def multipliers(self, pt) -> np.ndarray:
         N, rhs = jax.device_get(self._ls(pt.dE, self.obj.ones, pt.dB))
