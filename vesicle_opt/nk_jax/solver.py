@@ -3,8 +3,9 @@
 
 * ``exact``: the augmented Lagrangian with dual Newton steps lam <- lam - W^{-1} c,
   W = G^T H_rho^{-1} G, of ``nk.solve._exact`` (the same rho start, refresh and growth rules and
-  the same outer test |c| <= margin tol, dual KKT <= tol), least-squares multipliers in the dual
-  metric of P0;
+  the same outer test |c| <= margin tol, dual KKT <= tol, and the same decision after each inner
+  solve, ``nk.solve.outer_verdict``, with its ``roundoff_stall`` exit), least-squares multipliers in
+  the dual metric of P0;
 * ``penalty``: one inner solve with lam = 0, rho = (M, M) (the paper's E_{M,h} (11)).
 
 Nested iteration (coarse grids first, ``nk.setup.coarse_levels``; the interpolant by
@@ -32,7 +33,7 @@ from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import coarse_levels, discretization_path, on_fourier_grid, resample
-from vesicle_opt.nk.solve import dual_update, l2_floor
+from vesicle_opt.nk.solve import ROUNDOFF_STALL, dual_update, l2_floor, outer_verdict
 from vesicle_opt.nk_jax.layout import GridLayout
 from vesicle_opt.nk_jax.newton import DeviceObjective, newton_minimize
 from vesicle_opt.nk_jax.ops import GridOps
@@ -107,6 +108,7 @@ def _exact(level: Level, phi, tol, opts: NewtonKrylovOptions, volume, beta, log,
     cscale = np.array([volume, abs(beta)])
     prev_c = np.inf
     status = "max_iter"
+    stalled_before = False
     lam_ls, dual = obj.lam, math.inf
     for outer in range(1, opts.exact_max_outer + 1):
         crel = float(np.max(np.abs(pt.c) / cscale))
@@ -118,13 +120,10 @@ def _exact(level: Level, phi, tol, opts: NewtonKrylovOptions, volume, beta, log,
         dual = level.dual_kkt(pt, lam_ls)
         log.append({"outer": outer, "inner": inner, "newton": obj.cnt.newton, "c_rel": crel,
                     "dual": dual, "rho": obj.rho.tolist(), "lam": lam_ls.tolist()})
-        if crel <= opts.constraint_margin * tol and dual <= tol:
-            status = "converged"
-            break
-        if inner not in ("converged", "max_iter"):
-            status = f"inner_{inner}"
-            break
-        if obj.cnt.newton >= opts.max_iter:
+        verdict, stalled_before = outer_verdict(inner, crel, dual, tol, opts, stalled_before,
+                                                obj.cnt.newton >= opts.max_iter)
+        if verdict is not None:
+            status = verdict
             break
         if W is None or crel > opts.w_refresh * prev_c:
             W = _dual_hessian(level, pt, opts.w_tol, opts.max_cg)
@@ -202,7 +201,7 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
               "fine_newton_iterations": level_log[-1]["newton"]}
     return build_result(
         scene=scene, disc=disc, alpha=alpha, beta=beta, phi=phi_out, tol=tol,
-        solver_status=status, solver_success=status == "converged", method=method,
+        solver_status=status, solver_success=status in ("converged", ROUNDOFF_STALL), method=method,
         lam=None if M is not None else tuple(lam), M=M, mu=mu,
         exact_constraints=method == "exact", floor=floor,
         iterations=cnt.newton, wall_time_s=wall, derivative_time_s=cnt.deriv_time, history=hist,
