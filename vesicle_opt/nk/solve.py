@@ -193,17 +193,19 @@ class Stage:
     deriv_s: float
 
 
-def _timed_stage(obj: Objective, solve_inner) -> tuple:
+def timed_stage(obj: Objective, solve_inner) -> tuple:
     cnt = obj.cnt
     t0, n0, d0 = time.perf_counter(), cnt.newton, cnt.deriv_time
     out = solve_inner()
     return out, cnt.newton - n0, time.perf_counter() - t0, cnt.deriv_time - d0
 
 
-def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> list[Stage]:
+def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
+                   minimize=newton_minimize) -> list[Stage]:
     """penalty (one M), continuation (the schedule M0 ... M_max, every stage warm-started from the
     last, as on IPOPT) or augmented (mu updates; stops at the first stage that converged and holds
-    the constraints to tol, at most solver.max_outer stages)."""
+    the constraints to tol, at most solver.max_outer stages). ``minimize``: the inner Newton-CG,
+    ``newton_cg.newton_minimize`` or ``nk_jax.newton.newton_minimize`` (the same loop on devices)."""
     stages: list[Stage] = []
     if method == "augmented":
         M, mu, prev = float(s.M), np.zeros(2), (math.inf, math.inf)
@@ -214,8 +216,8 @@ def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> 
         if method != "augmented":
             M, mu = float(item), np.zeros(2)
         obj.lam, obj.rho = mu.copy(), np.array([M, M], float)
-        (pt, status), n, wall, deriv = _timed_stage(
-            obj, lambda: newton_minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg))
+        (pt, status), n, wall, deriv = timed_stage(
+            obj, lambda: minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg))
         stages.append(Stage(pt, status, (M, M), tuple(mu), None, pt.rel, n, wall, deriv))
         if not np.all(np.isfinite(pt.phi)):
             break
@@ -237,11 +239,11 @@ def _run_level(scene, disc, phi, cnt, log, tol, opts, W=None, setup=None):
     method = scene.solver.method
     obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt)
     if method == "exact":
-        (pt, status, lam, dual, W), n, wall, deriv = _timed_stage(
+        (pt, status, lam, dual, W), n, wall, deriv = timed_stage(
             obj, lambda: _exact(obj, phi, tol, opts, disc.volume, beta, log, W))
         stages = [Stage(pt, status, None, (0.0, 0.0), lam, dual, n, wall, deriv)]
     else:
-        stages = _penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta)
+        stages = penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta)
     return disc, stages, alpha, beta, W
 
 
