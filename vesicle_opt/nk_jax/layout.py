@@ -3,9 +3,10 @@
 ``GridLayout(shape, devices)`` builds a ``jax.sharding.Mesh`` of the devices with one axis
 ``"grid"`` and the ``NamedSharding`` ``P("grid")``: device j holds the slab of rows
 [j n_0/D, (j+1) n_0/D) of every field (n_0 must be divisible by D; ``choose_devices`` picks the
-largest D <= the devices available that divides it). XLA's SPMD partitioner then runs the FFTs on
-the sharded fields (its own transforms, with the all-to-all transposes they need) and the sums of
-E, A, B and of the inner products as cross-device reductions; the Newton and CG control flow sees
+largest D <= the devices available that divides it). XLA's SPMD partitioner then runs the
+pointwise arithmetic on the sharded fields; the sums of E, A, B and of the inner products are
+``total`` / ``spectrum_total`` (``reduce``: row by row on the device that holds the row, then a
+compensated combine in row order, the same bits on any D); the Newton and CG control flow sees
 scalars only.
 
 FFTs: XLA's SPMD partitioner does not split a multi-dimensional FFT; on a sharded field it

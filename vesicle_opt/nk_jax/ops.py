@@ -5,7 +5,7 @@ on a periodic grid, in JAX (float64, ``jit``): the device form of ``model.lumped
 Fields live in grid shape (n_0, ..., n_{d-1}), C order (``reshape`` of the numpy path's node
 vectors), optionally split across devices along the first grid axis (``layout.GridLayout``):
 every kernel constrains its field outputs to that sharding, the FFTs run slab-decomposed
-(``layout``) and XLA turns the sums of A, B and the inner products into cross-device reductions.
+(``layout``) and every sum goes through ``layout.total`` (a fixed order on any number of devices).
 
 With m the constant cell weight (Fourier grids: nodal quadrature), sigma the symbol of Delta_h,
 g(phi) = (phi/eps + C)(1 - phi^2) and s = g'(phi):
