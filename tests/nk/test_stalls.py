@@ -89,3 +89,30 @@ def test_a_tol_below_the_floor_is_reported_with_the_tol_that_can_be_certified():
     assert res.extra["kkt_floor"] < tol <= 5 * res.extra["kkt_floor"]  # the next 1-2-5 step above the floor
     again = vo.solve(vo.load_scene("ellipse-2d", [*base, f"solver.tol={tol!r}"]))
     assert again.converged, again.reason
+
+
+def test_the_outer_verdict_is_the_exact_loops_decision():
+    """nk.solve.outer_verdict, the decision after each inner solve of the exact loop (numpy and
+    nk_jax share it): the outer test first, two stalls in a row with the constraints held end as
+    roundoff_stall, one stall or a stall off the constraints goes on, an inner failure ends the
+    run, a spent Newton budget ends it as max_iter (roundoff_stall when it stalled held)."""
+    from vesicle_opt.nk.options import NewtonKrylovOptions
+    from vesicle_opt.nk.solve import outer_verdict
+    opts = NewtonKrylovOptions(tol=1e-8)  # held: c_rel <= 0.1 tol = 1e-9
+    held, off, good, bad = 1e-10, 1e-6, 1e-9, 1e-6  # c_rel held / not; dual test met / not
+    cases = [  # (inner, c_rel, dual, stalled_before, budget_spent) -> (status, stalled_before)
+        (("stalled", held, good, False, False), ("converged", False)),
+        (("converged", held, good, True, True), ("converged", True)),
+        (("stalled", held, bad, False, False), (None, True)),
+        (("stalled", held, bad, True, False), (ROUNDOFF_STALL, True)),
+        (("stalled", off, bad, True, False), (None, False)),
+        (("converged", held, bad, True, False), (None, False)),
+        (("max_iter", off, bad, False, False), (None, False)),
+        (("line_search_failed", off, bad, False, False), ("inner_line_search_failed", False)),
+        (("non_finite", held, bad, True, True), ("inner_non_finite", True)),
+        (("converged", off, bad, False, True), ("max_iter", False)),
+        (("stalled", held, bad, False, True), (ROUNDOFF_STALL, True)),
+        (("stalled", off, bad, False, True), ("max_iter", False)),
+    ]
+    for (inner, crel, dual, before, spent), want in cases:
+        assert outer_verdict(inner, crel, dual, opts.tol, opts, before, spent) == want, (inner, crel, dual, before, spent)

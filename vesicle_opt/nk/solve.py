@@ -116,31 +116,10 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
         dual = _dual_kkt(prec, rig, pt.dE, pt.dA, pt.dB, lam_ls)
         log.append({"outer": outer, "inner": inner, "newton": obj.cnt.newton, "c_rel": crel,
                     "dual": dual, "rho": obj.rho.tolist(), "lam": lam_ls.tolist()})
-        if crel <= opts.constraint_margin * tol and dual <= tol:  # the outer test first: an inner solve
-            status = "converged"  # that stalls at round-off on a point that meets it (a start at a
-            break  # solution, e.g. an earlier solve's file) has converged
-        # [Issue 12] An inner solve that stalls (steps below the round-off of phi) has done what double
-        # precision permits at these multipliers; it used to end the run ("inner_stalled", exit 1) even
-        # where the outer iteration could still move the multipliers, or where the point already met
-        # everything but a dual test below its own round-off (ellipse 128^2 spectral at tol 1e-12, FD
-        # 1024^2 at tol 1e-9). Now the outer loop goes on; two stalls in a row with the constraints
-        # held end it as ROUNDOFF_STALL, which the certificate judges like a success: it passes only
-        # if the independent L2 residual meets 100 tol and its floor is below tol (else outcome
-        # roundoff_floor, with the tolerance that can be certified).
-        if inner == "stalled":
-            held = crel <= opts.constraint_margin * tol
-            if held and stalled_before:
-                status = ROUNDOFF_STALL
-                break
-            stalled_before = held
-        elif inner not in ("converged", "max_iter"):
-            status = f"inner_{inner}"
-            break
-        else:
-            stalled_before = False
-        if obj.cnt.newton >= opts.max_iter:
-            if inner == "stalled" and crel <= opts.constraint_margin * tol:
-                status = ROUNDOFF_STALL
+        verdict, stalled_before = outer_verdict(inner, crel, dual, tol, opts, stalled_before,
+                                                obj.cnt.newton >= opts.max_iter)
+        if verdict is not None:
+            status = verdict
             break
         # Newton step on the dual: lam <- lam - W^{-1} c, W = G^T H_rho^{-1} G; a reused W is
         # refreshed when |c| fell by less than w_refresh over the last outer iteration
@@ -149,6 +128,39 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
         W = dual_update(obj, W, pt.c, crel, prev_c)
         prev_c = crel
     return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy()))
+
+
+def outer_verdict(inner: str, crel: float, dual: float, tol: float, opts: NewtonKrylovOptions,
+                  stalled_before: bool, budget_spent: bool) -> tuple[str | None, bool]:
+    """The exact-constraint loop's decision after an inner solve ended with status ``inner`` at
+    relative constraint residual ``crel`` and dual KKT residual ``dual``: (status, stalled_before),
+    status None to go on with a multiplier update. Shared by the numpy loop and ``nk_jax.solver``.
+
+    The outer test comes first: an inner solve that stalls at round-off on a point that meets it (a
+    start at a solution, e.g. an earlier solve's file) has converged.
+    [Issue 12] An inner solve that stalls (steps below the round-off of phi) has done what double
+    precision permits at these multipliers; it used to end the run ("inner_stalled", exit 1) even
+    where the outer iteration could still move the multipliers, or where the point already met
+    everything but a dual test below its own round-off (ellipse 128^2 spectral at tol 1e-12, FD
+    1024^2 at tol 1e-9). Now the outer loop goes on; two stalls in a row with the constraints
+    held end it as ROUNDOFF_STALL, which the certificate judges like a success: it passes only
+    if the independent L2 residual meets 100 tol and its floor is below tol (else outcome
+    roundoff_floor, with the tolerance that can be certified). ``budget_spent``: the Newton budget
+    is used up (max_iter, or ROUNDOFF_STALL when this last inner solve stalled with them held)."""
+    held = crel <= opts.constraint_margin * tol
+    if held and dual <= tol:
+        return "converged", stalled_before
+    if inner == "stalled":
+        if held and stalled_before:
+            return ROUNDOFF_STALL, True
+        stalled_before = held
+    elif inner not in ("converged", "max_iter"):
+        return f"inner_{inner}", stalled_before
+    else:
+        stalled_before = False
+    if budget_spent:
+        return (ROUNDOFF_STALL if inner == "stalled" and held else "max_iter"), stalled_before
+    return None, stalled_before
 
 
 def dual_update(obj, W, c, crel: float, prev_c: float):
@@ -181,17 +193,19 @@ class Stage:
     deriv_s: float
 
 
-def _timed_stage(obj: Objective, solve_inner) -> tuple:
+def timed_stage(obj: Objective, solve_inner) -> tuple:
     cnt = obj.cnt
     t0, n0, d0 = time.perf_counter(), cnt.newton, cnt.deriv_time
     out = solve_inner()
     return out, cnt.newton - n0, time.perf_counter() - t0, cnt.deriv_time - d0
 
 
-def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> list[Stage]:
+def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
+                   minimize=newton_minimize) -> list[Stage]:
     """penalty (one M), continuation (the schedule M0 ... M_max, every stage warm-started from the
     last, as on IPOPT) or augmented (mu updates; stops at the first stage that converged and holds
-    the constraints to tol, at most solver.max_outer stages)."""
+    the constraints to tol, at most solver.max_outer stages). ``minimize``: the inner Newton-CG,
+    ``newton_cg.newton_minimize`` or ``nk_jax.newton.newton_minimize`` (the same loop on devices)."""
     stages: list[Stage] = []
     if method == "augmented":
         M, mu, prev = float(s.M), np.zeros(2), (math.inf, math.inf)
@@ -202,8 +216,8 @@ def _penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta) -> 
         if method != "augmented":
             M, mu = float(item), np.zeros(2)
         obj.lam, obj.rho = mu.copy(), np.array([M, M], float)
-        (pt, status), n, wall, deriv = _timed_stage(
-            obj, lambda: newton_minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg))
+        (pt, status), n, wall, deriv = timed_stage(
+            obj, lambda: minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg))
         stages.append(Stage(pt, status, (M, M), tuple(mu), None, pt.rel, n, wall, deriv))
         if not np.all(np.isfinite(pt.phi)):
             break
@@ -225,11 +239,11 @@ def _run_level(scene, disc, phi, cnt, log, tol, opts, W=None, setup=None):
     method = scene.solver.method
     obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt)
     if method == "exact":
-        (pt, status, lam, dual, W), n, wall, deriv = _timed_stage(
+        (pt, status, lam, dual, W), n, wall, deriv = timed_stage(
             obj, lambda: _exact(obj, phi, tol, opts, disc.volume, beta, log, W))
         stages = [Stage(pt, status, None, (0.0, 0.0), lam, dual, n, wall, deriv)]
     else:
-        stages = _penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta)
+        stages = penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta)
     return disc, stages, alpha, beta, W
 
 

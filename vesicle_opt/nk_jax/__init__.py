@@ -3,9 +3,12 @@ grids split across devices, a thin second implementation of ``nk`` tested line f
 
 * ``ops``: E_h, A, B, gradients, Hessian-vector products and the Fourier preconditioner (jitted);
 * ``layout``: one device, or the field split along the first grid axis (``jax.sharding``);
+* ``reduce``: the sums (E, A, B, inner products) in a fixed order whatever the split, so one and
+  several devices compute the same bits;
 * ``krylov``: projected preconditioned CG as one compiled ``lax.while_loop``;
-* ``newton``: Newton-CG with the line search of ``nk.newton_cg``; ``solver``: the methods exact
-  and penalty, nested iteration, the one certified Result (numpy ``verify.certify``).
+* ``newton``: Newton-CG with the line search of ``nk.newton_cg``; ``solver``: every method (exact
+  with nk's outer decision, the stage methods by nk's own stage loop), nested iteration, the one
+  certified Result (numpy ``verify.certify``).
 
 JAX is an optional extra (``pip install 'vesicle_opt[jax]'``): importing this package does not
 import jax; ``solve`` does, on first use (``available`` says whether it can).

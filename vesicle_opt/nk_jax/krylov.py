@@ -27,15 +27,12 @@ class CGResult:
     rel_residual: float
 
 
-def _dot(a, b):
-    return jnp.sum(a * b)
-
-
 class DeviceKrylov:
     """Jitted subspace preconditioner and projected CG for one ``ops.GridOps``."""
 
     def __init__(self, ops):
         self.ops = ops
+        self._dot = ops.layout.dot  # the same bits on any device count (``reduce``)
         self.subspace = jax.jit(self._subspace)
         self.precondition = jax.jit(self._precondition)
         self._pcg = jax.jit(self._pcg_loop)
@@ -45,13 +42,13 @@ class DeviceKrylov:
         ops = self.ops
         C = tuple(ops.m * t for t in ops._derivatives(phi))
         U = tuple(ops._apply_inverse(c, cE, cB, rho_A) for c in C)
-        S = jnp.array([[_dot(C[i], U[j]) for j in range(len(C))] for i in range(len(C))])
+        S = jnp.array([[self._dot(C[i], U[j]) for j in range(len(C))] for i in range(len(C))])
         return C, U, S
 
     def _precondition(self, r, coef, sub):
         z = self.ops._apply_inverse(r, *coef)
         C, U, S = sub
-        y = jnp.linalg.solve(S, jnp.stack([_dot(c, z) for c in C]))
+        y = jnp.linalg.solve(S, jnp.stack([self._dot(c, z) for c in C]))
         for j, u in enumerate(U):
             z = z - u * y[j]
         return self.ops.layout.constrain(z)
@@ -69,7 +66,7 @@ class DeviceKrylov:
         x = jnp.zeros_like(b)
         r = b
         z = M(r)
-        rz = _dot(r, z)
+        rz = self._dot(r, z)
         code = jnp.where(rz <= 0.0, 1, 0)
         rz0 = jnp.where(rz <= 0.0, 1.0, rz)
         init = (jnp.int64(0), x, r, z, z, rz, rz0, jnp.float64(0.0), code)
@@ -81,7 +78,7 @@ class DeviceKrylov:
             it, x, r, z, p, rz, rz0, rel, code = c
             it = it + 1
             Hp = H(p)
-            curv = _dot(p, Hp)
+            curv = self._dot(p, Hp)
 
             def negative(_):
                 first = it == 1
@@ -94,7 +91,7 @@ class DeviceKrylov:
                 x2 = x + a * p
                 r2 = r - a * Hp
                 z2 = M(r2)
-                rz_new = _dot(r2, z2)
+                rz_new = self._dot(r2, z2)
                 rel2 = jnp.sqrt(jnp.maximum(rz_new, 0.0) / rz0)
                 done = jnp.where(rel2 <= eta, 1, jnp.where(it >= max_iter, 2, 0))
                 p2 = z2 + (rz_new / rz) * p

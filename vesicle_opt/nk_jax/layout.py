@@ -3,9 +3,10 @@
 ``GridLayout(shape, devices)`` builds a ``jax.sharding.Mesh`` of the devices with one axis
 ``"grid"`` and the ``NamedSharding`` ``P("grid")``: device j holds the slab of rows
 [j n_0/D, (j+1) n_0/D) of every field (n_0 must be divisible by D; ``choose_devices`` picks the
-largest D <= the devices available that divides it). XLA's SPMD partitioner then runs the FFTs on
-the sharded fields (its own transforms, with the all-to-all transposes they need) and the sums of
-E, A, B and of the inner products as cross-device reductions; the Newton and CG control flow sees
+largest D <= the devices available that divides it). XLA's SPMD partitioner then runs the
+pointwise arithmetic on the sharded fields; the sums of E, A, B and of the inner products are
+``total`` / ``spectrum_total`` (``reduce``: row by row on the device that holds the row, then a
+compensated combine in row order, the same bits on any D); the Newton and CG control flow sees
 scalars only.
 
 FFTs: XLA's SPMD partitioner does not split a multi-dimensional FFT; on a sharded field it
@@ -31,6 +32,8 @@ from jax.experimental import multihost_utils
 import jax.numpy as jnp
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from vesicle_opt.nk_jax.reduce import neumaier_sum, row_sums, rows_total
+
 AXIS = "grid"
 
 
@@ -52,13 +55,17 @@ class GridLayout:
         if self.count > 1:
             self.mesh = Mesh(np.array(self.devices), (AXIS,))
             self.sharding = NamedSharding(self.mesh, PartitionSpec(AXIS))
+            self.replicated = NamedSharding(self.mesh, PartitionSpec())
             self.slab_fft = len(self.shape) == 3 and self.shape[1] % self.count == 0
             if self.slab_fft:
                 spec, kspec = PartitionSpec(AXIS), PartitionSpec(None, AXIS)
                 self._fwd = jax.shard_map(self._slab_forward, mesh=self.mesh, in_specs=spec, out_specs=kspec)
                 self._inv = jax.shard_map(self._slab_inverse, mesh=self.mesh, in_specs=kspec, out_specs=spec)
+                self._kblocks = jax.shard_map(self._spectrum_blocks, mesh=self.mesh, in_specs=kspec, out_specs=spec)
+            self._blocks = jax.shard_map(self._field_blocks, mesh=self.mesh, in_specs=PartitionSpec(AXIS),
+                                         out_specs=PartitionSpec(AXIS))
         else:
-            self.mesh = None
+            self.mesh = self.replicated = None
             self.sharding = jax.sharding.SingleDeviceSharding(self.devices[0])
 
     # --- transforms (module docstring) ---------------------------------------------------------
@@ -73,12 +80,63 @@ class GridLayout:
         return jnp.fft.irfftn(y, s=self.shape[1:], axes=(1, 2))
 
     def rfftn(self, v):
-        """The real FFT of a field (rfft layout, global indices; split along axis 1 when slab)."""
-        return self._fwd(v) if self.slab_fft else jnp.fft.rfftn(v)
+        """The real FFT of a field (rfft layout, global indices; split along axis 1 when slab). On one
+        device a 3D field is transformed in the slab order too (axes 1, 2, then 0): the same 1D
+        transforms in the same order, so the spectrum has the same bits as on D slabs (measured
+        equal; ``jnp.fft.rfftn`` differs from it by ~1e-15 relative)."""
+        if self.slab_fft:
+            return self._fwd(v)
+        if self.count == 1 and len(self.shape) == 3:
+            return jnp.fft.fft(jnp.fft.rfftn(v, axes=(1, 2)), axis=0)
+        return jnp.fft.rfftn(v)
 
     def irfftn(self, vh):
         """The inverse of ``rfftn``: a real field with this layout."""
-        return self._inv(vh) if self.slab_fft else self.constrain(jnp.fft.irfftn(vh, s=self.shape))
+        if self.slab_fft:
+            return self._inv(vh)
+        if self.count == 1 and len(self.shape) == 3:
+            return jnp.fft.irfftn(jnp.fft.ifft(vh, axis=0), s=self.shape[1:], axes=(1, 2))
+        return self.constrain(jnp.fft.irfftn(vh, s=self.shape))
+
+    # --- sums (``reduce``: the same bits on any number of devices) -----------------------------
+    @staticmethod
+    def _field_rows(x):
+        return x.reshape(x.shape[0], -1)
+
+    @staticmethod
+    def _spectrum_rows(xh):
+        return jnp.moveaxis(xh, 1, 0).reshape(xh.shape[1], -1)
+
+    def _field_blocks(self, x):
+        return row_sums(self._field_rows(x))
+
+    def _spectrum_blocks(self, xh):
+        return row_sums(self._spectrum_rows(xh))
+
+    def _combine(self, blocks):
+        return neumaier_sum(jax.lax.with_sharding_constraint(blocks, self.replicated))
+
+    def total(self, x):
+        """Sum of a field's entries: the rows along axis 0 (the split axis) summed one by one on
+        the device that holds them (``reduce.row_sums``), then combined in row order with the
+        rounding errors carried (``reduce.neumaier_sum``); on one device both in one loop."""
+        if self.count == 1:
+            return rows_total(self._field_rows(x))
+        return self._combine(self._blocks(x))
+
+    def spectrum_total(self, xh):
+        """Sum over a spectrum (``rfftn`` layout) as ``total``, the rows along axis 1 in 3D (the
+        slab spectrum's split axis), along axis 0 in 2D: the same rows on every device count."""
+        three = len(self.shape) == 3
+        if self.count == 1:
+            return rows_total(self._spectrum_rows(xh) if three else self._field_rows(xh))
+        if three and self.slab_fft:
+            return self._combine(self._kblocks(xh))
+        return self._combine(row_sums(self._spectrum_rows(xh) if three else self._field_rows(xh)))
+
+    def dot(self, a, b):
+        """sum a * b over the grid (``total``)."""
+        return self.total(a * b)
 
     def constrain(self, x):
         """Inside a traced kernel: keep a field split along the first axis (no-op on one device)."""

@@ -48,7 +48,7 @@ class DeviceObjective:
         self.dn_dA = float(ops.dual_norm(self.ones))
         self._derive = jax.jit(self._derive_kernel)
         self._axpy = jax.jit(lambda x, t, p: x + t * p)
-        self._dot = jax.jit(lambda a, b: jnp.sum(a * b))
+        self._dot = jax.jit(ops.layout.dot)
         self._amax = jax.jit(lambda a: jnp.max(jnp.abs(a)))
 
     def _derive_kernel(self, phi, lap, r, s, mu0, mu1):

@@ -5,7 +5,7 @@ on a periodic grid, in JAX (float64, ``jit``): the device form of ``model.lumped
 Fields live in grid shape (n_0, ..., n_{d-1}), C order (``reshape`` of the numpy path's node
 vectors), optionally split across devices along the first grid axis (``layout.GridLayout``):
 every kernel constrains its field outputs to that sharding, the FFTs run slab-decomposed
-(``layout``) and XLA turns the sums of A, B and the inner products into cross-device reductions.
+(``layout``) and every sum goes through ``layout.total`` (a fixed order on any number of devices).
 
 With m the constant cell weight (Fourier grids: nodal quadrature), sigma the symbol of Delta_h,
 g(phi) = (phi/eps + C)(1 - phi^2) and s = g'(phi):
@@ -103,9 +103,10 @@ class GridOps:
         lap = self._lap(phi)
         r = F.curvature_residual(phi, lap, eps, C)
         s = F.reaction_derivative(phi, eps, C)
-        E = m * jnp.sum(r * r) / (2 * eps)
-        A = m * jnp.sum(phi)
-        B = -eps / 2 * (m * jnp.sum(phi * lap)) + m * jnp.sum(F.double_well(phi)) / eps
+        total = self.layout.total  # the same bits on any device count (``reduce``)
+        E = m * total(r * r) / (2 * eps)
+        A = m * total(phi)
+        B = -eps / 2 * (m * total(phi * lap)) + m * total(F.double_well(phi)) / eps
         return lap, r, s, E, A, B
 
     def _gradients(self, phi, lap, r, s):
@@ -127,7 +128,7 @@ class GridOps:
         u = m * (eps * lv + s * v)
         out = rig * ((eps * self._lap(u) + s * u) / eps + dE_diag * v)
         out = out + cB * (eps * (-m * lv) + dB_diag * v)
-        out = out + rho_A * jnp.sum(m * v) * m + rho_B * jnp.sum(dB * v) * dB
+        out = out + rho_A * self.layout.total(m * v) * m + rho_B * self.layout.dot(dB, v) * dB
         return self.layout.constrain(out)
 
     # --- the Fourier model of the Hessian (nk.precond.FourierPreconditioner) ---------------------
@@ -145,16 +146,17 @@ class GridOps:
     def _dual_norm(self, v):
         vh = self._fft(v)
         w = self._axis(self._parseval, self.dim - 1)
-        val = jnp.sum(w / self._p0() * jnp.abs(vh) ** 2) / self.size
+        val = self.layout.spectrum_total(w / self._p0() * jnp.abs(vh) ** 2) / self.size
         return jnp.sqrt(jnp.maximum(val, 0.0))
 
 
-CG_TEMP_BYTES = 72.5  # bytes a node of XLA temporaries inside the compiled CG loop (CG's x, r, z, p, Hp
-# and the transforms of two products): ``memory_analysis()`` of the program, 72.5 at 64^3, 73.0 at 32^3
+CG_TEMP_BYTES = 88.8  # bytes a node of XLA temporaries inside the compiled CG loop (CG's x, r, z, p, Hp,
+# the transforms of two products and the products that ``layout.total`` sums row by row):
+# ``memory_analysis()`` of the program, 88.8 at 64^3, 89.6 at 32^3 (72.5 before the row-wise sums)
 
 
-SLAB_BYTES = 9.2  # bytes a node (over D) of the slab FFT's all_to_all buffers on D > 1 devices: measured
-# 89.1 bytes a global node per device for the CG program at 32^3 on two devices against 169.1 / 2
+SLAB_BYTES = 0.6  # bytes a node (over D) of the slab FFT's all_to_all buffers on D > 1 devices: measured
+# 93.11 bytes a global node per device for the CG program at 32^3 on two devices against 185.59 / 2
 
 
 def memory_bytes_per_node(dim: int = 3, devices: int = 1) -> float:
@@ -164,7 +166,7 @@ def memory_bytes_per_node(dim: int = 3, devices: int = 1) -> float:
     Float64 fields: the compiled CG program's arguments (b, s, the two Hessian diagonals, dB, and the
     subspace preconditioner's C_i = m d_i phi and U_i = P^{-1} C_i: 5 + 2 dim) and output (x), the
     Newton point's phi, Delta_h phi, r, dE, g and dA = m held outside it (6), plus the program's
-    temporaries ``CG_TEMP_BYTES``: 216.5 bytes a node in 3D (XLA's memory analysis of the program
+    temporaries ``CG_TEMP_BYTES``: 232.8 bytes a node in 3D (XLA's memory analysis of the program
     on the CPU; a GPU's FFT workspace comes on top and is not measured here), divided by D, plus
     ``SLAB_BYTES`` / D for the transposes when D > 1.
     """

@@ -3,9 +3,13 @@
 
 * ``exact``: the augmented Lagrangian with dual Newton steps lam <- lam - W^{-1} c,
   W = G^T H_rho^{-1} G, of ``nk.solve._exact`` (the same rho start, refresh and growth rules and
-  the same outer test |c| <= margin tol, dual KKT <= tol), least-squares multipliers in the dual
-  metric of P0;
-* ``penalty``: one inner solve with lam = 0, rho = (M, M) (the paper's E_{M,h} (11)).
+  the same outer test |c| <= margin tol, dual KKT <= tol, and the same decision after each inner
+  solve, ``nk.solve.outer_verdict``, with its ``roundoff_stall`` exit), least-squares multipliers in
+  the dual metric of P0;
+* ``penalty``, ``continuation``, ``augmented``: ``nk.solve.penalty_stages`` itself, the stage
+  loop of the numpy path (one M; the schedule M0 ... M_max; the first-order multiplier updates
+  mu <- mu - M c with M growth), with this package's Newton-CG as its inner solver; every stage is
+  certified and the stages combined as on numpy (``result.combine_stages``).
 
 Nested iteration (coarse grids first, ``nk.setup.coarse_levels``; the interpolant by
 ``nk.setup.resample`` on the host) as on numpy. The result is the one certified ``Result`` of
@@ -32,15 +36,16 @@ from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import coarse_levels, discretization_path, on_fourier_grid, resample
-from vesicle_opt.nk.solve import dual_update, l2_floor
+from vesicle_opt.nk.solve import (ROUNDOFF_STALL, Stage, dual_update, l2_floor, outer_verdict, penalty_stages,
+                                  timed_stage)
 from vesicle_opt.nk_jax.layout import GridLayout
 from vesicle_opt.nk_jax.newton import DeviceObjective, newton_minimize
 from vesicle_opt.nk_jax.ops import GridOps
-from vesicle_opt.result import Result
+from vesicle_opt.result import Result, combine_stages
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.verify.certify import build_result
 
-METHODS = ("exact", "penalty")
+METHODS = ("exact", "penalty", "continuation", "augmented")
 
 
 def _ls_kernel(ops, rig):
@@ -48,8 +53,9 @@ def _ls_kernel(ops, rig):
     def kernel(dE, dA, dB):
         G = (dA, dB)
         PG = [ops._apply_inverse(v, 1.0, 0.0, 0.0) for v in G]
-        N = jnp.array([[jnp.sum(G[i] * PG[j]) for j in range(2)] for i in range(2)])
-        rhs = jnp.array([rig * jnp.sum(dE * PG[i]) for i in range(2)])
+        dot = ops.layout.dot
+        N = jnp.array([[dot(G[i], PG[j]) for j in range(2)] for i in range(2)])
+        rhs = jnp.array([rig * dot(dE, PG[i]) for i in range(2)])
         return N, rhs
     return jax.jit(kernel)
 
@@ -74,7 +80,7 @@ class Level:
         self.obj = DeviceObjective(self.ops, rig, alpha, beta, np.zeros(2), np.zeros(2), cnt)
         self._ls = _ls_kernel(self.ops, rig)
         self._dual = _dual_kkt_kernel(self.ops, rig)
-        self._gpg = jax.jit(lambda g, cE: jnp.sum(g * self.ops._apply_inverse(g, cE, 0.0, 0.0)))
+        self._gpg = jax.jit(lambda g, cE: self.layout.dot(g, self.ops._apply_inverse(g, cE, 0.0, 0.0)))
 
     def multipliers(self, pt) -> np.ndarray:
         N, rhs = jax.device_get(self._ls(pt.dE, self.obj.ones, pt.dB))
@@ -106,6 +112,7 @@ def _exact(level: Level, phi, tol, opts: NewtonKrylovOptions, volume, beta, log,
     cscale = np.array([volume, abs(beta)])
     prev_c = np.inf
     status = "max_iter"
+    stalled_before = False
     lam_ls, dual = obj.lam, math.inf
     for outer in range(1, opts.exact_max_outer + 1):
         crel = float(np.max(np.abs(pt.c) / cscale))
@@ -117,13 +124,10 @@ def _exact(level: Level, phi, tol, opts: NewtonKrylovOptions, volume, beta, log,
         dual = level.dual_kkt(pt, lam_ls)
         log.append({"outer": outer, "inner": inner, "newton": obj.cnt.newton, "c_rel": crel,
                     "dual": dual, "rho": obj.rho.tolist(), "lam": lam_ls.tolist()})
-        if crel <= opts.constraint_margin * tol and dual <= tol:
-            status = "converged"
-            break
-        if inner not in ("converged", "max_iter"):
-            status = f"inner_{inner}"
-            break
-        if obj.cnt.newton >= opts.max_iter:
+        verdict, stalled_before = outer_verdict(inner, crel, dual, tol, opts, stalled_before,
+                                                obj.cnt.newton >= opts.max_iter)
+        if verdict is not None:
+            status = verdict
             break
         if W is None or crel > opts.w_refresh * prev_c:
             W = _dual_hessian(level, pt, opts.w_tol, opts.max_cg)
@@ -133,16 +137,16 @@ def _exact(level: Level, phi, tol, opts: NewtonKrylovOptions, volume, beta, log,
 
 
 def _run_level(scene, level: Level, phi_host, log, tol, opts, W=None):
-    """One level from a host start; returns (pt, status, lam, dual, M, mu, W)."""
+    """One level from a host start; returns (stages, W) as ``nk.solve._run_level``."""
     s, obj = scene.solver, level.obj
     phi = level.layout.put(phi_host)
     if s.method == "exact":
-        pt, status, lam, dual, W = _exact(level, phi, tol, opts, level.disc.volume,
-                                          obj.target[1], log, W)
-        return pt, status, lam, dual, None, (0.0, 0.0), W
-    obj.lam, obj.rho = np.zeros(2), np.array([s.M, s.M], float)
-    pt, status = newton_minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg)
-    return pt, status, None, pt.rel, (float(s.M), float(s.M)), (0.0, 0.0), W
+        (pt, status, lam, dual, W), n, wall, deriv = timed_stage(
+            obj, lambda: _exact(level, phi, tol, opts, level.disc.volume, obj.target[1], log, W))
+        return [Stage(pt, status, None, (0.0, 0.0), lam, dual, n, wall, deriv)], W
+    stages = penalty_stages(obj, phi, tol, opts, s.method, s, level.disc.volume, obj.target[1],
+                            minimize=newton_minimize)
+    return stages, W
 
 
 def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
@@ -172,40 +176,53 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
         ca, cb = constraint_data(scene, cdisc)
         n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
         level = Level(scene, cdisc, ca, cb, cnt, devices)
-        pt, status, *_, W = _run_level(scene, level, start, log, max(tol, opts.coarse_tol), opts, W)
-        level_log.append({"n": list(shape), "status": status, "newton": cnt.newton - n0,
+        cstages, W = _run_level(scene, level, start, log, max(tol, opts.coarse_tol), opts, W)
+        level_log.append({"n": list(shape), "status": cstages[-1].status, "newton": cnt.newton - n0,
                           "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
-        phi, prev_shape = level.layout.get(pt.phi), shape
+        phi, prev_shape = level.layout.get(cstages[-1].pt.phi), shape
     if phi is None:
         phi = initial_guess(scene, disc) if x0 is None else np.array(x0, float)
     else:
         phi = resample(phi, prev_shape, disc.grid_shape)
     n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
     level = Level(scene, disc, alpha, beta, cnt, devices)
-    pt, status, lam, dual, M, mu, _ = _run_level(scene, level, phi, log, tol, opts, W)
-    level_log.append({"n": list(disc.grid_shape), "status": status, "newton": cnt.newton - n0,
+    stages, _ = _run_level(scene, level, phi, log, tol, opts, W)
+    level_log.append({"n": list(disc.grid_shape), "status": stages[-1].status, "newton": cnt.newton - n0,
                       "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
-    phi_out, dE = level.layout.get(pt.phi), level.layout.get(pt.dE)
-    if lam is None:  # penalty: the multipliers as build_result computes them, mu - M (A - alpha, B - beta)
-        lam = np.asarray(mu) - np.asarray(M) * np.asarray(jax.device_get(pt.c), float)
-    dA, dB = level.layout.get(level.obj.ones), level.layout.get(pt.dB)
-    floor = l2_floor(disc, rig, eps, (dE, dA, dB), lam)
     method = scene.solver.method
+    dA = level.layout.get(level.obj.ones)
+    path = discretization_path(scene, disc, None)
+
+    def pack(st: Stage, iterations: int, wall_s: float, deriv_s: float, history=None, extra=None) -> Result:
+        """``nk.solve.solve``'s pack, the fields brought to the host first."""
+        penalty = st.M is not None
+        lam = np.asarray(st.mu) - np.asarray(st.M) * st.pt.c if penalty else st.lam  # as build_result does
+        dE, dB = level.layout.get(st.pt.dE), level.layout.get(st.pt.dB)
+        floor = l2_floor(disc, rig, eps, (dE, dA, dB), lam)
+        return build_result(
+            scene=scene, disc=disc, alpha=alpha, beta=beta, phi=level.layout.get(st.pt.phi), tol=tol,
+            solver_status=st.status, solver_success=st.status in ("converged", ROUNDOFF_STALL), method=method,
+            lam=None if penalty else tuple(st.lam), M=st.M, mu=st.mu,
+            exact_constraints=method in ("exact", "augmented"), floor=floor,
+            iterations=iterations, wall_time_s=wall_s, derivative_time_s=deriv_s, history=history,
+            extra={"backend": "newton-krylov", "array": "jax", "devices": level.layout.count,
+                   "platform": level.layout.devices[0].platform, "mesh_kind": disc.kind,
+                   "kkt_dual": float(st.dual), "kkt_l2_floor": floor, "discretization_path": path,
+                   **(extra or {})})
+
     hist = dict(cnt.history)
     hist["outer"] = log
     hist["levels"] = level_log
     totals = {"cpu_time_s": cpu, "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
-              "outer_iterations": len(log) if method == "exact" else 1,
+              "outer_iterations": len(log) if method == "exact" else len(stages),
               "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
               "fine_newton_iterations": level_log[-1]["newton"]}
-    return build_result(
-        scene=scene, disc=disc, alpha=alpha, beta=beta, phi=phi_out, tol=tol,
-        solver_status=status, solver_success=status == "converged", method=method,
-        lam=None if M is not None else tuple(lam), M=M, mu=mu,
-        exact_constraints=method == "exact", floor=floor,
-        iterations=cnt.newton, wall_time_s=wall, derivative_time_s=cnt.deriv_time, history=hist,
-        extra={"backend": "newton-krylov", "array": "jax", "devices": level.layout.count,
-               "platform": level.layout.devices[0].platform, "mesh_kind": disc.kind,
-               "kkt_dual": float(dual), "kkt_l2_floor": floor,
-               "discretization_path": discretization_path(scene, disc, None), **totals})
+    if method not in ("continuation", "augmented"):  # one stage: the run's totals are its counts
+        return pack(stages[-1], cnt.newton, wall, cnt.deriv_time, hist, totals)
+    records = [pack(st, st.newton, st.wall_s, st.deriv_s) for st in stages[:-1]]
+    st = stages[-1]
+    records.append(pack(st, st.newton, st.wall_s, st.deriv_s, hist, totals))
+    failed = sum(not r.success for r in records)
+    return combine_stages(records[-1], records, method, wall, {"failed_stages": failed},
+                          iterations=cnt.newton, derivative_time_s=cnt.deriv_time)

@@ -343,9 +343,6 @@ def _check_array(val: dict) -> None:
     if val["mesh.kind"] not in ("fd", "spectral"):
         raise InputError("solver.array", f"'jax' needs a periodic grid (mesh.kind 'fd' or 'spectral'), "
                          f"got mesh.kind {val['mesh.kind']!r}")
-    if val["solver.method"] not in ("exact", "penalty"):
-        raise InputError("solver.array", f"'jax' runs solver.method 'exact' or 'penalty', got "
-                         f"{val['solver.method']!r}")
     if importlib.util.find_spec("jax") is None:
         raise InputError("solver.array", "'jax' needs the optional extra: pip install 'vesicle_opt[jax]'")
 
