@@ -32,6 +32,7 @@ import numpy as np
 from vesicle_opt import nk_jax, resources
 from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
+from vesicle_opt.mesh.spectral import fft_library
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.model.warm_start import start_field
@@ -150,14 +151,17 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         _log_start(scene, chosen, backend, disc.n_nodes)
         # solver.array: the same method with numpy arrays or on JAX devices (nk_jax), same Result
         run = nk_jax.solve if scene.solver.array == "jax" else nk_solve.solve
-        result = run(scene, x0=_phi_start(x0, disc), options=options, setup=setup, check=False)
-        # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
-        # continuum's symmetries, excluded (second_order_excluded says which)
-        # (a P1 scene keeps the P1 report, translations only, also where its tensor box runs on FFT)
-        rotations = scene.mesh.kind != "fem-p1"
-        if check_second_order and result.converged:
-            log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
-        so = lobpcg.check(scene, result, setup, rotations=rotations) if check_second_order and result.converged else None
+        # solver.fft: the real FFTs of the solve and its check (scipy.fft or pyFFTW)
+        with fft_library(scene.solver.fft):
+            result = run(scene, x0=_phi_start(x0, disc), options=options, setup=setup, check=False)
+            # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
+            # continuum's symmetries, excluded (second_order_excluded says which)
+            # (a P1 scene keeps the P1 report, translations only, also where its tensor box runs on FFT)
+            rotations = scene.mesh.kind != "fem-p1"
+            if check_second_order and result.converged:
+                log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
+            so = (lobpcg.check(scene, result, setup, rotations=rotations)
+                  if check_second_order and result.converged else None)
     result = _second_order(result, so)
     result = _replace_extra(result, **topology.report(result.disc, result.phi))
     if throw and not result.converged:

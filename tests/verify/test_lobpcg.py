@@ -49,9 +49,11 @@ def test_fd_minimiser_same_number_on_both_backends():
     (r_nk, nk), (_, ip) = v["newton-krylov"], v["ipopt"]
     assert nk.verdict == ip.verdict == "minimum"
     assert (nk.excluded, ip.excluded) == ("translations, rotations", "translations")
-    # measured: NK 1.27698360889, IPOPT 1.27698360281 (error bound 1.9e-3: the check stops
-    # lobpcg.DECIDED_EXTRA iterations after its verdict; 1e-2 still leaves the bound 100x below mu)
-    assert abs(nk.relative_min_eigenvalue - ip.eigenvalues[1]) <= AGREE and nk.errors[0] <= 1e-2
+    # measured: NK 1.2769846, IPOPT 1.2769836 (error bound 1.6e-2: the check stops when the Ritz
+    # values have settled to lobpcg.EIG_TOL, before the residual, which converges like the square
+    # root of the eigenvalue error); a bound below mu / 10 decides the verdict with a tenfold margin
+    assert abs(nk.relative_min_eigenvalue - ip.eigenvalues[1]) <= AGREE
+    assert nk.errors[0] <= 0.1 * nk.relative_min_eigenvalue
     # measured 4.13083683e-3 (NK, rotation kept, error bound 5.1e-5) and 4.13083801e-3 (IPOPT): the
     # rotation mode, soft (1/300 of the first shape mode) but positive
     sc = S.load("ellipse-2d", ["mesh.n=64"])

@@ -8,7 +8,12 @@ The discrete Laplacian Delta_h = F^{-1} diag(sigma) F is applied by real FFTs, O
 * ``fd``: sigma(k) = -sum_i (4 / h_i^2) sin^2(k_i h_i / 2), the symbol of the (2d+1)-point stencil,
   so this equals ``fd.grid``'s sparse Laplacian to round-off (a test checks it).
 
-Both are symmetric, so in the lumped framework of Definition 2.2 K = -m Delta_h (m constant) and
+The real FFTs are scipy.fft's (the default) or, with ``solver.fft = "pyfftw"`` (optional extra
+``fftw``), FFTW's through pyFFTW, planned once per grid shape with FFTW_ESTIMATE (no planning time,
+and the same plan, hence the same bits, in every run) and reused (``FFT_LIBRARIES``,
+``fft_library``). Both compute the unnormalised forward and the 1/N-normalised inverse transform.
+
+Both Laplacians are symmetric, so in the lumped framework of Definition 2.2 K = -m Delta_h (m constant) and
 Delta_h^T = Delta_h. :func:`grid` wraps a :class:`FourierGrid` into a
 :class:`~vesicle_opt.discretization.Discretization` whose K is a ``LinearOperator`` (never a dense
 matrix), so ``functionals.evaluate``/``gradients`` and ``kkt.kkt_residual`` work unchanged on it.
@@ -16,6 +21,8 @@ matrix), so ``functionals.evaluate``/``gradients`` and ``kkt.kkt_residual`` work
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +33,64 @@ import scipy.sparse.linalg as spla
 from vesicle_opt.mesh.base import Discretization
 
 WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
+FFT_LIBRARIES = ("scipy", "pyfftw")  # solver.fft: scipy.fft (default) or FFTW through pyFFTW
+_library = ["scipy"]  # the one in use in this process (``fft_library``)
+
+
+def fft_available(name: str) -> bool:
+    """Whether the FFT library ``name`` can be used here (pyFFTW is an optional extra)."""
+    return name == "scipy" or (name == "pyfftw" and importlib.util.find_spec("pyfftw") is not None)
+
+
+@contextlib.contextmanager
+def fft_library(name: str):
+    """Run the block with the real FFTs of ``name`` (one of ``FFT_LIBRARIES``), then restore."""
+    if name not in FFT_LIBRARIES:
+        raise ValueError(f"unknown FFT library {name!r}: one of {', '.join(FFT_LIBRARIES)}")
+    old, _library[0] = _library[0], name
+    try:
+        yield
+    finally:
+        _library[0] = old
+
+
+class _FFTWPlans:
+    """FFTW plans of one grid shape (real to complex and back, one thread), with their aligned
+    buffers: a transform copies its input into the plan's buffer, executes, and returns a copy of
+    the output (so no caller ever holds a buffer the next transform overwrites)."""
+
+    _by_shape: dict = {}
+
+    def __init__(self, shape):
+        import pyfftw  # optional extra, third-party: only solver.fft = "pyfftw" needs it
+        half = (*shape[:-1], shape[-1] // 2 + 1)
+        axes = tuple(range(len(shape)))
+        self.real_in = pyfftw.empty_aligned(shape, dtype="float64")
+        self.spec_out = pyfftw.empty_aligned(half, dtype="complex128")
+        self.spec_in = pyfftw.empty_aligned(half, dtype="complex128")
+        self.real_out = pyfftw.empty_aligned(shape, dtype="float64")
+        self.forward = pyfftw.FFTW(self.real_in, self.spec_out, axes=axes, direction="FFTW_FORWARD",
+                                   flags=("FFTW_ESTIMATE",), threads=WORKERS)
+        # a multi-dimensional complex-to-real transform always overwrites its input (FFTW)
+        self.backward = pyfftw.FFTW(self.spec_in, self.real_out, axes=axes, direction="FFTW_BACKWARD",
+                                    flags=("FFTW_ESTIMATE", "FFTW_DESTROY_INPUT"), threads=WORKERS)
+
+    @classmethod
+    def of(cls, shape) -> "_FFTWPlans":
+        plans = cls._by_shape.get(shape)
+        if plans is None:
+            plans = cls._by_shape[shape] = cls(shape)
+        return plans
+
+    def rfftn(self, v: np.ndarray) -> np.ndarray:
+        self.real_in[...] = v
+        self.forward()
+        return self.spec_out.copy()
+
+    def irfftn(self, vh: np.ndarray) -> np.ndarray:
+        self.spec_in[...] = vh
+        self.backward()  # normalised by 1/N, as scipy's irfftn
+        return self.real_out.copy()
 
 
 class FourierGrid:
@@ -70,10 +135,14 @@ class FourierGrid:
 
     def fft(self, v: np.ndarray) -> np.ndarray:
         FourierGrid.transforms += 1
+        if _library[0] == "pyfftw":
+            return _FFTWPlans.of(self.shape).rfftn(v.reshape(self.shape))
         return sfft.rfftn(v.reshape(self.shape), workers=WORKERS)
 
     def ifft(self, vh: np.ndarray) -> np.ndarray:
         FourierGrid.transforms += 1
+        if _library[0] == "pyfftw":
+            return _FFTWPlans.of(self.shape).irfftn(vh).ravel()
         return sfft.irfftn(vh, s=self.shape, workers=WORKERS).ravel()
 
     def apply_symbol(self, v: np.ndarray, sym: np.ndarray) -> np.ndarray:

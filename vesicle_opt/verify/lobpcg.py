@@ -56,20 +56,21 @@ from vesicle_opt.verify.second_order import translation_modes
 from vesicle_opt.verify.verdict import SecondOrder
 
 K = 3  # block size: the least pair is often degenerate (saddles of the 2D ellipse elongate either way)
-MAX_ITER = 300  # per level; a cap, not the usual end: the levels stop on ACC, RES, STALL (measured:
-# 64^3 torus from its 32^3 start stable after ~20 fine iterations; 32^3 from a random start ~70)
+MAX_ITER = 300  # per level; a cap, not the usual end: the levels stop on EIG_TOL (measured: 64^3 torus
+# from its 32^3 start settled after ~10 fine iterations; 32^3 from its interface start ~50)
 TOL = 1e-4  # every pair's error bound (mu_ref units) below this also ends a level
-ACC = 1e-9  # the fine level stops once the verdict is decided and no Ritz value but the guard (the
-# last) moved by more than ACC max(1, |mu|) in the last iteration: with linear rate q <= 0.95 the
-# remaining error is <= 20 ACC (2e-8), below the 1e-5 agreement with the assembled check
-RES = 1e-3  # ... and its least pair's error bound is below RES (Kato-Temple: its eigenvalue error is
-# then <= RES^2 / gap), or the Ritz values stayed stable for STALL iterations (the residual's round-off
-# floor, ~eps_mach k_max^4 / mu_ref, measured 5e-5 at 64^3, grows 16x per doubling of n)
-STALL = 10
+EIG_TOL = 1e-6  # the fine level stops once the verdict is decided and the Ritz values but the guard have
+# settled to EIG_TOL max(1, |mu|) (``_settled``): a tenth of the 1e-5 agreement with the assembled check
+COARSE_EIG_TOL = 1e-6  # a coarse level settles to 1e-6 too: its eigenvectors only start the next level
+Q_MAX = 0.9  # the step ratio assumed at most (remaining distance <= 9 x the last step)
+RATE_WINDOW = 3  # step ratios looked at
+SETTLED_RUN = 2  # iterations in a row the estimate must hold
 DECIDED_EXTRA = 60  # and at most this many iterations after the verdict is first decided: the rest
 # only sharpens the number (measured, 96^3 torus from its 48^3 start: decided early, then 234
 # iterations creeping 1e-8 per step to mu_min 0.1452083 with error bound 5.4e-3, 7.3x the solve)
-COARSE_ACC, COARSE_RES = ACC, RES  # a coarse level ends where the fine one would (_coarse_stop)
+ACCURATE = 1.5  # a coarse level whose eigenvectors start the next one well has eps / h >= this
+# (_coarse_shape); eps / h >= 1 (resolving) is enough for the coarsest, whose start is the interface block
+COARSE_RATIO = 0.75  # a coarse level is worth its setup only when at most this fraction of n per side
 MIN_COARSE_N = 16  # no coarse level below 16 per side (nor any with h > eps: under-resolved interface)
 POLY_DEGREE = 2  # interface modulations of degree <= 2: translations, the ellipsoidal shape modes
 
@@ -141,17 +142,40 @@ def _setup_level(disc, pf, prec, translations, scene, phi, cB, ref, rotations):
     return _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations)
 
 
+def _even_at_least(x: float, smooth: bool) -> int:
+    """The least even integer >= x (with ``smooth``: whose prime factors are 2, 3, 5: fast FFTs)."""
+    k = 2 * int(np.ceil(x / 2))
+    while smooth:
+        r = k
+        for p in (2, 3, 5):
+            while r % p == 0:
+                r //= p
+        if r == 1:
+            break
+        k += 2
+    return max(k, MIN_COARSE_N)
+
+
 def _coarse_shape(disc, epsilon: float):
-    """The next coarser Fourier grid that resolves the interface (module docstring), or None."""
+    """The next coarser Fourier grid (module docstring), or None. Per side, with eps / h the points
+    per interface width: n/2 where that is even and keeps eps / h >= ``ACCURATE``; else the least
+    even 5-smooth size with eps / h >= ``ACCURATE`` where it is <= ``COARSE_RATIO`` n; else the
+    least even size that still resolves the interface (eps / h >= 1) where it is <= ``COARSE_RATIO``
+    n; else none. Measured on the Table-1 torus (eps / h = 2.6 at 64^3): from 32^3 (eps / h = 1.3,
+    mu_min 0.14044 there against 0.14521) the 64^3 level needed 19 iterations, from 40^3 (fed by
+    26^3) 4; the 48^3 level from its random-mixed start 238-300, from 26^3 22."""
     fourier = getattr(disc, "fourier", None)
     if fourier is None:
         return None
-    n = tuple(disc.grid_shape)
-    if not all(k % 2 == 0 and k // 2 >= MIN_COARSE_N for k in n):
-        return None
-    if max(fourier.lengths / (np.array(n) // 2)) > epsilon:
-        return None
-    return tuple(k // 2 for k in n)
+    n = np.array(disc.grid_shape)
+    per_width = epsilon / fourier.lengths  # eps / h = per_width * n
+    if np.all(n % 2 == 0) and np.all(n // 2 >= MIN_COARSE_N) and np.all(per_width * (n // 2) >= ACCURATE):
+        return tuple(int(k) for k in n // 2)
+    for need, smooth in ((ACCURATE, True), (1.0, False)):
+        k = np.array([_even_at_least(need / w, smooth) for w in per_width])
+        if np.all(k <= COARSE_RATIO * n):
+            return tuple(int(v) for v in k)
+    return None
 
 
 def _interface_block(disc, phi) -> np.ndarray:
@@ -172,27 +196,40 @@ def _interface_block(disc, phi) -> np.ndarray:
     return np.stack(cols)
 
 
-def _stable(acc):
-    """stop rule: the Ritz values but the last moved by <= acc max(1, |theta|) in one iteration."""
-    prev, run = [None], [0]
+def _settled(tol):
+    """stop rule: the Ritz values but the last (the guard) are within ``tol`` max(1, |theta|) of their
+    limits, estimated from their last steps: d q / (1 - q) with d the last step and q the largest of
+    the last ``RATE_WINDOW`` step ratios, capped at ``Q_MAX`` (a linearly converging sequence's
+    remaining distance), on ``SETTLED_RUN`` iterations in a row (one lucky short step is not enough).
+    Returns how many iterations in a row it has held."""
+    steps, prev, run = [], [None], [0]
 
-    def stable(theta) -> int:
-        """how many iterations in a row the Ritz values have been stable (0: moved in the last)"""
-        old, prev[0] = prev[0], theta.copy()
+    def settled(theta) -> int:
         lead = slice(0, max(len(theta) - 1, 1))
-        ok = old is not None and bool(np.all(np.abs(theta[lead] - old[lead])
-                                             <= acc * np.maximum(1.0, np.abs(theta[lead]))))
+        old, prev[0] = prev[0], theta[lead].copy()
+        if old is None or len(old) != len(prev[0]):
+            steps.clear()
+            run[0] = 0
+            return 0
+        steps.append(np.abs(prev[0] - old))
+        del steps[:-RATE_WINDOW - 1]
+        if len(steps) < 2:
+            return 0
+        q = Q_MAX
+        ratios = [s1 / np.maximum(s0, np.finfo(float).tiny) for s0, s1 in zip(steps[:-1], steps[1:])]
+        q = np.minimum(np.max(ratios, axis=0), Q_MAX)
+        remaining = steps[-1] * q / (1.0 - q)
+        ok = bool(np.all(remaining <= tol * np.maximum(1.0, np.abs(prev[0]))))
         run[0] = run[0] + 1 if ok else 0
         return run[0]
-    return stable
+    return settled
 
 
-def _coarse_stop(n_stable: int, res) -> bool:
-    """A coarse level ends when stable to ``COARSE_ACC`` with its least pair's error bound below
-    ``COARSE_RES``: a converged start makes the fine level short (measured on the 64^3 torus: from
-    a 32^3 level stopped at 1e-5 stability, 187 fine iterations; from one converged to 1.8e-3,
-    stable after 20)."""
-    return (n_stable > 0 and (res[0] <= COARSE_RES or n_stable >= STALL)) or bool(np.all(res <= TOL))
+def _coarse_stop(n_settled: int, res) -> bool:
+    """A coarse level ends when its Ritz values have settled to ``COARSE_EIG_TOL`` (``_settled``) or every
+    pair's error bound is below ``TOL``: its eigenvectors only start the next level, which corrects
+    what is left."""
+    return n_settled >= SETTLED_RUN or bool(np.all(res <= TOL))
 
 
 def _excluded_rayleigh(lev: _Level) -> tuple[float, ...]:
@@ -235,10 +272,10 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         cphi = resample(phi, disc.grid_shape, shape)
         cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter)
         clev = _setup_level(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations)
-        stable = _stable(COARSE_ACC)
+        settled = _settled(COARSE_EIG_TOL)
         U0 = _block(clev, _interface_block(cdisc, cphi), k, seed) if cX is None else _block(clev, cX, k)
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
-                               lambda th, res: _coarse_stop(stable(th), res))
+                               lambda th, res: _coarse_stop(settled(th), res))
         counts.append((shape, out.iterations))
         return np.stack([resample(v / clev.s, shape, disc.grid_shape) for v in out.vectors])
     return None
@@ -266,16 +303,16 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
             U0 = _block(lev, _interface_block(disc, phi), k, seed)
         else:
             U0 = _block(lev, rows, k)
-        stable = _stable(ACC)
+        settled = _settled(EIG_TOL)
         since = [0]  # iterations since the verdict was first decided
 
         def stop(theta, res):
             decided = V.classify(float(theta[0]), float(res[0]), rayleigh)[0] != "not checked"
-            n_stable = stable(theta)
+            n_settled = settled(theta)
             since[0] += bool(decided or since[0])
             if decided and since[0] > DECIDED_EXTRA:
                 return True
-            return (decided and n_stable > 0 and (res[0] <= RES or n_stable >= STALL)) or bool(np.all(res <= tol))
+            return (decided and n_settled >= SETTLED_RUN) or bool(np.all(res <= tol))
         out = block_eig.lobpcg(lev.a_u, lev.t_u, U0, lev.Qall, max_iter, stop)
     return {"eigenvalues": out.values, "errors": out.residuals, "vectors": (out.vectors / lev.s).T,
             "excluded": lev.excluded, "excluded_rayleigh": rayleigh, "mu_ref": ref,
