@@ -8,7 +8,10 @@ the same reports added here:
 * ``second_order``: ``minimum`` / ``saddle`` / ``not checked`` for converged exact-constraint
   solves with ``solver.second_order`` (IPOPT: ``verify.second_order``, assembled; Newton-Krylov:
   ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``; its eigenvector (the
-  M-normalised phi direction of the least eigenvalue) is ``history["second_order_mode"]``;
+  M-normalised phi direction of the least eigenvalue) is ``history["second_order_mode"]``; the
+  error bound of that eigenvalue ``second_order_error_bound`` (mu_ref units, ``verify.verdict``), the
+  check's iterations (matrix-free) and its wall seconds ``second_order_time_s`` (beside the
+  solve's ``wall_time_s``);
 * ``topology`` and its counts (``verify.topology.report``).
 
 ``solver.array = 'jax'`` runs the newton-krylov backend's arrays on JAX devices (``nk_jax``); its
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import time
 
 import numpy as np
 
@@ -93,12 +97,16 @@ def _check_options(options, kind, backend: str):
         raise NotSupported("options", f"the {backend} backend takes {kind.__name__}, got {type(options).__name__}")
 
 
-def _second_order(result: Result, so) -> Result:
+def _second_order(result: Result, so, seconds: float = 0.0) -> Result:
     """The second-order keys of ``extra``, the same on both backends (``so`` None: not checked)."""
     if so is None:
         return _replace_extra(result, second_order="not checked", second_order_min_eigenvalue=None,
                               second_order_excluded=None)
     extra = {"second_order_reason": so.reason} if so.reason else {}
+    extra["second_order_time_s"] = seconds
+    extra["second_order_error_bound"] = so.errors[0] if so.errors else so.residual
+    if so.iterations is not None:
+        extra["second_order_iterations"] = so.iterations
     result = _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue,
                             second_order_excluded=so.excluded, **extra)
     if so.lowest_mode is None:
@@ -140,6 +148,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         # the assembled check (verify.second_order): translations excluded on periodic grids
         if check_second_order and result.converged:
             log.info("%s: second-order check (shift-invert Lanczos on the KKT matrix)", scene.name)
+        t0 = time.perf_counter()
         so = second_order.check(nlp, result) if check_second_order and result.converged else None
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
@@ -160,9 +169,10 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
             rotations = scene.mesh.kind != "fem-p1"
             if check_second_order and result.converged:
                 log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
+            t0 = time.perf_counter()
             so = (lobpcg.check(scene, result, setup, rotations=rotations)
                   if check_second_order and result.converged else None)
-    result = _second_order(result, so)
+    result = _second_order(result, so, time.perf_counter() - t0)
     result = _replace_extra(result, **topology.report(result.disc, result.phi))
     if throw and not result.converged:
         raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "

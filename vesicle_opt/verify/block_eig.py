@@ -51,6 +51,14 @@ def _orthonormal(S, *against):
     return C @ S, C
 
 
+def _combine(coefs, blocks):
+    """sum_i coefs[i]^T blocks[i] (rows), accumulated in place."""
+    out = coefs[0].T @ blocks[0]
+    for c, B in zip(coefs[1:], blocks[1:]):
+        out += c.T @ B
+    return out
+
+
 def _sym(G):
     return (G + G.T) / 2
 
@@ -103,11 +111,19 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
         theta = vals[:k]
         cx, cz = Y[:k, :k], Cz @ Y[k:, :k]  # new X = cx^T X + cz^T Z
         parts = np.split(cz, np.cumsum(nz)[:-1], axis=0)
-        P = sum(c.T @ B for c, B in zip(parts, Z))  # the new P: the part of the update outside the old X
-        AP = sum(c.T @ AB for c, AB in zip(parts, AZ))
-        del Z, AZ
-        X = cx.T @ X + P
-        AX = cx.T @ AX + AP
+        # the new P (the part of the update outside the old X), then X; A P, then A X: at most one
+        # k-row temporary beside the blocks
+        P = _combine(parts, Z)
+        del Z
+        X_new = cx.T @ X
+        X_new += P
+        X = X_new
+        AP = _combine(parts, AZ)
+        del AZ
+        AX_new = cx.T @ AX
+        AX_new += AP
+        AX = AX_new
+        del X_new, AX_new
         if not np.all(np.isfinite(P)):
             P = AP = None
     # exact products for the reported residuals (the carried A X accumulates round-off)

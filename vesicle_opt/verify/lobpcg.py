@@ -48,7 +48,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from vesicle_opt.mesh.spectral import fourier_grid, resample
-from vesicle_opt.model.lumped import LumpedOperators, PhaseField
+from vesicle_opt.model.lumped import LumpedOperators, PhaseField, State
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.verify import block_eig
 from vesicle_opt.verify import verdict as V
@@ -82,7 +82,7 @@ class _Level:
     disc: object
     a_u: object  # u -> Pi M^{-1/2} H_L M^{-1/2} Pi u / mu_ref (blocks of columns)
     t_u: object  # r -> mu_ref M^{1/2} P^{-1} M^{1/2} r (blocks)
-    s: np.ndarray  # sqrt(m) per node
+    s: np.ndarray | float  # sqrt(m) per node (a scalar where all weights are equal)
     Q: np.ndarray  # orthonormal rows (u variables): dA, dB
     Qall: np.ndarray  # and the excluded modes
     modes: list
@@ -91,44 +91,67 @@ class _Level:
 
 
 def _symmetry_modes(disc, translations, phi, rotations: bool):
-    """(label, columns) of the excluded modes (module docstring)."""
+    """(label, rows) of the excluded modes (module docstring)."""
     fourier = getattr(disc, "fourier", None)
     if fourier is None:
         modes = translation_modes(disc, phi)
         return (V.TRANSLATIONS if modes else V.NONE), modes
-    modes = list(translations(phi).T)
+    g = fourier.derivatives(phi)  # the translations d_i phi (what ``translations`` gives, as rows)
     if not rotations:
-        return V.TRANSLATIONS, modes
-    g, x = fourier.derivatives(phi), disc.nodes
-    for i, j in ((1, 2), (2, 0), (0, 1)) if disc.dim == 3 else ((0, 1),):
-        modes.append(x[:, i] * g[j] - x[:, j] * g[i])
-    return V.TRANSLATIONS_ROTATIONS, modes
+        return V.TRANSLATIONS, g
+    x = disc.nodes
+    rot = [x[:, i] * g[j] - x[:, j] * g[i] for i, j in (((1, 2), (2, 0), (0, 1)) if disc.dim == 3 else ((0, 1),))]
+    return V.TRANSLATIONS_ROTATIONS, [*g, *rot]
 
 
-def _orthonormal(C):
-    """Orthonormal rows spanning the columns of C (dependent ones dropped)."""
-    q, r = np.linalg.qr(C)
-    keep = np.abs(np.diag(r)) > 1e-12 * np.abs(np.diag(r)).max()
-    return np.ascontiguousarray(q[:, keep].T)
+def _orthonormal_rows(rows) -> tuple[np.ndarray, list[bool]]:
+    """Orthonormal rows spanning ``rows`` (a sequence of vectors), in their order (modified
+    Gram-Schmidt, twice; a row left with less than 1e-12 of its norm is dependent and dropped), and
+    which rows were kept: an (m, N) array and nothing larger is allocated."""
+    out = np.empty((len(rows), np.size(rows[0])))
+    kept, flags = 0, []
+    for r in rows:
+        q = out[kept]
+        q[...] = r
+        norm0 = float(np.linalg.norm(q))
+        for _ in range(2):
+            for j in range(kept):
+                q -= (out[j] @ q) * out[j]
+        norm = float(np.linalg.norm(q))
+        flags.append(norm > 1e-12 * norm0)
+        if flags[-1]:
+            q /= norm
+            kept += 1
+    return out[:kept], flags
 
 
 def _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations) -> _Level:
     st = pf.state(phi)
     parts = pf.hessian_parts(st)
-    _, dA, dB = pf.gradients(st)
-    s = np.sqrt(np.broadcast_to(np.asarray(pf.m, float), phi.shape))
+    dA, dB = pf.gradients(st)[1:]
+    st = State(st.phi, None, None, st.s, st.E, st.A, st.B)  # hvp needs phi and g'(phi) only
+    m = np.asarray(pf.m, float)
+    # sqrt(m) per node; a scalar where the weights are equal (Fourier grids): one vector less
+    s = float(np.sqrt(m.flat[0])) if np.all(m == m.flat[0]) else np.sqrt(np.broadcast_to(m, phi.shape))
     excluded, modes = _symmetry_modes(disc, translations, phi, rotations)
-    Q = _orthonormal(np.column_stack([dA / s, dB / s]))
-    Qall = _orthonormal(np.column_stack([*Q, *(s * t for t in modes)]))
+    # Qall: dA, dB, then the excluded modes (u variables), orthonormal; Q = its first rows (T's normals)
+    Qall, kept = _orthonormal_rows([dA / s, dB / s, *(s * t for t in modes)])
+    del dA, dB
+    Q = Qall[:sum(kept[:2])]
 
     def h_u(u):  # M^{-1/2} H_L M^{-1/2} u / mu_ref
         return pf.hvp(st, parts, u / s, rig, cB) / s / ref
 
-    def columns(f):  # blocks are rows (``block_eig``)
-        return lambda U: np.stack([f(u) for u in U])
+    def rows_of(f):  # blocks are rows (``block_eig``), filled in place
+        def apply(U):
+            out = np.empty_like(U)
+            for i, u in enumerate(U):
+                out[i] = f(u)
+            return out
+        return apply
 
-    a_u = columns(lambda u: h_u(u))  # block_eig projects inputs and outputs onto T
-    t_u = columns(lambda r: ref * s * pinv(s * r))
+    a_u = rows_of(h_u)  # block_eig projects what it needs onto T
+    t_u = rows_of(lambda r: ref * s * pinv(s * r))
     return _Level(disc, a_u, t_u, s, Q, Qall, modes, excluded, h_u)
 
 
