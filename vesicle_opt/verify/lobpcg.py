@@ -201,9 +201,11 @@ def _coarse_shape(disc, epsilon: float):
     return None
 
 
-def _interface_block(disc, phi) -> np.ndarray:
+def _interface_block(disc, phi, rotations_kept: bool = False) -> np.ndarray:
     """Nodal rows p(x) (1 - phi^2), p the monomials of degree <= POLY_DEGREE in coordinates
-    centred on the interface (module docstring)."""
+    centred on the interface (module docstring); on Fourier grids where the rotations are not
+    excluded, also the rotation modes (x_i d_j - x_j d_i) phi: soft there (the least eigenvalue of
+    the torus on the P1 box, 0.0039 mu_ref at 48^3), and no polynomial modulation is one."""
     x = np.asarray(disc.nodes, float)
     w = np.clip(1.0 - phi * phi, 0.0, None)
     c = (w @ x) / max(w.sum(), np.finfo(float).tiny)
@@ -216,6 +218,9 @@ def _interface_block(disc, phi) -> np.ndarray:
         for i in range(d):
             for j in range(i, d):
                 cols.append(y[:, i] * y[:, j] * w)
+    fourier = getattr(disc, "fourier", None)
+    if rotations_kept and fourier is not None:
+        cols += _symmetry_modes(disc, None, phi, True)[1][d:]
     return np.stack(cols)
 
 
@@ -296,7 +301,8 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter)
         clev = _setup_level(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations)
         settled = _settled(COARSE_EIG_TOL)
-        U0 = _block(clev, _interface_block(cdisc, cphi), k, seed) if cX is None else _block(clev, cX, k)
+        U0 = (_block(clev, _interface_block(cdisc, cphi, not rotations), k, seed) if cX is None
+              else _block(clev, cX, k))
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
                                lambda th, res: _coarse_stop(settled(th), res))
         counts.append((shape, out.iterations))
@@ -323,7 +329,7 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
         if rows is None:
             rows = _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, coarse, max_iter)
         if rows is None:
-            U0 = _block(lev, _interface_block(disc, phi), k, seed)
+            U0 = _block(lev, _interface_block(disc, phi, not rotations), k, seed)
         else:
             U0 = _block(lev, rows, k)
         settled = _settled(EIG_TOL)
