@@ -12,17 +12,22 @@ earlier P-metric check iterated on {(P c).v = 0}, not on T, and its "excluded" r
 run to 330 iterations on the 64^2 ellipse, its least eigenvalue fell from 1.45e-3 to the rotation
 mode's 4.5e-6.)
 
-Start and stop (the cost): on Fourier grids the check first runs on the next coarser grid that
-still resolves the interface (h <= eps, n/2 >= 16, even), on the Fourier-interpolated field,
-recursively, and starts from the interpolated coarse eigenvectors; on the coarsest level (and on
-meshes) the start is the Rayleigh-Ritz selection from interface modulations p(x) (1 - phi^2)
-(p of degree <= 2: the smooth shape modes), each column mixed with a random one (so that no
-symmetry class is missing). Each level stops when its Ritz values are stable (``ACC`` per iteration) with an error bound below
-``RES`` or stable for ``STALL`` iterations, the fine one also only with a decided verdict and at the latest
-``DECIDED_EXTRA`` iterations after it was decided; or at ``MAX_ITER``. Measured on the 64^3
-torus: from the 32^3 eigenvectors the verdict is decided after 5 fine iterations and mu_min is
-stable to 1e-8 after ~20, where a random start needed 75 iterations for the verdict (scipy's
-lobpcg, 150 iterations at 64^3: error bound 0.32 against mu_min 0.145, no verdict).
+Start and stop (the cost): on Fourier grids the check first runs on coarser grids
+(``_coarse_shape``: n/2 while that keeps eps/h >= ``ACCURATE``, then the least 5-smooth size with
+eps/h >= ``ACCURATE``, then the least that resolves the interface, eps/h >= 1; e.g. 64^3 -> 40^3 ->
+26^3, 96^3 -> 48^3 -> 26^3), on the Fourier-interpolated field, and each level starts from the
+interpolated eigenvectors of the one below; on the coarsest level (and on meshes) the start is the
+Rayleigh-Ritz selection from interface modulations p(x) (1 - phi^2) (p of degree <= 2: the smooth
+shape modes; plus the rotation modes where they are not excluded), each column mixed with a random
+one of equal norm (so that no symmetry class is missing: with a tenth of that norm the P1 48^3 box
+ended at 0.137 and missed its least pair 0.0039). Each level stops when its Ritz values but the
+guard have settled (``_settled``: to ``COARSE_EIG_TOL`` on coarse levels, to ``EIG_TOL`` on the fine
+one, which also needs a decided verdict and stops at the latest ``DECIDED_EXTRA`` iterations after
+it), when every error bound is below ``TOL``, or at ``MAX_ITER``. Measured on the Table-1 torus
+(load ~6-9, one process): 64^3 26^3/40^3/64^3 levels 68/22/4 iterations, 3.0 s (from 32^3, the
+level before this one: 62/19, 4.2 s; from random-mixed 48^3 for 96^3: 238-300 iterations);
+mu_min within 3e-7 of its converged value 0.14520727. scipy's lobpcg (random start, 150 iterations
+at 64^3) ended with error bound 0.32 against mu_min 0.145, no verdict.
 
 It runs in the variables u = M^{1/2} v on the operator Pi M^{-1/2} H_L M^{-1/2} Pi / mu_ref (Pi the
 orthogonal projector onto T there), which is the same iteration (every trial vector maps one to one,
@@ -30,7 +35,8 @@ Rayleigh-Ritz on T gives the same Ritz pairs), except that LOBPCG's residual tes
 residual on T in the M^{-1} norm, in units of mu_ref: the error bound ``err`` of ``verdict.classify``
 (Bauer-Fike). An unprojected residual would count the multipliers' component of H v along the
 constraint gradients, which is not an error and does not vanish. The dense work is a few
-N x 3k products, where BLAS threads only spin: it runs with one BLAS thread (threadpoolctl).
+N x 3k products (``block_eig``: Gram matrices, no orthonormal basis formed), where BLAS threads
+only spin: it runs with one BLAS thread (threadpoolctl).
 
 Excluded modes (reported as ``excluded``): on Fourier grids the translations d_i phi and (with
 ``rotations``) the rotations (x_i d_j - x_j d_i) phi, exact symmetries of the continuum, soft on the
