@@ -36,7 +36,7 @@ import numpy as np
 from vesicle_opt import nk_jax, resources
 from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
-from vesicle_opt.mesh.spectral import fft_library
+from vesicle_opt.mesh.spectral import fft_library, resolve_fft
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.model.warm_start import start_field
@@ -173,6 +173,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
             so = (lobpcg.check(scene, result, setup, rotations=rotations)
                   if check_second_order and result.converged else None)
     result = _second_order(result, so, time.perf_counter() - t0)
+    if chosen != "ipopt" and scene.solver.array != "jax" and getattr(result.disc, "fourier", None) is not None:
+        result = _replace_extra(result, fft_library=resolve_fft(scene.solver.fft))  # which FFTs ran
     result = _replace_extra(result, **topology.report(result.disc, result.phi))
     if throw and not result.converged:
         raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "

@@ -41,9 +41,11 @@ def test_pyfftw_transforms_equal_scipy_to_roundoff(n, rng):
 @needs_pyfftw
 def test_pyfftw_solve_reaches_the_same_kkt_point():
     sets = ["mesh.kind='spectral'", "mesh.n=16", "solver.backend='newton-krylov'", "solver.second_order=false"]
-    a = solve(S.load("torus-table1-3d", sets))
+    a = solve(S.load("torus-table1-3d", [*sets, "solver.fft='scipy'"]))
     b = solve(S.load("torus-table1-3d", [*sets, "solver.fft='pyfftw'"]))
     assert a.converged and b.converged
+    assert (a.extra["fft_library"], b.extra["fft_library"]) == ("scipy", "pyfftw")  # the summary says which ran
+    assert spectral.resolve_fft("auto") == "pyfftw"  # the default takes pyFFTW where it is installed
     # tol 1e-8: two KKT points of one problem within the tolerance agree in E to ~tol^2 relative;
     # the iterates differ only by FFT round-off (measured |dE|/E ~1e-14)
     assert abs(a.energy - b.energy) <= 1e-10 * abs(a.energy)
@@ -57,6 +59,7 @@ def test_fft_key_is_checked(monkeypatch):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pyfftw" else real(name, *a))
     with pytest.raises(InputError, match="solver.fft.*fftw"):
         S.load("torus-table1-3d", [*sets, "solver.fft='pyfftw'"])
+    assert spectral.resolve_fft("auto") == "scipy"  # without pyFFTW the default is scipy's
     with pytest.raises(ValueError, match="mkl"):
         with fft_library("mkl"):
             pass

@@ -81,7 +81,8 @@ class Solver:
     # M sqrt(N): at tol 1e-8 the last stage is certified only up to M ~ 1e4 on the bundled 2D meshes
     max_outer: int = 20
     array: str = "numpy"  # "numpy" | "jax": the array library of the newton-krylov backend (nk_jax)
-    fft: str = "scipy"  # "scipy" | "pyfftw": the real FFTs of Fourier grids (mesh.spectral.fft_library)
+    fft: str = "auto"  # "auto" | "scipy" | "pyfftw": the real FFTs of Fourier grids (mesh.spectral.fft_library;
+    # auto: pyFFTW where the optional extra is installed, else scipy)
     max_memory_gb: float | None = None  # the resource guard's limit (vesicle_opt.resources); None: available memory
 
 
@@ -162,7 +163,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.M_max": ("float", 1e6, f"M0 <= M_max <= {M_LIMIT:g}"),
     "solver.max_outer": ("int", 20, ">= 1"),
     "solver.array": ("str", "numpy", ("numpy", "jax")),
-    "solver.fft": ("str", "scipy", ("scipy", "pyfftw")),
+    "solver.fft": ("str", "auto", ("auto", "scipy", "pyfftw")),
     "solver.max_memory_gb": ("float", None, "> 0 (GB; default: the memory available now)"),
     # gradient flows (vesicle_opt.flows)
     "flow.scheme": ("str", "penalty", ("penalty", "lagrange", "backward-euler")),

@@ -35,7 +35,7 @@ import numpy as np
 
 from vesicle_opt import scene
 from vesicle_opt.api import solve
-from vesicle_opt.mesh.spectral import FourierGrid, fft_library
+from vesicle_opt.mesh.spectral import FourierGrid, fft_library, resolve_fft
 from vesicle_opt.studies.runner import in_fresh_process, run_cases
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
@@ -43,7 +43,7 @@ log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q h
 TRANSFORM_REPEATS = 20  # one transform's time: the median of this many rfftn / irfftn pairs
 
 
-def _scene(kind: str, n: int, second_order: bool, fft: str = "scipy"):
+def _scene(kind: str, n: int, second_order: bool, fft: str = "auto"):
     return scene.load("torus-table1-3d", [f"mesh.kind='{kind}'", f"mesh.n={n}", "solver.backend='newton-krylov'",
                                           f"solver.second_order={'true' if second_order else 'false'}",
                                           f"solver.fft='{fft}'"])
@@ -64,14 +64,14 @@ def transform_time(disc) -> float:
     return statistics.median(times)
 
 
-def _run(kind: str, n: int, certified: bool, fft: str = "scipy") -> dict:
+def _run(kind: str, n: int, certified: bool, fft: str = "auto") -> dict:
     """One fresh-process run of the front door (module docstring)."""
     sc = _scene(kind, n, certified, fft)
     f0 = FourierGrid.transforms
     t0 = time.perf_counter()
     r = solve(sc)
     out = {"solve_s": r.wall_time_s, "front_door_s": time.perf_counter() - t0, "converged": r.converged,
-           "energy": r.energy, "fft_total": FourierGrid.transforms - f0}
+           "energy": r.energy, "fft_total": FourierGrid.transforms - f0, "fft_library": resolve_fft(fft)}
     if certified and r.converged:
         e = r.extra
         out.update({"certificate_s": e["second_order_time_s"], "verdict": e["second_order"],
@@ -93,7 +93,7 @@ def cases(quick: bool) -> list[tuple[str, int, int]]:
 
 EXTRA = ["kind", "n", "repeats", "load_average", "converged", "solve_s", "certificate_s", "certificate_ratio",
          "bare_peak_mb", "certified_peak_mb", "memory_ratio", "verdict", "min_eigenvalue", "error_bound",
-         "iterations", "reason", "fft_solve", "fft_certificate", "transform_ms", "fft_share_solve",
+         "iterations", "reason", "fft_library", "fft_solve", "fft_certificate", "transform_ms", "fft_share_solve",
          "fft_share_certificate"]
 
 
@@ -123,7 +123,7 @@ def case_rows(case: dict) -> list[dict]:
            "bare_peak_mb": bare_peak, "certified_peak_mb": cert_peak, "memory_ratio": cert_peak / bare_peak,
            "verdict": c.get("verdict"), "min_eigenvalue": c.get("min_eigenvalue"),
            "error_bound": c.get("error_bound"), "iterations": c.get("iterations"), "reason": c.get("reason"),
-           "fft_solve": fft_solve, "fft_certificate": fft_cert, "transform_ms": 1e3 * tr,
+           "fft_library": c["fft_library"], "fft_solve": fft_solve, "fft_certificate": fft_cert, "transform_ms": 1e3 * tr,
            "fft_share_solve": fft_solve * tr / solve_s if np.isfinite(tr) else float("nan"),
            "fft_share_certificate": (fft_cert * tr / cert_s) if np.isfinite(tr) and ratios else float("nan")}
     log.info(f"bench_certificate: {row['kind']:8s} n={row['n']:3d} solve={solve_s:.2f}s cert={cert_s:.2f}s "
