@@ -173,8 +173,9 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
             so = (lobpcg.check(scene, result, setup, rotations=rotations)
                   if check_second_order and result.converged else None)
     result = _second_order(result, so, time.perf_counter() - t0)
-    if chosen != "ipopt" and scene.solver.array != "jax" and getattr(result.disc, "fourier", None) is not None:
-        result = _replace_extra(result, fft_library=resolve_fft(scene.solver.fft))  # which FFTs ran
+    if chosen != "ipopt" and getattr(result.disc, "fourier", None) is not None:  # which FFTs the solve ran
+        lib = "jax" if scene.solver.array == "jax" else resolve_fft(scene.solver.fft)
+        result = _replace_extra(result, fft_library=lib)
     result = _replace_extra(result, **topology.report(result.disc, result.phi))
     if throw and not result.converged:
         raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
