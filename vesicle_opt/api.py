@@ -8,7 +8,10 @@ the same reports added here:
 * ``second_order``: ``minimum`` / ``saddle`` / ``not checked`` for converged exact-constraint
   solves with ``solver.second_order`` (IPOPT: ``verify.second_order``, assembled; Newton-Krylov:
   ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``; its eigenvector (the
-  M-normalised phi direction of the least eigenvalue) is ``history["second_order_mode"]``;
+  M-normalised phi direction of the least eigenvalue) is ``history["second_order_mode"]``; the
+  error bound of that eigenvalue ``second_order_error_bound`` (mu_ref units, ``verify.verdict``), the
+  check's iterations (matrix-free) and its wall seconds ``second_order_time_s`` (beside the
+  solve's ``wall_time_s``);
 * ``topology`` and its counts (``verify.topology.report``).
 
 ``solver.array = 'jax'`` runs the newton-krylov backend's arrays on JAX devices (``nk_jax``); its
@@ -26,12 +29,14 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import time
 
 import numpy as np
 
 from vesicle_opt import nk_jax, resources
 from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
+from vesicle_opt.mesh.spectral import fft_library, resolve_fft
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.model.warm_start import start_field
@@ -92,12 +97,16 @@ def _check_options(options, kind, backend: str):
         raise NotSupported("options", f"the {backend} backend takes {kind.__name__}, got {type(options).__name__}")
 
 
-def _second_order(result: Result, so) -> Result:
+def _second_order(result: Result, so, seconds: float = 0.0) -> Result:
     """The second-order keys of ``extra``, the same on both backends (``so`` None: not checked)."""
     if so is None:
         return _replace_extra(result, second_order="not checked", second_order_min_eigenvalue=None,
                               second_order_excluded=None)
     extra = {"second_order_reason": so.reason} if so.reason else {}
+    extra["second_order_time_s"] = seconds
+    extra["second_order_error_bound"] = so.errors[0] if so.errors else so.residual
+    if so.iterations is not None:
+        extra["second_order_iterations"] = so.iterations
     result = _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue,
                             second_order_excluded=so.excluded, **extra)
     if so.lowest_mode is None:
@@ -106,11 +115,12 @@ def _second_order(result: Result, so) -> Result:
     return dataclasses.replace(result, history={**result.history, "second_order_mode": so.lowest_mode})
 
 
-def with_reports(result: Result, so) -> Result:
-    """The second-order keys (``so``: a ``verdict.SecondOrder`` or None: not checked) and the topology
-    keys every front-door result carries; for callers that run a backend's pieces themselves
-    (``vesicle_opt.branch`` reuses one IPOPT solver along a branch) and report the same way."""
-    result = _second_order(result, so)
+def with_reports(result: Result, so, seconds: float = 0.0) -> Result:
+    """The second-order keys (``so``: a ``verdict.SecondOrder`` or None: not checked; ``seconds``: the
+    check's wall time) and the topology keys every front-door result carries; for callers that run a
+    backend's pieces themselves (``vesicle_opt.branch`` reuses one IPOPT solver along a branch) and
+    report the same way."""
+    result = _second_order(result, so, seconds)
     return _replace_extra(result, **topology.report(result.disc, result.phi))
 
 
@@ -147,6 +157,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         # the assembled check (verify.second_order): translations excluded on periodic grids
         if check_second_order and result.converged:
             log.info("%s: second-order check (shift-invert Lanczos on the KKT matrix)", scene.name)
+        t0 = time.perf_counter()
         so = second_order.check(nlp, result) if check_second_order and result.converged else None
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
@@ -158,15 +169,22 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         _log_start(scene, chosen, backend, disc.n_nodes)
         # solver.array: the same method with numpy arrays or on JAX devices (nk_jax), same Result
         run = nk_jax.solve if scene.solver.array == "jax" else nk_solve.solve
-        result = run(scene, x0=_phi_start(x0, disc), options=options, setup=setup, check=False)
-        # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
-        # continuum's symmetries, excluded (second_order_excluded says which)
-        # (a P1 scene keeps the P1 report, translations only, also where its tensor box runs on FFT)
-        rotations = scene.mesh.kind != "fem-p1"
-        if check_second_order and result.converged:
-            log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
-        so = lobpcg.check(scene, result, setup, rotations=rotations) if check_second_order and result.converged else None
-    result = with_reports(result, so)
+        # solver.fft: the real FFTs of the solve and its check (scipy.fft or pyFFTW)
+        with fft_library(scene.solver.fft):
+            result = run(scene, x0=_phi_start(x0, disc), options=options, setup=setup, check=False)
+            # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
+            # continuum's symmetries, excluded (second_order_excluded says which)
+            # (a P1 scene keeps the P1 report, translations only, also where its tensor box runs on FFT)
+            rotations = scene.mesh.kind != "fem-p1"
+            if check_second_order and result.converged:
+                log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
+            t0 = time.perf_counter()
+            so = (lobpcg.check(scene, result, setup, rotations=rotations)
+                  if check_second_order and result.converged else None)
+    result = with_reports(result, so, seconds=time.perf_counter() - t0)
+    if chosen != "ipopt" and getattr(result.disc, "fourier", None) is not None:  # which FFTs the solve ran
+        lib = "jax" if scene.solver.array == "jax" else resolve_fft(scene.solver.fft)
+        result = _replace_extra(result, fft_library=lib)
     if throw and not result.converged:
         raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
                           f"{result.kkt_residual:.3g}, A-alpha {result.volume_residual:.3g}, "

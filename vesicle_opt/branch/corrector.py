@@ -35,6 +35,7 @@ the same eigenvalues to 1e-9 mu_ref (``tests/branch/test_corrector.py`` ties the
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import numpy as np
 
@@ -154,14 +155,14 @@ class IpoptCorrector:
 
     def reports(self, scene: Scene, nlp, res: Result) -> Result:
         """``res`` with the second-order and topology reports of the front door (module docstring)."""
-        so = None
+        so, t0 = None, time.perf_counter()
         if scene.solver.second_order and res.converged:
             if self.matrix_free:
                 so = rotation_modulo(lobpcg.check(scene, res, prepare(scene, self.fourier),
                                                   rotations=scene.mesh.kind != "fem-p1"), scene.dim)
             else:  # the front door's assembled check on the point's own (constant) NLP
                 so = second_order.check(build_nlp(scene, self.disc, check=False), res)
-        res = with_reports(res, so)
+        res = with_reports(res, so, seconds=time.perf_counter() - t0)
         if so is not None and so.excluded == V.TRANSLATIONS_ROTATIONS:
             res = dataclasses.replace(res, extra={**res.extra, "rotation_rayleigh": min(so.excluded_rayleigh[scene.dim:])})
         return res

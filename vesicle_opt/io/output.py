@@ -38,7 +38,8 @@ def write_vtk(path: Path, disc, phi: np.ndarray) -> None:
         origin, spacing = vtk.grid_geometry(disc)
         axes = [origin[d] + spacing[d] * np.arange(k) for d, k in enumerate(F.shape)]
         points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, disc.dim)
-        idx = np.arange(F.size).reshape(F.shape)
+        # int32 connectivity where it fits: half the bytes to compress (VTK reads either)
+        idx = np.arange(F.size, dtype=np.int32 if F.size < 2**31 else np.int64).reshape(F.shape)
         if disc.dim == 2:
             c = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], axis=-1).reshape(-1, 4)
             cells = [("quad", c)]
@@ -94,7 +95,9 @@ def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
         ax.set_title(title, fontsize=9)
         fig.colorbar(image, ax=ax, shrink=0.8, label="phi (+1 inside, -1 outside)")
     else:
-        fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), layout="constrained")
+        # a fixed layout: matplotlib's constrained layout measured 0.35 s of a 0.78 s PNG at 64^3
+        fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+        fig.subplots_adjust(left=0.04, right=0.9, bottom=0.12, top=0.85, wspace=0.28)
         if disc.grid_shape is not None:
             F = _grid_field(disc, phi)
             mid = [k // 2 for k in disc.grid_shape]
@@ -111,7 +114,7 @@ def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
             ax.set_xlabel(AXES[other[0]])
             ax.set_ylabel(AXES[other[1]])
         fig.suptitle(title, fontsize=10)
-        fig.colorbar(image, ax=list(axes), shrink=0.8, label="phi")
+        fig.colorbar(image, cax=fig.add_axes((0.92, 0.17, 0.012, 0.63)), label="phi")
     if disc.dim == 2:
         fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -8,7 +8,12 @@ The discrete Laplacian Delta_h = F^{-1} diag(sigma) F is applied by real FFTs, O
 * ``fd``: sigma(k) = -sum_i (4 / h_i^2) sin^2(k_i h_i / 2), the symbol of the (2d+1)-point stencil,
   so this equals ``fd.grid``'s sparse Laplacian to round-off (a test checks it).
 
-Both are symmetric, so in the lumped framework of Definition 2.2 K = -m Delta_h (m constant) and
+The real FFTs are scipy.fft's or, with ``solver.fft = "pyfftw"`` (optional extra ``fftw``; the
+default "auto" takes it where installed), FFTW's through pyFFTW, planned once per grid shape with FFTW_ESTIMATE (no planning time,
+and the same plan, hence the same bits, in every run) and reused (``FFT_LIBRARIES``,
+``fft_library``). Both compute the unnormalised forward and the 1/N-normalised inverse transform.
+
+Both Laplacians are symmetric, so in the lumped framework of Definition 2.2 K = -m Delta_h (m constant) and
 Delta_h^T = Delta_h. :func:`grid` wraps a :class:`FourierGrid` into a
 :class:`~vesicle_opt.discretization.Discretization` whose K is a ``LinearOperator`` (never a dense
 matrix), so ``functionals.evaluate``/``gradients`` and ``kkt.kkt_residual`` work unchanged on it.
@@ -16,6 +21,10 @@ matrix), so ``functionals.evaluate``/``gradients`` and ``kkt.kkt_residual`` work
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
+import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +35,75 @@ import scipy.sparse.linalg as spla
 from vesicle_opt.mesh.base import Discretization
 
 WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
+FFT_LIBRARIES = ("scipy", "pyfftw")  # solver.fft: scipy.fft or FFTW through pyFFTW ("auto": the latter
+# where installed; measured on the 64^3 torus solve, interleaved: pyFFTW / scipy 0.84)
+_library = ["scipy"]  # the one in use in this process (``fft_library``)
+
+
+def fft_available(name: str) -> bool:
+    """Whether the FFT library ``name`` can be used here (pyFFTW is an optional extra)."""
+    return name in ("scipy", "auto") or (name == "pyfftw" and importlib.util.find_spec("pyfftw") is not None)
+
+
+def resolve_fft(name: str) -> str:
+    """The library ``name`` stands for: "auto" is pyFFTW where installed, else scipy."""
+    if name == "auto":
+        return "pyfftw" if fft_available("pyfftw") else "scipy"
+    return name
+
+
+@contextlib.contextmanager
+def fft_library(name: str):
+    """Run the block with the real FFTs of ``name`` (one of ``FFT_LIBRARIES`` or "auto"), then restore."""
+    name = resolve_fft(name)
+    if name not in FFT_LIBRARIES:
+        raise ValueError(f"unknown FFT library {name!r}: one of {', '.join(FFT_LIBRARIES)} or auto")
+    old, _library[0] = _library[0], name
+    try:
+        yield
+    finally:
+        _library[0] = old
+
+
+class _FFTWPlans:
+    """FFTW plans of one grid shape (real to complex and back, one thread), with their aligned
+    buffers: a transform copies its input into the plan's buffer, executes, and returns a copy of
+    the output (so no caller ever holds a buffer the next transform overwrites). Plans are kept per
+    thread (a buffer is never shared by two threads)."""
+
+    _local = threading.local()
+
+    def __init__(self, shape):
+        import pyfftw  # optional extra, third-party: only solver.fft = "pyfftw" needs it
+        half = (*shape[:-1], shape[-1] // 2 + 1)
+        axes = tuple(range(len(shape)))
+        self.real_in = pyfftw.empty_aligned(shape, dtype="float64")
+        self.spec_out = pyfftw.empty_aligned(half, dtype="complex128")
+        self.spec_in = pyfftw.empty_aligned(half, dtype="complex128")
+        self.real_out = pyfftw.empty_aligned(shape, dtype="float64")
+        self.forward = pyfftw.FFTW(self.real_in, self.spec_out, axes=axes, direction="FFTW_FORWARD",
+                                   flags=("FFTW_ESTIMATE",), threads=WORKERS)
+        # a multi-dimensional complex-to-real transform always overwrites its input (FFTW)
+        self.backward = pyfftw.FFTW(self.spec_in, self.real_out, axes=axes, direction="FFTW_BACKWARD",
+                                    flags=("FFTW_ESTIMATE", "FFTW_DESTROY_INPUT"), threads=WORKERS)
+
+    @classmethod
+    def of(cls, shape) -> "_FFTWPlans":
+        by_shape = cls._local.__dict__.setdefault("by_shape", {})
+        plans = by_shape.get(shape)
+        if plans is None:
+            plans = by_shape[shape] = cls(shape)
+        return plans
+
+    def rfftn(self, v: np.ndarray) -> np.ndarray:
+        self.real_in[...] = v
+        self.forward()
+        return self.spec_out.copy()
+
+    def irfftn(self, vh: np.ndarray) -> np.ndarray:
+        self.spec_in[...] = vh
+        self.backward()  # normalised by 1/N, as scipy's irfftn
+        return self.real_out.copy()
 
 
 class FourierGrid:
@@ -67,14 +145,27 @@ class FourierGrid:
 
     # --- transforms -----------------------------------------------------------------------
     transforms = 0  # real FFTs done by all grids in this process (benchmarks: the FFT count)
+    transform_seconds = 0.0  # and their wall time (benchmarks: the FFT floor, timed where it is spent)
 
     def fft(self, v: np.ndarray) -> np.ndarray:
+        t0 = time.perf_counter()
+        if _library[0] == "pyfftw":
+            out = _FFTWPlans.of(self.shape).rfftn(v.reshape(self.shape))
+        else:
+            out = sfft.rfftn(v.reshape(self.shape), workers=WORKERS)
         FourierGrid.transforms += 1
-        return sfft.rfftn(v.reshape(self.shape), workers=WORKERS)
+        FourierGrid.transform_seconds += time.perf_counter() - t0
+        return out
 
     def ifft(self, vh: np.ndarray) -> np.ndarray:
+        t0 = time.perf_counter()
+        if _library[0] == "pyfftw":
+            out = _FFTWPlans.of(self.shape).irfftn(vh).ravel()
+        else:
+            out = sfft.irfftn(vh, s=self.shape, workers=WORKERS).ravel()
         FourierGrid.transforms += 1
-        return sfft.irfftn(vh, s=self.shape, workers=WORKERS).ravel()
+        FourierGrid.transform_seconds += time.perf_counter() - t0
+        return out
 
     def apply_symbol(self, v: np.ndarray, sym: np.ndarray) -> np.ndarray:
         """F^{-1} diag(sym) F v for a real, even symbol (rfft layout)."""

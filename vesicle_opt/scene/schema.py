@@ -81,6 +81,8 @@ class Solver:
     # M sqrt(N): at tol 1e-8 the last stage is certified only up to M ~ 1e4 on the bundled 2D meshes
     max_outer: int = 20
     array: str = "numpy"  # "numpy" | "jax": the array library of the newton-krylov backend (nk_jax)
+    fft: str = "auto"  # "auto" | "scipy" | "pyfftw": the real FFTs of Fourier grids (mesh.spectral.fft_library;
+    # auto: pyFFTW where the optional extra is installed, else scipy)
     max_memory_gb: float | None = None  # the resource guard's limit (vesicle_opt.resources); None: available memory
 
 
@@ -161,6 +163,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.M_max": ("float", 1e6, f"M0 <= M_max <= {M_LIMIT:g}"),
     "solver.max_outer": ("int", 20, ">= 1"),
     "solver.array": ("str", "numpy", ("numpy", "jax")),
+    "solver.fft": ("str", "auto", ("auto", "scipy", "pyfftw")),
     "solver.max_memory_gb": ("float", None, "> 0 (GB; default: the memory available now)"),
     # gradient flows (vesicle_opt.flows)
     "flow.scheme": ("str", "penalty", ("penalty", "lagrange", "backward-euler")),
@@ -327,10 +330,11 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     initial = parse_shape("initial", val["initial"], dim)
     _check_penalty(val)
     _check_array(val)
+    _check_fft(val)
     solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
                     val["solver.backend"], second_order=val["solver.second_order"], M0=val["solver.M0"],
                     M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
-                    max_outer=val["solver.max_outer"], array=val["solver.array"],
+                    max_outer=val["solver.max_outer"], array=val["solver.array"], fft=val["solver.fft"],
                     max_memory_gb=val["solver.max_memory_gb"])
     return Scene(name, domain, mesh, model, constraints, initial, solver, _flow(val))
 
@@ -345,6 +349,12 @@ def _check_array(val: dict) -> None:
                          f"got mesh.kind {val['mesh.kind']!r}")
     if importlib.util.find_spec("jax") is None:
         raise InputError("solver.array", "'jax' needs the optional extra: pip install 'vesicle_opt[jax]'")
+
+
+def _check_fft(val: dict) -> None:
+    """solver.fft = 'pyfftw' needs pyFFTW installed (the optional extra ``fftw``); checked before any work."""
+    if val["solver.fft"] == "pyfftw" and importlib.util.find_spec("pyfftw") is None:
+        raise InputError("solver.fft", "'pyfftw' needs the optional extra: pip install 'vesicle_opt[fftw]'")
 
 
 def _check_ranges(val: dict, box, n) -> None:

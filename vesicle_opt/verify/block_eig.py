@@ -51,55 +51,85 @@ def _orthonormal(S, *against):
     return C @ S, C
 
 
+def _combine(coefs, blocks):
+    """sum_i coefs[i]^T blocks[i] (rows), accumulated in place."""
+    out = coefs[0].T @ blocks[0]
+    for c, B in zip(coefs[1:], blocks[1:]):
+        out += c.T @ B
+    return out
+
+
+def _sym(G):
+    return (G + G.T) / 2
+
+
 def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int, stop) -> BlockResult:
     """LOBPCG for the smallest eigenpairs of A on {Q u = 0} from the block X0. Blocks are stored
-    as rows (k x N, each vector contiguous: the FFTs and products read whole vectors)."""
+    as rows (k x N, each vector contiguous: the FFTs and products read whole vectors).
+
+    ``apply_a`` need not project its output onto {Q u = 0}: every product it enters is taken with
+    vectors of that space (where A and its projection agree), and the residual is projected.
+    Per iteration the search directions Z = [W; P] are orthogonalised against X explicitly (so P
+    stays the part of the update outside X), and Rayleigh-Ritz on [X; Z] is done in the small space
+    from the Gram matrices of Z (row-scaled, dependent directions dropped, SVQB): the orthonormal
+    basis of Z is never formed, only the k new X, A X, P, A P (about 20 k^2 N flops an iteration)."""
     k = X0.shape[0]
     X, _ = _orthonormal(_project(X0, Q))
-    AX = _project(apply_a(X), Q)
-    theta, C = np.linalg.eigh((X @ AX.T + AX @ X.T) / 2)
+    AX = apply_a(X)
+    theta, C = np.linalg.eigh(_sym(X @ AX.T))
     X, AX = C.T @ X, C.T @ AX
     P = AP = None
     history = []
     it = 0
     for it in range(1, max_iter + 1):
-        R = AX - theta[:, None] * X
+        R = _project(AX, Q) - theta[:, None] * X
         res = np.linalg.norm(R, axis=1)
         history.append((float(theta[0]), float(res[0])))
         if stop(theta, res):
             break
         W = _project(apply_t(R), Q)
         del R
-        AW = _project(apply_a(W), Q)
-        # S = [W; P] orthonormalised against X, A S by linearity from [A W; A P]
-        S = W if P is None else np.vstack([W, P])
-        AS = AW if P is None else np.vstack([AW, AP])
+        AW = apply_a(W)
+        Z, AZ = [W, P] if P is not None else [W], [AW, AP] if P is not None else [AW]
         del W, AW, P, AP
-        coef = S @ X.T  # one pass: X is orthonormal and SVQB below drops what cancels
-        S -= coef @ X
-        AS -= coef @ AX
-        G = S @ S.T
-        w, Vg = np.linalg.eigh((G + G.T) / 2)
+        for B, AB in zip(Z, AZ):  # one pass against X: SVQB below drops what cancels
+            coef = B @ X.T
+            B -= coef @ X
+            AB -= coef @ AX
+        # Gram matrices of Z and A on [X; Z] (A X X^T = diag(theta): X is a Ritz basis)
+        nz = [B.shape[0] for B in Z]
+        G = np.block([[Z[i] @ Z[j].T for j in range(len(Z))] for i in range(len(Z))])
+        G = _sym(G)
+        XAZ = np.hstack([AX @ B.T for B in Z])  # = X A Z^T on the subspace
+        ZAZ = _sym(np.block([[Z[i] @ AZ[j].T for j in range(len(Z))] for i in range(len(Z))]))
+        d = 1.0 / np.sqrt(np.maximum(np.diag(G), np.finfo(float).tiny))
+        w, Vg = np.linalg.eigh(G * d[:, None] * d[None, :])
         keep = w > DROP * max(float(w.max()), np.finfo(float).tiny)
-        C = (Vg[:, keep] / np.sqrt(w[keep])).T
-        S, AS = C @ S, C @ AS
-        # Rayleigh-Ritz on [X; S] from its blocks (no copies of the whole basis)
-        XAS = (X @ AS.T + AX @ S.T) / 2
-        SAS = S @ AS.T
-        G = np.block([[np.diag(theta), XAS], [XAS.T, (SAS + SAS.T) / 2]])
-        vals, Y = np.linalg.eigh(G)
-        Y1, Y2 = Y[:k, :k], Y[k:, :k]
+        Cz = d[:, None] * (Vg[:, keep] / np.sqrt(w[keep]))  # Z-coefficients of an orthonormal basis of Z
+        Gs = np.block([[np.diag(theta), XAZ @ Cz], [Cz.T @ XAZ.T, _sym(Cz.T @ ZAZ @ Cz)]])
+        vals, Y = np.linalg.eigh(Gs)
         theta = vals[:k]
-        P, AP = Y2.T @ S, Y2.T @ AS  # the new P: the part of the update outside the old X
-        del S, AS
-        X = Y1.T @ X + P
-        AX = Y1.T @ AX + AP
-        if P.shape[0] == 0 or not np.all(np.isfinite(P)):
+        cx, cz = Y[:k, :k], Cz @ Y[k:, :k]  # new X = cx^T X + cz^T Z
+        parts = np.split(cz, np.cumsum(nz)[:-1], axis=0)
+        # the new P (the part of the update outside the old X), then X; A P, then A X: at most one
+        # k-row temporary beside the blocks
+        P = _combine(parts, Z)
+        del Z
+        X_new = cx.T @ X
+        X_new += P
+        X = X_new
+        AP = _combine(parts, AZ)
+        del AZ
+        AX_new = cx.T @ AX
+        AX_new += AP
+        AX = AX_new
+        del X_new, AX_new
+        if not np.all(np.isfinite(P)):
             P = AP = None
     # exact products for the reported residuals (the carried A X accumulates round-off)
     X, _ = _orthonormal(X)
     AX = _project(apply_a(X), Q)
-    theta, C = np.linalg.eigh((X @ AX.T + AX @ X.T) / 2)
+    theta, C = np.linalg.eigh(_sym(X @ AX.T))
     X, AX = C.T @ X, C.T @ AX
     res = np.linalg.norm(AX - theta[:, None] * X, axis=1)
     return BlockResult(theta, X, AX, res, it, history)

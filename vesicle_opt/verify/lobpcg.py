@@ -12,17 +12,22 @@ earlier P-metric check iterated on {(P c).v = 0}, not on T, and its "excluded" r
 run to 330 iterations on the 64^2 ellipse, its least eigenvalue fell from 1.45e-3 to the rotation
 mode's 4.5e-6.)
 
-Start and stop (the cost): on Fourier grids the check first runs on the next coarser grid that
-still resolves the interface (h <= eps, n/2 >= 16, even), on the Fourier-interpolated field,
-recursively, and starts from the interpolated coarse eigenvectors; on the coarsest level (and on
-meshes) the start is the Rayleigh-Ritz selection from interface modulations p(x) (1 - phi^2)
-(p of degree <= 2: the smooth shape modes), each column mixed with a random one (so that no
-symmetry class is missing). Each level stops when its Ritz values are stable (``ACC`` per iteration) with an error bound below
-``RES`` or stable for ``STALL`` iterations, the fine one also only with a decided verdict and at the latest
-``DECIDED_EXTRA`` iterations after it was decided; or at ``MAX_ITER``. Measured on the 64^3
-torus: from the 32^3 eigenvectors the verdict is decided after 5 fine iterations and mu_min is
-stable to 1e-8 after ~20, where a random start needed 75 iterations for the verdict (scipy's
-lobpcg, 150 iterations at 64^3: error bound 0.32 against mu_min 0.145, no verdict).
+Start and stop (the cost): on Fourier grids the check first runs on coarser grids
+(``_coarse_shape``: n/2 while that keeps eps/h >= ``ACCURATE``, then the least 5-smooth size with
+eps/h >= ``ACCURATE``, then the least that resolves the interface, eps/h >= 1; e.g. 64^3 -> 40^3 ->
+26^3, 96^3 -> 48^3 -> 26^3), on the Fourier-interpolated field, and each level starts from the
+interpolated eigenvectors of the one below; on the coarsest level (and on meshes) the start is the
+Rayleigh-Ritz selection from interface modulations p(x) (1 - phi^2) (p of degree <= 2: the smooth
+shape modes; plus the rotation modes where they are not excluded), each column mixed with a random
+one of equal norm (so that no symmetry class is missing: with a tenth of that norm the P1 48^3 box
+ended at 0.137 and missed its least pair 0.0039). Each level stops when its Ritz values but the
+guard have settled (``_settled``: to ``COARSE_EIG_TOL`` on coarse levels, to ``EIG_TOL`` on the fine
+one, which also needs a decided verdict and stops at the latest ``DECIDED_EXTRA`` iterations after
+it), when every error bound is below ``TOL``, or at ``MAX_ITER``. Measured on the Table-1 torus
+(load ~6-9, one process): 64^3 26^3/40^3/64^3 levels 68/22/4 iterations, 3.0 s (from 32^3, the
+level before this one: 62/19, 4.2 s; from random-mixed 48^3 for 96^3: 238-300 iterations);
+mu_min within 3e-7 of its converged value 0.14520727. scipy's lobpcg (random start, 150 iterations
+at 64^3) ended with error bound 0.32 against mu_min 0.145, no verdict.
 
 It runs in the variables u = M^{1/2} v on the operator Pi M^{-1/2} H_L M^{-1/2} Pi / mu_ref (Pi the
 orthogonal projector onto T there), which is the same iteration (every trial vector maps one to one,
@@ -30,7 +35,8 @@ Rayleigh-Ritz on T gives the same Ritz pairs), except that LOBPCG's residual tes
 residual on T in the M^{-1} norm, in units of mu_ref: the error bound ``err`` of ``verdict.classify``
 (Bauer-Fike). An unprojected residual would count the multipliers' component of H v along the
 constraint gradients, which is not an error and does not vanish. The dense work is a few
-N x 3k products, where BLAS threads only spin: it runs with one BLAS thread (threadpoolctl).
+N x 3k products (``block_eig``: Gram matrices, no orthonormal basis formed), where BLAS threads
+only spin: it runs with one BLAS thread (threadpoolctl).
 
 Excluded modes (reported as ``excluded``): on Fourier grids the translations d_i phi and (with
 ``rotations``) the rotations (x_i d_j - x_j d_i) phi, exact symmetries of the continuum, soft on the
@@ -48,7 +54,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from vesicle_opt.mesh.spectral import fourier_grid, resample
-from vesicle_opt.model.lumped import LumpedOperators, PhaseField
+from vesicle_opt.model.lumped import LumpedOperators, PhaseField, State
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.verify import block_eig
 from vesicle_opt.verify import verdict as V
@@ -56,20 +62,21 @@ from vesicle_opt.verify.second_order import translation_modes
 from vesicle_opt.verify.verdict import SecondOrder
 
 K = 3  # block size: the least pair is often degenerate (saddles of the 2D ellipse elongate either way)
-MAX_ITER = 300  # per level; a cap, not the usual end: the levels stop on ACC, RES, STALL (measured:
-# 64^3 torus from its 32^3 start stable after ~20 fine iterations; 32^3 from a random start ~70)
+MAX_ITER = 300  # per level; a cap, not the usual end: the levels stop on EIG_TOL (measured: 64^3 torus
+# from its 32^3 start settled after ~10 fine iterations; 32^3 from its interface start ~50)
 TOL = 1e-4  # every pair's error bound (mu_ref units) below this also ends a level
-ACC = 1e-9  # the fine level stops once the verdict is decided and no Ritz value but the guard (the
-# last) moved by more than ACC max(1, |mu|) in the last iteration: with linear rate q <= 0.95 the
-# remaining error is <= 20 ACC (2e-8), below the 1e-5 agreement with the assembled check
-RES = 1e-3  # ... and its least pair's error bound is below RES (Kato-Temple: its eigenvalue error is
-# then <= RES^2 / gap), or the Ritz values stayed stable for STALL iterations (the residual's round-off
-# floor, ~eps_mach k_max^4 / mu_ref, measured 5e-5 at 64^3, grows 16x per doubling of n)
-STALL = 10
+EIG_TOL = 1e-6  # the fine level stops once the verdict is decided and the Ritz values but the guard have
+# settled to EIG_TOL max(1, |mu|) (``_settled``): a tenth of the 1e-5 agreement with the assembled check
+COARSE_EIG_TOL = 1e-6  # a coarse level settles to 1e-6 too: its eigenvectors only start the next level
+Q_MAX = 0.9  # the step ratio assumed at most (remaining distance <= 9 x the last step)
+RATE_WINDOW = 3  # step ratios looked at
+SETTLED_RUN = 2  # iterations in a row the estimate must hold
 DECIDED_EXTRA = 60  # and at most this many iterations after the verdict is first decided: the rest
 # only sharpens the number (measured, 96^3 torus from its 48^3 start: decided early, then 234
 # iterations creeping 1e-8 per step to mu_min 0.1452083 with error bound 5.4e-3, 7.3x the solve)
-COARSE_ACC, COARSE_RES = ACC, RES  # a coarse level ends where the fine one would (_coarse_stop)
+ACCURATE = 1.5  # a coarse level whose eigenvectors start the next one well has eps / h >= this
+# (_coarse_shape); eps / h >= 1 (resolving) is enough for the coarsest, whose start is the interface block
+COARSE_RATIO = 0.75  # a coarse level is worth its setup only when at most this fraction of n per side
 MIN_COARSE_N = 16  # no coarse level below 16 per side (nor any with h > eps: under-resolved interface)
 POLY_DEGREE = 2  # interface modulations of degree <= 2: translations, the ellipsoidal shape modes
 
@@ -81,7 +88,7 @@ class _Level:
     disc: object
     a_u: object  # u -> Pi M^{-1/2} H_L M^{-1/2} Pi u / mu_ref (blocks of columns)
     t_u: object  # r -> mu_ref M^{1/2} P^{-1} M^{1/2} r (blocks)
-    s: np.ndarray  # sqrt(m) per node
+    s: np.ndarray | float  # sqrt(m) per node (a scalar where all weights are equal)
     Q: np.ndarray  # orthonormal rows (u variables): dA, dB
     Qall: np.ndarray  # and the excluded modes
     modes: list
@@ -90,44 +97,67 @@ class _Level:
 
 
 def _symmetry_modes(disc, translations, phi, rotations: bool):
-    """(label, columns) of the excluded modes (module docstring)."""
+    """(label, rows) of the excluded modes (module docstring)."""
     fourier = getattr(disc, "fourier", None)
     if fourier is None:
         modes = translation_modes(disc, phi)
         return (V.TRANSLATIONS if modes else V.NONE), modes
-    modes = list(translations(phi).T)
+    g = fourier.derivatives(phi)  # the translations d_i phi (what ``translations`` gives, as rows)
     if not rotations:
-        return V.TRANSLATIONS, modes
-    g, x = fourier.derivatives(phi), disc.nodes
-    for i, j in ((1, 2), (2, 0), (0, 1)) if disc.dim == 3 else ((0, 1),):
-        modes.append(x[:, i] * g[j] - x[:, j] * g[i])
-    return V.TRANSLATIONS_ROTATIONS, modes
+        return V.TRANSLATIONS, g
+    x = disc.nodes
+    rot = [x[:, i] * g[j] - x[:, j] * g[i] for i, j in (((1, 2), (2, 0), (0, 1)) if disc.dim == 3 else ((0, 1),))]
+    return V.TRANSLATIONS_ROTATIONS, [*g, *rot]
 
 
-def _orthonormal(C):
-    """Orthonormal rows spanning the columns of C (dependent ones dropped)."""
-    q, r = np.linalg.qr(C)
-    keep = np.abs(np.diag(r)) > 1e-12 * np.abs(np.diag(r)).max()
-    return np.ascontiguousarray(q[:, keep].T)
+def _orthonormal_rows(rows) -> tuple[np.ndarray, list[bool]]:
+    """Orthonormal rows spanning ``rows`` (a sequence of vectors), in their order (modified
+    Gram-Schmidt, twice; a row left with less than 1e-12 of its norm is dependent and dropped), and
+    which rows were kept: an (m, N) array and nothing larger is allocated."""
+    out = np.empty((len(rows), np.size(rows[0])))
+    kept, flags = 0, []
+    for r in rows:
+        q = out[kept]
+        q[...] = r
+        norm0 = float(np.linalg.norm(q))
+        for _ in range(2):
+            for j in range(kept):
+                q -= (out[j] @ q) * out[j]
+        norm = float(np.linalg.norm(q))
+        flags.append(norm > 1e-12 * norm0)
+        if flags[-1]:
+            q /= norm
+            kept += 1
+    return out[:kept], flags
 
 
 def _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations) -> _Level:
     st = pf.state(phi)
     parts = pf.hessian_parts(st)
-    _, dA, dB = pf.gradients(st)
-    s = np.sqrt(np.broadcast_to(np.asarray(pf.m, float), phi.shape))
+    dA, dB = pf.gradients(st)[1:]
+    st = State(st.phi, None, None, st.s, st.E, st.A, st.B)  # hvp needs phi and g'(phi) only
+    m = np.asarray(pf.m, float)
+    # sqrt(m) per node; a scalar where the weights are equal (Fourier grids): one vector less
+    s = float(np.sqrt(m.flat[0])) if np.all(m == m.flat[0]) else np.sqrt(np.broadcast_to(m, phi.shape))
     excluded, modes = _symmetry_modes(disc, translations, phi, rotations)
-    Q = _orthonormal(np.column_stack([dA / s, dB / s]))
-    Qall = _orthonormal(np.column_stack([*Q, *(s * t for t in modes)]))
+    # Qall: dA, dB, then the excluded modes (u variables), orthonormal; Q = its first rows (T's normals)
+    Qall, kept = _orthonormal_rows([dA / s, dB / s, *(s * t for t in modes)])
+    del dA, dB
+    Q = Qall[:sum(kept[:2])]
 
     def h_u(u):  # M^{-1/2} H_L M^{-1/2} u / mu_ref
         return pf.hvp(st, parts, u / s, rig, cB) / s / ref
 
-    def columns(f):  # blocks are rows (``block_eig``)
-        return lambda U: np.stack([f(u) for u in U])
+    def rows_of(f):  # blocks are rows (``block_eig``), filled in place
+        def apply(U):
+            out = np.empty_like(U)
+            for i, u in enumerate(U):
+                out[i] = f(u)
+            return out
+        return apply
 
-    a_u = columns(lambda u: h_u(u))  # block_eig projects inputs and outputs onto T
-    t_u = columns(lambda r: ref * s * pinv(s * r))
+    a_u = rows_of(h_u)  # block_eig projects what it needs onto T
+    t_u = rows_of(lambda r: ref * s * pinv(s * r))
     return _Level(disc, a_u, t_u, s, Q, Qall, modes, excluded, h_u)
 
 
@@ -141,22 +171,47 @@ def _setup_level(disc, pf, prec, translations, scene, phi, cB, ref, rotations):
     return _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations)
 
 
+def _even_at_least(x: float, smooth: bool) -> int:
+    """The least even integer >= x (with ``smooth``: whose prime factors are 2, 3, 5: fast FFTs)."""
+    k = 2 * int(np.ceil(x / 2))
+    while smooth:
+        r = k
+        for p in (2, 3, 5):
+            while r % p == 0:
+                r //= p
+        if r == 1:
+            break
+        k += 2
+    return max(k, MIN_COARSE_N)
+
+
 def _coarse_shape(disc, epsilon: float):
-    """The next coarser Fourier grid that resolves the interface (module docstring), or None."""
+    """The next coarser Fourier grid (module docstring), or None. Per side, with eps / h the points
+    per interface width: n/2 where that is even and keeps eps / h >= ``ACCURATE``; else the least
+    even 5-smooth size with eps / h >= ``ACCURATE`` where it is <= ``COARSE_RATIO`` n; else the
+    least even size that still resolves the interface (eps / h >= 1) where it is <= ``COARSE_RATIO``
+    n; else none. Measured on the Table-1 torus (eps / h = 2.6 at 64^3): from 32^3 (eps / h = 1.3,
+    mu_min 0.14044 there against 0.14521) the 64^3 level needed 19 iterations, from 40^3 (fed by
+    26^3) 4; the 48^3 level from its random-mixed start 238-300, from 26^3 22."""
     fourier = getattr(disc, "fourier", None)
     if fourier is None:
         return None
-    n = tuple(disc.grid_shape)
-    if not all(k % 2 == 0 and k // 2 >= MIN_COARSE_N for k in n):
-        return None
-    if max(fourier.lengths / (np.array(n) // 2)) > epsilon:
-        return None
-    return tuple(k // 2 for k in n)
+    n = np.array(disc.grid_shape)
+    per_width = epsilon / fourier.lengths  # eps / h = per_width * n
+    if np.all(n % 2 == 0) and np.all(n // 2 >= MIN_COARSE_N) and np.all(per_width * (n // 2) >= ACCURATE):
+        return tuple(int(k) for k in n // 2)
+    for need, smooth in ((ACCURATE, True), (1.0, False)):
+        k = np.array([_even_at_least(need / w, smooth) for w in per_width])
+        if np.all(k <= COARSE_RATIO * n):
+            return tuple(int(v) for v in k)
+    return None
 
 
-def _interface_block(disc, phi) -> np.ndarray:
+def _interface_block(disc, phi, rotations_kept: bool = False) -> np.ndarray:
     """Nodal rows p(x) (1 - phi^2), p the monomials of degree <= POLY_DEGREE in coordinates
-    centred on the interface (module docstring)."""
+    centred on the interface (module docstring); on Fourier grids where the rotations are not
+    excluded, also the rotation modes (x_i d_j - x_j d_i) phi: soft there (the least eigenvalue of
+    the torus on the P1 box, 0.0039 mu_ref at 48^3), and no polynomial modulation is one."""
     x = np.asarray(disc.nodes, float)
     w = np.clip(1.0 - phi * phi, 0.0, None)
     c = (w @ x) / max(w.sum(), np.finfo(float).tiny)
@@ -169,30 +224,46 @@ def _interface_block(disc, phi) -> np.ndarray:
         for i in range(d):
             for j in range(i, d):
                 cols.append(y[:, i] * y[:, j] * w)
+    fourier = getattr(disc, "fourier", None)
+    if rotations_kept and fourier is not None:
+        cols += _symmetry_modes(disc, None, phi, True)[1][d:]
     return np.stack(cols)
 
 
-def _stable(acc):
-    """stop rule: the Ritz values but the last moved by <= acc max(1, |theta|) in one iteration."""
-    prev, run = [None], [0]
+def _settled(tol):
+    """stop rule: the Ritz values but the last (the guard) are within ``tol`` max(1, |theta|) of their
+    limits, estimated from their last steps: d q / (1 - q) with d the last step and q the largest of
+    the last ``RATE_WINDOW`` step ratios, capped at ``Q_MAX`` (a linearly converging sequence's
+    remaining distance), on ``SETTLED_RUN`` iterations in a row (one lucky short step is not enough).
+    Returns how many iterations in a row it has held."""
+    steps, prev, run = [], [None], [0]
 
-    def stable(theta) -> int:
-        """how many iterations in a row the Ritz values have been stable (0: moved in the last)"""
-        old, prev[0] = prev[0], theta.copy()
+    def settled(theta) -> int:
         lead = slice(0, max(len(theta) - 1, 1))
-        ok = old is not None and bool(np.all(np.abs(theta[lead] - old[lead])
-                                             <= acc * np.maximum(1.0, np.abs(theta[lead]))))
+        old, prev[0] = prev[0], theta[lead].copy()
+        if old is None or len(old) != len(prev[0]):
+            steps.clear()
+            run[0] = 0
+            return 0
+        steps.append(np.abs(prev[0] - old))
+        del steps[:-RATE_WINDOW - 1]
+        if len(steps) < 2:
+            return 0
+        q = Q_MAX
+        ratios = [s1 / np.maximum(s0, np.finfo(float).tiny) for s0, s1 in zip(steps[:-1], steps[1:])]
+        q = np.minimum(np.max(ratios, axis=0), Q_MAX)
+        remaining = steps[-1] * q / (1.0 - q)
+        ok = bool(np.all(remaining <= tol * np.maximum(1.0, np.abs(prev[0]))))
         run[0] = run[0] + 1 if ok else 0
         return run[0]
-    return stable
+    return settled
 
 
-def _coarse_stop(n_stable: int, res) -> bool:
-    """A coarse level ends when stable to ``COARSE_ACC`` with its least pair's error bound below
-    ``COARSE_RES``: a converged start makes the fine level short (measured on the 64^3 torus: from
-    a 32^3 level stopped at 1e-5 stability, 187 fine iterations; from one converged to 1.8e-3,
-    stable after 20)."""
-    return (n_stable > 0 and (res[0] <= COARSE_RES or n_stable >= STALL)) or bool(np.all(res <= TOL))
+def _coarse_stop(n_settled: int, res) -> bool:
+    """A coarse level ends when its Ritz values have settled to ``COARSE_EIG_TOL`` (``_settled``) or every
+    pair's error bound is below ``TOL``: its eigenvectors only start the next level, which corrects
+    what is left."""
+    return n_settled >= SETTLED_RUN or bool(np.all(res <= TOL))
 
 
 def _excluded_rayleigh(lev: _Level) -> tuple[float, ...]:
@@ -235,10 +306,11 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         cphi = resample(phi, disc.grid_shape, shape)
         cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter)
         clev = _setup_level(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations)
-        stable = _stable(COARSE_ACC)
-        U0 = _block(clev, _interface_block(cdisc, cphi), k, seed) if cX is None else _block(clev, cX, k)
+        settled = _settled(COARSE_EIG_TOL)
+        U0 = (_block(clev, _interface_block(cdisc, cphi, not rotations), k, seed) if cX is None
+              else _block(clev, cX, k))
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
-                               lambda th, res: _coarse_stop(stable(th), res))
+                               lambda th, res: _coarse_stop(settled(th), res))
         counts.append((shape, out.iterations))
         return np.stack([resample(v / clev.s, shape, disc.grid_shape) for v in out.vectors])
     return None
@@ -263,19 +335,19 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
         if rows is None:
             rows = _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, coarse, max_iter)
         if rows is None:
-            U0 = _block(lev, _interface_block(disc, phi), k, seed)
+            U0 = _block(lev, _interface_block(disc, phi, not rotations), k, seed)
         else:
             U0 = _block(lev, rows, k)
-        stable = _stable(ACC)
+        settled = _settled(EIG_TOL)
         since = [0]  # iterations since the verdict was first decided
 
         def stop(theta, res):
             decided = V.classify(float(theta[0]), float(res[0]), rayleigh)[0] != "not checked"
-            n_stable = stable(theta)
+            n_settled = settled(theta)
             since[0] += bool(decided or since[0])
             if decided and since[0] > DECIDED_EXTRA:
                 return True
-            return (decided and n_stable > 0 and (res[0] <= RES or n_stable >= STALL)) or bool(np.all(res <= tol))
+            return (decided and n_settled >= SETTLED_RUN) or bool(np.all(res <= tol))
         out = block_eig.lobpcg(lev.a_u, lev.t_u, U0, lev.Qall, max_iter, stop)
     return {"eigenvalues": out.values, "errors": out.residuals, "vectors": (out.vectors / lev.s).T,
             "excluded": lev.excluded, "excluded_rayleigh": rayleigh, "mu_ref": ref,

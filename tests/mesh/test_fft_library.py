@@ -1,0 +1,65 @@
+"""The optional FFT library (``solver.fft = "pyfftw"``, ``mesh.spectral.fft_library``): FFTW's
+transforms agree with scipy.fft's to round-off on the operators the solver applies (a second
+implementation sharing no code), a whole solve gives the same KKT point, plans are reused, and the
+key is refused in one line where pyFFTW is missing."""
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from vesicle_opt import scene as S
+from vesicle_opt.api import solve
+from vesicle_opt.errors import InputError
+from vesicle_opt.mesh import spectral
+from vesicle_opt.mesh.spectral import fft_library, fourier_grid
+
+needs_pyfftw = pytest.mark.skipif(importlib.util.find_spec("pyfftw") is None, reason="pyFFTW not installed")
+BOX3 = ((-np.pi, np.pi),) * 3
+ROUND = 1e-13  # two FFT implementations differ by O(eps_mach log N) relative: measured ~1e-15
+
+
+@needs_pyfftw
+@pytest.mark.parametrize("n", [(8, 10, 12), (9, 7, 6)])
+def test_pyfftw_transforms_equal_scipy_to_roundoff(n, rng):
+    f = fourier_grid(BOX3, n, "spectral").fourier
+    v = rng.standard_normal(f.size)
+    ref_lap, ref_d = f.laplacian(v), f.derivatives(v)
+    with fft_library("pyfftw"):
+        lap, d = f.laplacian(v), f.derivatives(v)
+        vh = f.fft(v)
+        vh2 = f.fft(2 * v)  # a second transform must not overwrite the first one's output
+    scale = np.abs(f.symbol).max() * np.abs(v).max()
+    assert np.abs(lap - ref_lap).max() <= ROUND * scale
+    for a, b in zip(d, ref_d):
+        assert np.abs(a - b).max() <= ROUND * np.sqrt(scale) * np.abs(v).max()
+    np.testing.assert_allclose(vh2, 2 * vh, rtol=0, atol=ROUND * np.abs(vh).max())
+    assert spectral._FFTWPlans.of(tuple(n)) is spectral._FFTWPlans.of(tuple(n))  # planned once, reused
+    assert spectral._library[0] == "scipy"  # the context restores the default
+
+
+@needs_pyfftw
+def test_pyfftw_solve_reaches_the_same_kkt_point():
+    sets = ["mesh.kind='spectral'", "mesh.n=16", "solver.backend='newton-krylov'", "solver.second_order=false"]
+    a = solve(S.load("torus-table1-3d", [*sets, "solver.fft='scipy'"]))
+    b = solve(S.load("torus-table1-3d", [*sets, "solver.fft='pyfftw'"]))
+    assert a.converged and b.converged
+    assert (a.extra["fft_library"], b.extra["fft_library"]) == ("scipy", "pyfftw")  # the summary says which ran
+    assert spectral.resolve_fft("auto") == "pyfftw"  # the default takes pyFFTW where it is installed
+    # tol 1e-8: two KKT points of one problem within the tolerance agree in E to ~tol^2 relative;
+    # the iterates differ only by FFT round-off (measured |dE|/E ~1e-14)
+    assert abs(a.energy - b.energy) <= 1e-10 * abs(a.energy)
+
+
+def test_fft_key_is_checked(monkeypatch):
+    sets = ["mesh.kind='spectral'", "mesh.n=16"]
+    with pytest.raises(InputError, match="solver.fft"):
+        S.load("torus-table1-3d", [*sets, "solver.fft='mkl'"])
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pyfftw" else real(name, *a))
+    with pytest.raises(InputError, match="solver.fft.*fftw"):
+        S.load("torus-table1-3d", [*sets, "solver.fft='pyfftw'"])
+    assert spectral.resolve_fft("auto") == "scipy"  # without pyFFTW the default is scipy's
+    with pytest.raises(ValueError, match="mkl"):
+        with fft_library("mkl"):
+            pass
