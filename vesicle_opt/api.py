@@ -5,8 +5,11 @@ call it. The backend (``backends.choose_backend``) and the method are chosen her
 backends return the same certified :class:`~vesicle_opt.result.Result` (``verify.certify``), with
 the same reports added here:
 
-* ``second_order``: ``minimum`` / ``saddle`` / ``not checked`` for converged exact-constraint
-  solves with ``solver.second_order`` (IPOPT: ``verify.second_order``, assembled; Newton-Krylov:
+* ``second_order``: ``minimum`` / ``saddle`` / ``not checked`` for converged solves that promise
+  exact constraints (methods ``exact`` and ``augmented``: the augmented Lagrangian's final point is
+  certified with A = alpha, B = beta to tol, and on the tangent space T its Hessian is that of the
+  exact Lagrangian with lambda = mu - M c, the penalty's M grad c grad c^T vanishing on T) with
+  ``solver.second_order`` (IPOPT: ``verify.second_order``, assembled; Newton-Krylov:
   ``verify.lobpcg``, matrix-free), with ``second_order_min_eigenvalue``; its eigenvector (the
   M-normalised phi direction of the least eigenvalue) is ``history["second_order_mode"]``; the
   error bound of that eigenvalue ``second_order_error_bound`` (mu_ref units, ``verify.verdict``), the
@@ -43,11 +46,14 @@ from vesicle_opt.model.warm_start import start_field
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import prepare
-from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp, solve_nlp
+from vesicle_opt.nlp import NLP, IpoptOptions, PenaltyNLP, build_nlp, solve_nlp
 from vesicle_opt.result import Result
 from vesicle_opt.scene import Scene
 from vesicle_opt.verify import lobpcg, second_order, topology
 
+
+# the methods whose converged result promises A = alpha, B = beta to tol: second-order checked
+EXACT_METHODS = ("exact", "augmented")
 
 log = logging.getLogger(__name__)  # one INFO line per phase of a solve (the CLI shows them; -q hides them)
 
@@ -90,6 +96,16 @@ def _phi_start(x0, disc) -> np.ndarray | None:
         raise InputError("x0", f"a warm start needs {n_nodes} nodal values (or a lifted NLP vector of "
                          f"{n_nodes + 2}), got {phi.size}")
     return phi[:n_nodes]
+
+
+def _exact_point(nlp: NLP, result: Result) -> tuple[NLP, Result]:
+    """The exact-constraint NLP and the result's point on it, for the assembled second-order check:
+    a lifted penalty NLP (method augmented, ``nlp.lifted``) has the exact NLP's rows shifted by its
+    unknowns u, and its penalty depends on u alone, so on (phi [, w]) its Lagrangian Hessian is the
+    exact NLP's at the same lam_g; the u entries are dropped."""
+    if isinstance(nlp, PenaltyNLP):
+        return nlp.exact, dataclasses.replace(result, x=np.asarray(result.x, float)[: nlp.n_base])
+    return nlp, result
 
 
 def _check_options(options, kind, backend: str):
@@ -148,7 +164,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         resources.check(scene, chosen)  # the memory estimate, before anything is built
     else:
         raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
-    check_second_order = scene.solver.method == "exact" and scene.solver.second_order
+    check_second_order = scene.solver.method in EXACT_METHODS and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)
         nlp = nlp or build_nlp(scene)  # refuses infeasible data (one line, before anything is logged)
@@ -158,7 +174,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         if check_second_order and result.converged:
             log.info("%s: second-order check (shift-invert Lanczos on the KKT matrix)", scene.name)
         t0 = time.perf_counter()
-        so = second_order.check(nlp, result) if check_second_order and result.converged else None
+        so = second_order.check(*_exact_point(nlp, result)) if check_second_order and result.converged else None
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
         # built once: the solve and its second-order check (lumped P1 on a periodic tensor box goes
