@@ -273,6 +273,28 @@ def l2_floor(disc, rig, eps, grads, lam) -> float:
     return noise / max(scale, np.finfo(float).tiny)
 
 
+def pack_run(pack, stages: list[Stage], method: str, cnt, log: list, level_log: list, cpu: float,
+             wall: float) -> Result:
+    """The Result of a run from its stages (numpy and ``nk_jax`` alike): ``pack(stage, iterations,
+    wall_s, deriv_s, history=None, extra=None)`` certifies one stage; the run's totals and history
+    go on the last; continuation and augmented combine every stage (``result.combine_stages``)."""
+    hist = dict(cnt.history)
+    hist["outer"] = log
+    hist["levels"] = level_log
+    totals = {"cpu_time_s": cpu, "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
+              "outer_iterations": len(log) if method == "exact" else len(stages),
+              "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
+              "fine_newton_iterations": level_log[-1]["newton"]}
+    if method not in ("continuation", "augmented"):  # one stage: the run's totals are its counts
+        return pack(stages[-1], cnt.newton, wall, cnt.deriv_time, hist, totals)
+    records = [pack(st, st.newton, st.wall_s, st.deriv_s) for st in stages[:-1]]
+    st = stages[-1]
+    records.append(pack(st, st.newton, st.wall_s, st.deriv_s, hist, totals))
+    failed = sum(not r.success for r in records)
+    return combine_stages(records[-1], records, method, wall, {"failed_stages": failed},
+                          iterations=cnt.newton, derivative_time_s=cnt.deriv_time)
+
+
 def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
           check: bool = True, setup=None) -> Result:
     """``_solve`` (below) with one BLAS thread: its dense work is dot products and N x few
@@ -352,18 +374,4 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
                    "kkt_dual": float(st.dual),
                    "kkt_l2_floor": floor, **(extra or {})})
 
-    hist = dict(cnt.history)
-    hist["outer"] = log
-    hist["levels"] = level_log
-    totals = {"cpu_time_s": cpu, "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
-              "outer_iterations": len(log) if method == "exact" else len(stages),
-              "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
-              "fine_newton_iterations": level_log[-1]["newton"]}
-    if method not in ("continuation", "augmented"):  # one stage: the run's totals are its counts
-        return pack(stages[-1], cnt.newton, wall, cnt.deriv_time, hist, totals)
-    records = [pack(st, st.newton, st.wall_s, st.deriv_s) for st in stages[:-1]]
-    st = stages[-1]
-    records.append(pack(st, st.newton, st.wall_s, st.deriv_s, hist, totals))
-    failed = sum(not r.success for r in records)
-    return combine_stages(records[-1], records, method, wall, {"failed_stages": failed},
-                          iterations=cnt.newton, derivative_time_s=cnt.deriv_time)
+    return pack_run(pack, stages, method, cnt, log, level_log, cpu, wall)

@@ -36,12 +36,12 @@ from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import coarse_levels, discretization_path, on_fourier_grid, resample
-from vesicle_opt.nk.solve import (ROUNDOFF_STALL, Stage, dual_update, l2_floor, outer_verdict, penalty_stages,
-                                  timed_stage)
+from vesicle_opt.nk.solve import (ROUNDOFF_STALL, Stage, dual_update, l2_floor, outer_verdict, pack_run,
+                                  penalty_stages, timed_stage)
 from vesicle_opt.nk_jax.layout import GridLayout
 from vesicle_opt.nk_jax.newton import DeviceObjective, newton_minimize
 from vesicle_opt.nk_jax.ops import GridOps
-from vesicle_opt.result import Result, combine_stages
+from vesicle_opt.result import Result
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.verify.certify import build_result
 
@@ -211,18 +211,4 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
                    "kkt_dual": float(st.dual), "kkt_l2_floor": floor, "discretization_path": path,
                    **(extra or {})})
 
-    hist = dict(cnt.history)
-    hist["outer"] = log
-    hist["levels"] = level_log
-    totals = {"cpu_time_s": cpu, "newton_iterations": cnt.newton, "cg_iterations": cnt.cg, "hvp_count": cnt.hvp,
-              "outer_iterations": len(log) if method == "exact" else len(stages),
-              "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
-              "fine_newton_iterations": level_log[-1]["newton"]}
-    if method not in ("continuation", "augmented"):  # one stage: the run's totals are its counts
-        return pack(stages[-1], cnt.newton, wall, cnt.deriv_time, hist, totals)
-    records = [pack(st, st.newton, st.wall_s, st.deriv_s) for st in stages[:-1]]
-    st = stages[-1]
-    records.append(pack(st, st.newton, st.wall_s, st.deriv_s, hist, totals))
-    failed = sum(not r.success for r in records)
-    return combine_stages(records[-1], records, method, wall, {"failed_stages": failed},
-                          iterations=cnt.newton, derivative_time_s=cnt.deriv_time)
+    return pack_run(pack, stages, method, cnt, log, level_log, cpu, wall)
