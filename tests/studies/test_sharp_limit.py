@@ -65,6 +65,7 @@ def test_tolerance_stays_above_the_measured_floor_scaling():
     assert mod.tol_for(0.2) == mod.tol_for(0.1) == 1e-8
     # floors measured at eps/h = 3.2: 1.9e-9 (eps 0.1), 1.6e-8 (eps 0.05); eps^-3 beyond
     assert mod.tol_for(0.05) >= 5 * 1.6e-8 and mod.tol_for(0.025) >= 5 * 1.6e-8 * 8
+    assert mod.tol_for(0.2, 6.4) >= 5 * 3.4e-9  # the floor measured at eps = 0.2, eps/h = 6.4
 
 
 def test_grid_checks_pair_with_their_sequence_point():

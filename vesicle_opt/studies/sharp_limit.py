@@ -1,5 +1,5 @@
 """The eps -> 0 consistency of the phase-field problem (6)-(8) in 2D ([9] of the paper): equilibria at
-eps, eps/2, eps/4, eps/8 with h proportional to eps (eps/h fixed), their observed order in eps, the
+eps = 0.2 ... 0.05 (ratio sqrt 2: eps, eps/2, eps/4 and the two between) with h proportional to eps (eps/h fixed), their observed order in eps, the
 Richardson-extrapolated reduced energies, and the distance to the sharp-interface closed elastica of
 ``vesicle_opt.sharp.elastica`` (a spectral tangent-angle discretisation sharing no code with the
 phase-field path).
@@ -24,7 +24,8 @@ measures it (``GRID_CHECK``: the same point at eps/h = 6.4, rows with ``role = g
 Tolerance per level (``tol_for``): the certificate refuses a result whose round-off floor of the L2
 KKT residual (``nk.solve.l2_floor``, ~ eps_mach eps k_max^4 over the residual's scale) reaches tol;
 at fixed eps/h that floor grows like eps^-3 (measured 2.2e-10, 1.9e-9, 1.6e-8 at eps = 0.2, 0.1,
-0.05), so tol = 1e-8 max(1, (0.1/eps)^3) keeps tol >= 5x the floor. The energy error this allows is
+0.05, eps/h = 3.2) and like (eps/h)^4 at fixed eps (3.4e-9 at eps = 0.2, eps/h = 6.4), so
+tol = 1e-8 max(1, (0.1/eps)^3 (eps/h / 3.2)^4) keeps tol >= 5x the floor. The energy error this allows is
 second order in the KKT residual plus lambda . c with |c| <= 0.1 tol (the NK exact stop): below
 1e-6 in the reduced energy at every level.
 
@@ -39,8 +40,9 @@ headline ``extrapolated``, ``distance``), the order fitted by np.polyfit to log|
 e(eps_k+1)| against log eps_k over all levels (``polyfit_order``), the fixed-order p = 2
 extrapolation of the two finest, the polynomial extrapolation E = e + a eps + b eps^2 through the
 three finest, their distances, and the grid check), and ``sharp_limit.png``. Full: nu = 0.95, 0.9,
-0.8, 0.7, 0.6 at eps = 0.2, 0.1, 0.05, 0.025 (eps/h = 3.2, grids 96 x 64 ... 768 x 512), grid
-check at nu = 0.8, eps = 0.2 and 0.1. Quick: nu = 0.8 at eps = 0.6, 0.3, 0.15 (eps/h = 3, 30 x 20 ...
+0.8, 0.7, 0.6 at eps = 0.2, 0.141421, 0.1, 0.070711, 0.05 (eps/h = 3.2, grids 96 x 64 ... 384 x 256;
+eps = 0.025 at 768 x 512 did not finish one point in 15 min on the loaded machine), grid check at
+nu = 0.8, eps = 0.2 and 0.1. Quick: nu = 0.8 at eps = 0.6, 0.3, 0.15 (eps/h = 3, 30 x 20 ...
 120 x 80): the plumbing and the monotone approach to the reference, in seconds.
 """
 
@@ -70,7 +72,7 @@ NAME = "sharp_limit"
 PERIMETER = 3 * math.pi
 BOX = [[-3.0, 3.0], [-2.0, 2.0]]
 NUS = (0.95, 0.9, 0.8, 0.7, 0.6)
-FULL = {"epsilons": (0.2, 0.1, 0.05, 0.025), "eps_over_h": 3.2}
+FULL = {"epsilons": tuple(round(0.2 * 2 ** (-k / 2), 6) for k in range(5)), "eps_over_h": 3.2}  # 0.2 ... 0.05, ratio sqrt 2
 QUICK = {"nus": (0.8,), "epsilons": (0.6, 0.3, 0.15), "eps_over_h": 3.0}
 # (nu, eps, eps/h): the same point on a finer grid, against the sequence's eps/h (grid error << eps error)
 GRID_CHECK = {"full": ((0.8, 0.2, 6.4), (0.8, 0.1, 6.4)), "quick": ()}
@@ -82,10 +84,11 @@ COLUMNS = ["nu", "epsilon", "n", "h", "eps_over_h", "reduced_energy", "reduced_v
            "role", "mesh", "backend", "tol", "kkt_floor"]
 
 
-def tol_for(eps: float) -> float:
-    """The solver tolerance of a level: 1e-8, raised like eps^-3 below eps = 0.1 so that it stays
-    >= 5x the round-off floor of the spectral KKT residual (module docstring)."""
-    return 1e-8 * max(1.0, (0.1 / eps) ** 3)
+def tol_for(eps: float, eps_over_h: float = 3.2) -> float:
+    """The solver tolerance of a level: 1e-8, raised like eps^-3 (eps/h)^4 beyond eps = 0.1,
+    eps/h = 3.2 so that it stays >= 5x the round-off floor of the spectral KKT residual (module
+    docstring; the floor ~ eps k_max^4 over the residual's scale, k_max = pi (eps/h) / eps)."""
+    return 1e-8 * max(1.0, (0.1 / eps) ** 3 * (eps_over_h / 3.2) ** 4)
 
 
 def ellipse_axes(nu: float, perimeter: float) -> tuple[float, float]:
@@ -104,13 +107,15 @@ def ellipse_axes(nu: float, perimeter: float) -> tuple[float, float]:
 
 def scene_raw(nu: float, eps: float, eps_over_h: float) -> dict:
     Lx, Ly = (hi - lo for lo, hi in BOX)
-    h = eps / eps_over_h
-    n = [int(round(Lx / h)), int(round(Ly / h))]
+    # one spacing on both axes (the box is 3:2) and even sides: n_y the multiple of 4 nearest Ly / h
+    n_y = 4 * max(1, int(round(Ly * eps_over_h / eps / 4)))
+    n = [n_y * 3 // 2, n_y]
+    assert abs(Lx / n[0] - Ly / n[1]) < 1e-12 * Lx, (BOX, n)
     a, b = ellipse_axes(nu, PERIMETER)
     return {"domain": {"box": BOX, "boundary": "periodic"}, "mesh": {"kind": MESH, "n": n},
             "model": {"epsilon": eps}, "constraints": {"reduced_volume": nu, "area": PERIMETER},
             "initial": {"shape": "ellipse", "semi_axes": [a, b]},
-            "solver": {"method": "exact", "tol": tol_for(eps), "backend": BACKEND, "max_iter": 500}}
+            "solver": {"method": "exact", "tol": tol_for(eps, eps_over_h), "backend": BACKEND, "max_iter": 500}}
 
 
 def cases(quick: bool) -> list[dict]:
