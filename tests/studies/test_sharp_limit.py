@@ -1,6 +1,7 @@
-"""The sharp_limit study in quick mode (slow: ~10 s on 2 idle cores, 80 s loaded): certified points,
-the monotone approach to the elastica as eps halves, the summary, and resume (a second run
-recomputes nothing); a cut-down fast variant runs the two coarsest quick levels."""
+"""The sharp_limit study in quick mode (slow: ~10 s on 2 idle cores): certified points, the
+monotone approach to the elastica as eps halves, the summary, and resume (a second run recomputes
+nothing); fast: the two coarsest quick levels, the spectral grid error against the eps error, the
+order fit on a closed-form sequence, and the per-level tolerance."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import csv
 import math
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 import pytest
 
 from vesicle_opt.sharp import elastica
@@ -28,14 +30,50 @@ def test_ellipse_start_has_the_perimeter_and_reduced_area():
 
 
 def test_two_coarse_levels_fast(tmp_path, monkeypatch):
-    """Two levels (eps = 0.6, 0.3; under 2 s): rows appended, too few levels to extrapolate."""
+    """Two levels (eps = 0.6, 0.3; a few s): rows appended, too few levels to extrapolate."""
     monkeypatch.setitem(mod.QUICK, "epsilons", (0.6, 0.3))
     with ThreadPoolExecutor(1) as pool:  # in this process: no spawned interpreter to start
         assert mod.main(tmp_path, quick=True, executor=pool) == 0
     rows = _read(tmp_path / "sharp_limit.csv")
     assert len(rows) == 2 and all(r["converged"] == "True" for r in rows)
+    assert all(r["mesh"] == "spectral" and r["backend"] == "newton-krylov" for r in rows)
     summary = _read(tmp_path / "sharp_limit_summary.csv")
     assert summary[0]["extrapolated"] == "nan"  # three levels are needed for an order
+
+
+def test_spectral_grid_error_is_far_below_the_eps_error():
+    """At eps = 0.3, doubling eps/h from 3 to 6 moves the reduced energy by round-off of the solve
+    only (measured 5e-9), while halving eps from 0.6 moves it by 3.35: the sequence's error is eps's."""
+    run = lambda eps, r: mod.run({"nu": 0.8, "epsilon": eps, "eps_over_h": r})[0]  # noqa: E731
+    coarse, fine, wide = run(0.3, 3.0), run(0.3, 6.0), run(0.6, 3.0)
+    assert all(p["converged"] and p["second_order"] == "minimum" for p in (coarse, fine, wide))
+    grid = abs(fine["reduced_energy"] - coarse["reduced_energy"])
+    # 1e-7: ten times the solver's tol (1e-8) bounds the energy's solve error; the tanh profile's
+    # spectral error at eps/h = 3 is ~exp(-21) ~ 1e-9 (module docstring)
+    assert grid < 1e-7, grid
+    assert abs(wide["reduced_energy"] - coarse["reduced_energy"]) > 1e6 * grid
+
+
+def test_polyfit_order_recovers_a_known_order():
+    eps = np.array([0.2, 0.1, 0.05, 0.025])
+    e = 1.3 + 2.0 * eps**2  # differences 2 eps_k^2 (1 - 1/4): slope exactly 2 in log-log
+    assert mod.polyfit_order(eps, e) == pytest.approx(2.0, abs=1e-12)  # a least-squares line through exact points
+    assert math.isnan(mod.polyfit_order(eps[:2], e[:2]))  # one difference fits no line
+
+
+def test_tolerance_stays_above_the_measured_floor_scaling():
+    assert mod.tol_for(0.2) == mod.tol_for(0.1) == 1e-8
+    # floors measured at eps/h = 3.2: 1.9e-9 (eps 0.1), 1.6e-8 (eps 0.05); eps^-3 beyond
+    assert mod.tol_for(0.05) >= 5 * 1.6e-8 and mod.tol_for(0.025) >= 5 * 1.6e-8 * 8
+    assert mod.tol_for(0.2, 6.4) >= 5 * 3.4e-9  # the floor measured at eps = 0.2, eps/h = 6.4
+
+
+def test_grid_checks_pair_with_their_sequence_point():
+    rows = [{"nu": "0.8", "epsilon": "0.2", "eps_over_h": "3.2", "reduced_energy": "1.5", "role": "sequence"},
+            {"nu": "0.8", "epsilon": "0.2", "eps_over_h": "6.4", "reduced_energy": "1.5000001",
+             "role": "grid_check"}]
+    (key, (r, d)), = mod.grid_checks(rows).items()
+    assert key == (0.8, 0.2) and r == 6.4 and d == pytest.approx(1e-7, rel=1e-6)  # float parse of "1.5000001"
 
 
 @pytest.mark.slow
@@ -48,12 +86,11 @@ def test_quick_study(tmp_path, monkeypatch):
     ref = elastica.solve(0.8, 24).reduced_energy
     assert all(float(r["reference_energy"]) == pytest.approx(ref, rel=1e-14) for r in rows)
     err = [float(r["error_vs_reference"]) for r in rows]
-    # the diffuse energy approaches the elastica from above as eps halves (measured 3.58, 0.44, 0.080)
+    # the diffuse energy approaches the elastica from above as eps halves (measured 3.80, 0.449, 0.088)
     assert err[0] > err[1] > err[2] > 0, err
     summary = _read(tmp_path / "sharp_limit_summary.csv")
     assert len(summary) == 1 and float(summary[0]["reference_energy"]) == pytest.approx(ref, rel=1e-14)
-    # the coarsest quick level (eps = 0.6) joins its periodic image: no extrapolation, said so
-    assert rows[0]["topology"] != "disk-like" and "topology" in summary[0]["status"]
+    assert summary[0]["status"] == "certified" and all(r["topology"] == "disk-like" for r in rows)
     before = (tmp_path / "sharp_limit.csv").read_bytes()
     monkeypatch.setattr(mod, "run", lambda case: (_ for _ in ()).throw(AssertionError("recomputed")))
     assert mod.main(tmp_path, quick=True) == 0

@@ -2,12 +2,23 @@
 
 2D: the closed-elastica branch from nu = 0.95 down to 0.5 (FD 128^2, box [-4, 4]^2, eps = 0.2,
 perimeter S = 8, so R0 = S / 2 pi = 1.27), started from an ellipse; and the branch the solver
-finds from the symmetric (circle) start, a saddle, followed as far as it holds. 3D: the prolate
-branch from v = 0.95 down to 0.6 and the oblate branch from v = 0.65 up to 0.95 (Fourier spectral
-64^3, Newton-Krylov, box [-3, 3]^3, eps = 0.2, area 4 pi so R0 = 1), started from a prolate and an
-oblate ellipsoid (an oblate start at v = 0.95 relaxes onto the prolate branch; the oblate branch
-also runs down to 0.55 from the same start, case ``oblate-3d-low``); their
-crossing (v and reduced energy, linear interpolation of the difference of the two branches).
+finds from the symmetric (circle) start, a saddle, followed as far as it holds.
+
+3D (area 4 pi, so R0 = 1; Fourier spectral, Newton-Krylov, exact constraints): the prolate and the
+oblate branch from v = 0.75 down to 0.575 (the sharp crossing is at v* = 0.651) at each eps of
+``EPS_SEQUENCE``, started from a prolate and an oblate ellipsoid, each in a periodic box fitted to
+its shape (``fitted_box``: the sharp extent ``EXTENT`` plus 8 eps of free space on every axis, one
+spacing h = eps / 2.5); their crossing per eps (v and reduced energy, linear interpolation of the
+difference of the two branches, over the points that are closed vesicles of the branch's own form:
+``form`` and ``topology``), and its eps -> 0 extrapolation (``extrapolate_crossing``).
+
+Why no cubic box: in [-3, 3]^3 at 64^3, eps = 0.2, both the prolate start (v = 0.95) and the oblate
+start (v = 0.75) ended on a round state (second moments isotropic, aspect 1.00, the same {phi > 0}
+of 4801 nodes at every v from 0.95 to 0.55): the outer bulk of phi sits below -1 by a uniform
+delta ~ -lambda_A eps^3 / 4 that takes up delta |Omega_out| / 2 of the volume constraint
+int phi = alpha (its energy ~ 2 delta^2 / eps^3 per unit volume: for a given volume taken up it
+falls like 1 / |Omega| as the box grows, and like eps^3 it vanishes as eps -> 0). ``bulk_offset``
+is recorded for every point. A box fitted to the shape makes that state costly.
 
 Margin to the periodic images: every row has ``image_gap`` = the box side minus the extent of
 {phi > 0} along the worst axis (the free space between the shape and its image, in units of
@@ -19,7 +30,7 @@ point in its own directory ``<out>/<case>/``). ``--quick``: the two 2D branches 
 (48^2, eps = 0.4, nu 0.95 -> 0.85, three points each). ``sharp_reduced_energy`` is the eps -> 0
 reference of the point's reduced volume (``sharp_reference``: the 2D elastica, the 3D axisymmetric
 prolate / oblate vesicle), and the JSON's ``crossing_3d_sharp`` the sharp prolate/oblate crossing
-beside the phase-field ``crossing_3d``.
+beside the phase-field ``crossing_3d_eps`` (per eps) and ``crossing_3d_extrapolated``.
 
 Writes ``energy_diagram.csv`` (all rows), ``energy_diagram.png``, ``energy_diagram.json``
 (points, certified counts, envelope residuals, wall times, the 3D crossing).
@@ -40,10 +51,21 @@ from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric, elastica
 from vesicle_opt.studies._common import num, select
 from vesicle_opt.studies.runner import run_cases
+from vesicle_opt.verify.metrics import richardson
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
 NAME = "energy_diagram"
+# the eps sequence of the 3D crossing: boxes fitted to each branch (``fitted_box``), uniform h = eps / 2.5
+# (the 3D spectral grid error at eps/h = 2.13 is 1.8e-8 in the reduced energy: prolate v = 0.95,
+# eps = 0.2, 64^3 against 96^3, measured), GAP_OVER_EPS eps of free space to the periodic image
+EPS_OVER_H_FITTED = 2.5
+GAP_OVER_EPS = 8.0  # the tanh tails of a shape and its image overlap ~ exp(-sqrt 2 gap / eps) ~ 1e-5
+EPS_SEQUENCE = (0.2, 0.14, 0.1)
+SEQUENCE_V = (0.75, 0.575)  # the branches of the sequence run from 0.75 down to 0.575 (the crossing ~0.65)
+# sharp extents (vesicle_opt.sharp.axisymmetric, area 4 pi) over v in [0.575, 0.75]: prolate length
+# 4.845 (v = 0.575) and width 1.225 (v = 0.75); oblate width 2.482 (v = 0.575), thickness 0.813 (0.75)
+EXTENT = {"prolate": (4.85, 1.23, 1.23), "oblate": (2.49, 2.49, 0.82)}
 
 
 def sharp_reference(case: dict):
@@ -52,8 +74,8 @@ def sharp_reference(case: dict):
     ``vesicle_opt.sharp`` (no code shared with the phase-field path): the 2D elastica (its 2-fold
     minimum; the symmetric-start case follows a saddle branch and gets none), the 3D axisymmetric
     prolate / oblate vesicle of the case's branch. None where no reference applies."""
-    which = {"elastica-2d": "elastica", "prolate-3d": "prolate"}.get(case["case"])
-    which = "oblate" if case["case"].startswith("oblate") else which
+    which = {"elastica-2d": "elastica"}.get(case["case"])
+    which = next((f for f in ("prolate", "oblate") if case["case"].startswith(f)), which)
 
     def f(param: str, value: float, dim: int):
         if which is None or param != "reduced_volume" or not 0 < value < 1:
@@ -61,18 +83,44 @@ def sharp_reference(case: dict):
         sol = elastica.solve(value) if which == "elastica" else axisymmetric.solve(value, which)
         return float(sol.reduced_energy) if sol.converged else None
     return f
-EXTRA = [c for c in COLUMNS if c != "case"] + ["image_gap", "gap_over_eps", "form", "aspect", "branch_stopped"]
+EXTRA = [c for c in COLUMNS if c != "case"] + ["image_gap", "gap_over_eps", "form", "aspect", "branch_stopped",
+                                              "bulk_offset"]
 
 
 def scene(case: dict):
-    """The scene of a case (plain data, so that cases pickle)."""
-    L = case["half_box"]
-    raw = {"domain": {"box": [[-L, L]] * case["dim"], "boundary": "periodic"},
+    """The scene of a case (plain data, so that cases pickle): the cubic box [-half_box, half_box]^dim,
+    or the case's own ``box`` (the fitted boxes of the eps sequence)."""
+    box = case.get("box") or [[-case["half_box"], case["half_box"]]] * case["dim"]
+    raw = {"domain": {"box": box, "boundary": "periodic"},
            "mesh": {"kind": case["mesh"], "n": case["n"]}, "model": {"epsilon": case["epsilon"]},
            "constraints": {"reduced_volume": case["start_v"], "area": case["area"]},
            "initial": case["initial"],
            "solver": {"method": "exact", "tol": 1e-8, "backend": case["backend"], "max_iter": case["max_iter"]}}
     return from_dict(raw, case["case"])
+
+
+def _smooth_even(k: float) -> int:
+    """The least even 5-smooth integer >= k (a fast FFT length that the nested iteration can halve)."""
+    n = max(4, int(math.ceil(k)))
+    while True:
+        if n % 2 == 0:
+            m = n
+            for p in (2, 3, 5):
+                while m % p == 0:
+                    m //= p
+            if m == 1:
+                return n
+        n += 1
+
+
+def fitted_box(extent: tuple[float, float, float], epsilon: float, eps_over_h: float = EPS_OVER_H_FITTED,
+               gap_over_eps: float = GAP_OVER_EPS) -> tuple[list[list[float]], list[int]]:
+    """(box, n) of a periodic box centred at 0 holding a shape of this sharp extent with ``gap_over_eps``
+    eps of free space to its image on every axis, at the uniform spacing h = eps / eps_over_h (h
+    rounded down so that every side is n h with n an even 5-smooth integer)."""
+    h = epsilon / eps_over_h
+    n = [_smooth_even((e + gap_over_eps * epsilon) / h) for e in extent]
+    return [[-k * h / 2, k * h / 2] for k in n], n
 
 
 def cases(quick: bool) -> list[dict]:
@@ -87,16 +135,28 @@ def cases(quick: bool) -> list[dict]:
            {**d2, "case": "symmetric-2d", "initial": {"shape": "circle", "radius": 1.27}}]
     if quick:
         return out
-    d3 = {"dim": 3, "half_box": 3.0, "mesh": "spectral", "n": 64, "epsilon": 0.2, "area": 4 * math.pi,
-          "start_v": 0.95, "to": 0.6, "step": -0.025, "backend": "newton-krylov",
-          "max_iter": 500}
-    return out + [{**d3, "case": "prolate-3d", "initial": {"shape": "ellipsoid", "semi_axes": [1.3, 0.9, 0.9]}},
-                  # an oblate start at v = 0.95 relaxes onto the prolate branch (measured at 32^3: the
-                  # same energies to 1e-10), so the oblate branch is followed upwards from v = 0.65
-                  {**d3, "case": "oblate-3d", "start_v": 0.65, "to": 0.95, "step": 0.025,
-                   "initial": {"shape": "ellipsoid", "semi_axes": [1.35, 1.35, 0.55]}},
-                  {**d3, "case": "oblate-3d-low", "start_v": 0.65, "to": 0.55, "step": -0.025,
-                   "initial": {"shape": "ellipsoid", "semi_axes": [1.35, 1.35, 0.55]}}]
+    d3 = {"dim": 3, "mesh": "spectral", "epsilon": 0.2, "area": 4 * math.pi, "step": -0.025,
+          "backend": "newton-krylov", "max_iter": 500}
+    # no cubic box: in [-3, 3]^3 (64^3, eps = 0.2) every start (prolate v = 0.95, oblate v = 0.75) ended
+    # on a round state whose bulk absorbs the volume constraint (module docstring, ``bulk_offset``)
+    seq = []
+    for eps in EPS_SEQUENCE:
+        for f, axes in (("prolate", [1.6, 0.7, 0.7]), ("oblate", [1.2, 1.2, 0.4])):
+            box, n = fitted_box(EXTENT[f], eps)
+            seq.append({**d3, "case": f"{f}-3d-eps{eps:g}", "box": box, "n": n, "epsilon": eps,
+                        "start_v": SEQUENCE_V[0], "to": SEQUENCE_V[1], "sequence": eps,
+                        "initial": {"shape": "ellipsoid", "semi_axes": axes}})
+    return out + seq
+
+
+def bulk_offset(snapshot: dict) -> float:
+    """1 + the median of phi over the nodes with phi < -0.5. Far from the interface the KKT equation
+    of a node gives phi = -1 - delta with delta ~ -lambda_A eps^3 / (4 rigidity) (checked by a test
+    to 1e-6), so the bulk takes up delta |Omega_out| / 2 of the volume constraint: ~0.015-0.02 in
+    the 6^3 box's round states, 0.025-0.041 on the fitted eps = 0.2 prolate branch (measured)."""
+    phi = np.asarray(snapshot["phi"]).ravel()
+    out = phi[phi < -0.5]
+    return float(1 + np.median(out)) if out.size else math.nan
 
 
 def image_gap(snapshot: dict, epsilon: float) -> tuple[float, float]:
@@ -143,6 +203,7 @@ def run(case: dict) -> list[dict]:
         if snap is not None:
             row["image_gap"], row["gap_over_eps"] = image_gap(snap, case["epsilon"])
             row["form"], row["aspect"] = form(snap)
+            row["bulk_offset"] = bulk_offset(snap)
         rows.append(row)
     return rows
 
@@ -188,13 +249,37 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
             "envelope_over_step2_max": max(e / s**2 for e, s in zip(env, steps)) if env and steps else None,
             "min_image_gap_over_eps": min((num(r.get("gap_over_eps")) for r in acc), default=None),
         }
-    pro = select(rows, scene="prolate-3d")
-    obl = select(rows, scene="oblate-3d") + select(rows, scene="oblate-3d-low")
-    if pro and obl:
-        acc = lambda rs: [r for r in rs if str(r.get("accepted")) in ("True", "true")]  # noqa: E731
-        out["crossing_3d"] = crossing(acc(pro), acc(obl))
+    def acc(rs, shape):  # accepted points that are closed vesicles of the branch's own shape
+        return [r for r in rs if str(r.get("accepted")) in ("True", "true") and r.get("form") == shape
+                and str(r.get("topology", "")).startswith("sphere-like")]
+    seq = sorted({c["sequence"] for c in case_list if "sequence" in c}, reverse=True)
+    per_eps = {}
+    for eps in seq:
+        x = crossing(acc(select(rows, scene=f"prolate-3d-eps{eps:g}"), "prolate"),
+                     acc(select(rows, scene=f"oblate-3d-eps{eps:g}"), "oblate"))
+        if x is not None:
+            per_eps[eps] = x
+    if per_eps:
+        out["crossing_3d_eps"] = {f"{e:g}": x for e, x in per_eps.items()}
+        out["crossing_3d_extrapolated"] = extrapolate_crossing(per_eps)
+    if seq:
         v_s, e_s = axisymmetric.crossing()  # the sharp-interface crossing (vesicle_opt.sharp)
         out["crossing_3d_sharp"] = {"reduced_volume": v_s, "reduced_energy": e_s}
+    return out
+
+
+def extrapolate_crossing(per_eps: dict) -> dict:
+    """eps -> 0 of the crossing's v and reduced energy from {eps: crossing}: the free-order
+    Richardson fit through the three finest eps (``metrics.richardson``; its order ``order_*``),
+    and the fixed order p = 2 from the two finest (``*_p2``; the 2D sequence's observed order is 2);
+    nan where too few levels."""
+    eps = np.array(sorted(per_eps, reverse=True), float)
+    out = {"epsilons": [float(e) for e in eps]}
+    for key in ("reduced_volume", "reduced_energy"):
+        y = np.array([per_eps[e][key] for e in eps])
+        out[key + "_richardson"], out["order_" + key] = richardson(eps, y) if len(eps) >= 3 else (math.nan, math.nan)
+        out[key + "_p2"] = (float(y[-1] + (y[-1] - y[-2]) / ((eps[-2] / eps[-1]) ** 2 - 1))
+                            if len(eps) >= 2 else math.nan)
     return out
 
 
