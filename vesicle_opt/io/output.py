@@ -3,15 +3,15 @@ the phi = 0 surface of 3D grids (``io.surface``) and a PNG of the level set (mat
 atomic json/npz files are ``io.files``.
 
 Nothing non-finite is ever written: ``Result.summary`` maps NaN/inf to null, and fields with
-non-finite values are refused here rather than written. meshio loads with this module only (not
-with ``import vesicle_opt``), matplotlib (~0.4 s) and scipy.interpolate only when a PNG is drawn.
+non-finite values are refused here rather than written. meshio loads only when a mesh's .vtu or
+a surface file is written (a grid's .vtu is ``io.vtk``'s), matplotlib (~0.35 s) and
+scipy.interpolate only when a PNG is drawn.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import meshio
 import numpy as np
 
 from vesicle_opt.io import surface as zero_level
@@ -26,31 +26,18 @@ def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:
 
 
 def write_vtk(path: Path, disc, phi: np.ndarray) -> None:
-    """phi on the mesh (FEM) or on the complete periodic grid with its cells (FD, spectral) for
-    ParaView: the grid's wrap row/plane is appended (``vtk.wrapped``), so the cells cover the box."""
-    if disc.mesh is not None:
-        values = disc.unfold @ phi if disc.unfold is not None else phi
-        cell = "triangle" if disc.dim == 2 else "tetra"
-        points = disc.mesh.p.T
-        cells = [(cell, disc.mesh.t.T)]
-    else:  # periodic grid, completed: (n + 1)^d points, n^d quads/hexahedra
-        F = vtk.wrapped(disc, phi)
-        origin, spacing = vtk.grid_geometry(disc)
-        axes = [origin[d] + spacing[d] * np.arange(k) for d, k in enumerate(F.shape)]
-        points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, disc.dim)
-        # int32 connectivity where it fits: half the bytes to compress (VTK reads either)
-        idx = np.arange(F.size, dtype=np.int32 if F.size < 2**31 else np.int64).reshape(F.shape)
-        if disc.dim == 2:
-            c = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], axis=-1).reshape(-1, 4)
-            cells = [("quad", c)]
-        else:
-            s = (slice(None, -1), slice(1, None))
-            corners = [idx[s[i], s[j], s[k]] for i, j, k in
-                       [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]]
-            cells = [("hexahedron", np.stack(corners, axis=-1).reshape(-1, 8))]
-        values = F.ravel()
+    """phi on the mesh (FEM; meshio) or on the complete periodic grid with its cells (FD, spectral;
+    ``vtk.write_vtu_grid``) for ParaView: the grid's wrap row/plane is appended (``vtk.wrapped``), so
+    the cells cover the box."""
+    if disc.mesh is None:
+        vtk.write_vtu_grid(path, disc, {"phi": np.asarray(phi, float)})
+        return
+    import meshio  # third-party, lazy (module docstring): only meshes' .vtu files need it
+    values = disc.unfold @ phi if disc.unfold is not None else phi
+    points = disc.mesh.p.T
     if points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
+    cells = [("triangle" if disc.dim == 2 else "tetra", disc.mesh.t.T)]
     meshio.write(str(path), meshio.Mesh(points, cells, point_data={"phi": np.asarray(values, float)}))
 
 
