@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -65,6 +66,30 @@ def fft_library(name: str):
         _library[0] = old
 
 
+PYFFTW_UNUSED = ("dask.array.fft", "scipy.fftpack")  # what pyfftw's interfaces wrap, never used here
+
+
+def _import_pyfftw():
+    """pyfftw (optional extra, third-party: only solver.fft = "pyfftw" needs it), imported without
+    the interfaces it builds over dask and scipy.fftpack: its package ``__init__`` imports them
+    when they are installed (0.35 s measured, inside the first solve's wall time), and only the
+    ``FFTW`` class is used here. A module not yet imported is hidden for that one import by
+    ``sys.modules[name] = None`` (an import of it then raises ImportError, which pyfftw catches)
+    and restored after; ``import pyfftw.interfaces.dask_fft`` later still works."""
+    if "pyfftw" in sys.modules:
+        return sys.modules["pyfftw"]
+    hidden = [name for name in PYFFTW_UNUSED if name not in sys.modules]
+    for name in hidden:
+        sys.modules[name] = None
+    try:
+        import pyfftw
+    finally:
+        for name in hidden:
+            if sys.modules.get(name, 0) is None:
+                del sys.modules[name]
+    return pyfftw
+
+
 class _FFTWPlans:
     """FFTW plans of one grid shape (real to complex and back, one thread), with their aligned
     buffers: a transform copies its input into the plan's buffer, executes, and returns a copy of
@@ -74,7 +99,7 @@ class _FFTWPlans:
     _local = threading.local()
 
     def __init__(self, shape):
-        import pyfftw  # optional extra, third-party: only solver.fft = "pyfftw" needs it
+        pyfftw = _import_pyfftw()
         half = (*shape[:-1], shape[-1] // 2 + 1)
         axes = tuple(range(len(shape)))
         self.real_in = pyfftw.empty_aligned(shape, dtype="float64")
