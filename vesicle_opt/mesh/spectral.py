@@ -183,11 +183,13 @@ class FourierGrid:
         return out
 
     def ifft(self, vh: np.ndarray) -> np.ndarray:
+        """The real field of the half spectrum vh; vh may be overwritten (every caller passes a
+        spectrum of its own: scipy's c2r transform then needs no copy of it)."""
         t0 = time.perf_counter()
         if _library[0] == "pyfftw":
             out = _FFTWPlans.of(self.shape).irfftn(vh).ravel()
         else:
-            out = sfft.irfftn(vh, s=self.shape, workers=WORKERS).ravel()
+            out = sfft.irfftn(vh, s=self.shape, workers=WORKERS, overwrite_x=True).ravel()
         FourierGrid.transforms += 1
         FourierGrid.transform_seconds += time.perf_counter() - t0
         return out

@@ -100,12 +100,14 @@ class Objective:
         product = self.pf.hvp_operator(pt.st, self.pf.hessian_parts(pt.st), self.rig, -pt.mu[1])
         rA, rB = self.rho
         dA, dB = pt.dA, pt.dB
+        # dA = m: on grids one value, so rA (dA . v) dA is that scalar times it (the same bits)
+        dA_value = self.pf.uniform_weight
 
         def H(v):
             t0 = time.perf_counter()
             out = product(v)
             if rA:
-                out += (rA * float(dA @ v)) * dA
+                out += (rA * float(dA @ v)) * (dA if dA_value is None else dA_value)
             if rB:
                 out += (rB * float(dB @ v)) * dB
             self.cnt.hvp += 1
