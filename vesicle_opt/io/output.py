@@ -15,9 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
+from vesicle_opt.io import png
 from vesicle_opt.io import surface as zero_level
 from vesicle_opt.io import vtk
 from vesicle_opt.io.files import package_version, write_json
+from vesicle_opt.io.png import draw_cut  # noqa: F401  (the studies' figures use it from here)
 
 
 def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:
@@ -60,69 +62,42 @@ def _coords(disc, axis: int) -> np.ndarray:
 AXES = "xyz"
 
 
-def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
-    """2D: phi with its zero level set; 3D: three central cuts (x, y, z = the box's middle plane), in
-    physical coordinates, with axis labels and a colorbar of phi."""
-    # third-party, lazy: only a PNG needs them (~0.35 s at import); a Figure on the Agg canvas, not
-    # pyplot (its state machine and backend switching add 0.07 s and are not needed for one file)
-    import matplotlib.tri as mtri
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+def figure_spec(disc, phi: np.ndarray, title: str = "") -> dict:
+    """What ``png.draw`` draws for phi (plain arrays and strings; a worker process can be sent it):
+    2D, the field (grids) or its triangles (meshes); 3D, the three central cuts."""
     box = disc.box
     if disc.dim == 2:
-        fig = Figure(figsize=(5.6, 5))
-        ax = fig.subplots()
         if disc.grid_shape is not None:
-            image = draw_cut(ax, _grid_field(disc, phi), (box[0][0], box[1][0]), (box[0][1], box[1][1]))
-        else:
-            tri = mtri.Triangulation(disc.mesh.p[0], disc.mesh.p[1], disc.mesh.t.T)
-            vals = disc.unfold @ phi if disc.unfold is not None else phi
-            image = ax.tripcolor(tri, vals, cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
-            ax.tricontour(tri, vals, levels=[0.0], colors="k")
-        ax.set_aspect("equal")
-        ax.set_xlabel("x")
-        ax.set_ylabel("y")
-        ax.set_title(title, fontsize=9)
-        fig.colorbar(image, ax=ax, shrink=0.8, label="phi (+1 inside, -1 outside)")
+            return {"kind": "image", "field": _grid_field(disc, phi), "lo": (box[0][0], box[1][0]),
+                    "hi": (box[0][1], box[1][1]), "title": title}
+        vals = disc.unfold @ phi if disc.unfold is not None else phi
+        return {"kind": "triangles", "x": disc.mesh.p[0], "y": disc.mesh.p[1], "triangles": disc.mesh.t.T,
+                "values": np.asarray(vals, float), "title": title}
+    if disc.grid_shape is not None:
+        F = _grid_field(disc, phi)
+        mid = [k // 2 for k in disc.grid_shape]
+        cuts = [F[mid[0], :, :], F[:, mid[1], :], F[:, :, mid[2]]]
+        at = [_coords(disc, d)[mid[d]] for d in range(3)]
     else:
-        # a fixed layout: matplotlib's constrained layout measured 0.35 s of a 0.78 s PNG at 64^3
-        fig = Figure(figsize=(13, 4.2))
-        axes = fig.subplots(1, 3)
-        fig.subplots_adjust(left=0.04, right=0.9, bottom=0.12, top=0.85, wspace=0.28)
-        if disc.grid_shape is not None:
-            F = _grid_field(disc, phi)
-            mid = [k // 2 for k in disc.grid_shape]
-            cuts = [F[mid[0], :, :], F[:, mid[1], :], F[:, :, mid[2]]]
-            at = [_coords(disc, d)[mid[d]] for d in range(3)]
-        else:
-            cuts = [_sample_cut(disc, phi, axis) for axis in range(3)]
-            at = [0.5 * (box[d][0] + box[d][1]) for d in range(3)]
-        for axis, (ax, cut) in enumerate(zip(axes, cuts)):
-            other = [d for d in range(3) if d != axis]
-            lo, hi = (box[other[0]][0], box[other[1]][0]), (box[other[0]][1], box[other[1]][1])
-            image = draw_cut(ax, cut, lo, hi, f"{AXES[axis]} = {at[axis]:.3g}",
-                             endpoint=disc.grid_shape is None)
-            ax.set_xlabel(AXES[other[0]])
-            ax.set_ylabel(AXES[other[1]])
-        fig.suptitle(title, fontsize=10)
-        fig.colorbar(image, cax=fig.add_axes((0.92, 0.17, 0.012, 0.63)), label="phi")
-    if disc.dim == 2:
-        fig.tight_layout()
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=100)
+        cuts = [_sample_cut(disc, phi, axis) for axis in range(3)]
+        at = [0.5 * (box[d][0] + box[d][1]) for d in range(3)]
+    others = [[d for d in range(3) if d != axis] for axis in range(3)]
+    return {"kind": "cuts", "cuts": [np.ascontiguousarray(c) for c in cuts],
+            "lo": [(box[o[0]][0], box[o[1]][0]) for o in others], "hi": [(box[o[0]][1], box[o[1]][1]) for o in others],
+            "labels": [f"{AXES[axis]} = {at[axis]:.3g}" for axis in range(3)],
+            "axis_names": [(AXES[o[0]], AXES[o[1]]) for o in others], "endpoint": disc.grid_shape is None,
+            "title": title}
 
 
-def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "", *, endpoint: bool = False):
-    """A 2D section of phi (first index along x) over [lo, hi) (a periodic grid; ``endpoint``: samples
-    including hi) with its zero level, in physical coordinates; returns the image (for a colorbar)."""
-    xs = [np.linspace(a, b, k, endpoint=endpoint) for a, b, k in zip(lo, hi, cut.shape)]
-    half = [0.5 * (x[1] - x[0]) for x in xs]  # pixels centred on the samples
-    image = ax.imshow(cut.T, origin="lower", cmap="RdBu_r", vmin=-1, vmax=1,
-                      extent=[xs[0][0] - half[0], xs[0][-1] + half[0], xs[1][0] - half[1], xs[1][-1] + half[1]])
-    ax.contour(xs[0], xs[1], cut.T, levels=[0.0], colors="k")
-    ax.set_title(title, fontsize=9)
-    ax.set_aspect("equal")
-    return image
+def write_png(path: Path, disc, phi: np.ndarray, title: str = "", painter: png.Painter | None = None) -> None:
+    """2D: phi with its zero level set; 3D: three central cuts (x, y, z = the box's middle plane), in
+    physical coordinates, with axis labels and a colorbar of phi (``png.draw``); drawn by
+    ``painter``'s worker process where one is given (``png.Painter``), else here."""
+    spec = figure_spec(disc, phi, title)
+    if painter is None:
+        png.draw(path, spec)
+    else:
+        painter.paint(path, spec)
 
 
 def _sample_cut(disc, phi, axis: int, n: int = 64) -> np.ndarray:
@@ -147,12 +122,13 @@ def write_surface_files(out: Path, disc, phi: np.ndarray, summary: dict) -> dict
     return zero_level.report(surf, summary.get("area"), summary.get("volume"))
 
 
-def write_result(out: Path, scene, disc, result) -> dict:
+def write_result(out: Path, scene, disc, result, painter: png.Painter | None = None) -> dict:
     """Write everything a solve produced into ``out``; returns the summary dict.
 
     ``summary.json``, ``phi.npz``, ``phi.vtu`` (every mesh; periodic grids complete, wrap included),
     ``phi.vti`` (periodic grids: ImageData), ``phi.png``, and for 3D grids ``surface.ply`` with
-    ``surface_area`` / ``surface_volume`` in the summary (``write_surface_files``)."""
+    ``surface_area`` / ``surface_volume`` in the summary (``write_surface_files``). ``painter``: a
+    started ``png.Painter`` whose worker draws the PNG meanwhile (waited for here)."""
     out.mkdir(parents=True, exist_ok=True)
     summary = {**result.summary(scene.name), "version": package_version()}
     finite = np.all(np.isfinite(result.phi))
@@ -161,19 +137,22 @@ def write_result(out: Path, scene, disc, result) -> dict:
         if result.w is not None:
             arrays["w"] = result.w
 
-        def field_files():
+        def binary_files():
             np.savez(out / "phi.npz", **arrays)  # uncompressed: doubles barely compress (1.0 s vs 0.13 s)
             write_vtk(out / "phi.vtu", disc, result.phi)
+        # the binary files in a second thread while this one sends or draws the PNG and formats the
+        # .vti text: their zlib, file writes and numpy copies release the GIL (64^3: 0.3 s of the
+        # 0.75 s of output overlap); matplotlib stays in one thread; an error of either is raised here
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            files = pool.submit(binary_files)
+            write_png(out / "phi.png", disc, result.phi, title=f"{scene.name}: E = {result.energy:.6g}",
+                      painter=painter)
             if disc.grid_shape is not None:
                 vtk.write_vti(out / "phi.vti", disc, {"phi": result.phi})
-        # the field files in a second thread while this one draws the PNG and the surface: their
-        # zlib, file writes and numpy copies release the GIL (64^3: 0.30 s of the 0.75 s of output
-        # overlap); matplotlib stays in one thread; an error of either is raised here
-        with ThreadPoolExecutor(max_workers=1) as pool:
-            files = pool.submit(field_files)
-            write_png(out / "phi.png", disc, result.phi, title=f"{scene.name}: E = {result.energy:.6g}")
             summary.update(write_surface_files(out, disc, result.phi, summary))
             files.result()
+        if painter is not None:  # the PNG drawn by the worker process meanwhile
+            painter.finish()
     summary["fields_written"] = bool(finite)
     write_json(out / "summary.json", summary)
     return summary
