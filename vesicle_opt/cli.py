@@ -29,7 +29,7 @@ from vesicle_opt.branch import branch as follow_branch
 from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.flows.api import check_supported as check_flow_supported
 from vesicle_opt.flows.run import write_flow
-from vesicle_opt.io import outdir, output, png, progress
+from vesicle_opt.io import outdir, output, progress
 from vesicle_opt.io.files import package_version
 from vesicle_opt.scene import load as load_scene
 from vesicle_opt.scene import resolved
@@ -72,10 +72,9 @@ def _preflight(scene, out: str | None, path: str | None):
 
 def cmd_solve(args) -> int:
     sc = load_scene(args.scene, args.set)
-    with _preflight(sc, args.out, choose_backend(sc)) as out, png.Painter() as painter:
-        # the PNG's worker imports matplotlib while the solve runs (io.png), then draws the figure
+    with _preflight(sc, args.out, choose_backend(sc)) as out:
         result = solve(sc)
-        summary = output.write_result(out, sc, result.disc, result, painter=painter)
+        summary = output.write_result(out, sc, result.disc, result)
         resolved.write(out / "scene.resolved.toml", sc)  # the run, repeatable: vesicle-opt solve DIR/scene.resolved.toml
     print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")

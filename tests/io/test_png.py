@@ -1,48 +1,41 @@
-"""The PNG drawn by the worker process (``io.png.Painter``) is the PNG drawn in-process, pixel for
-pixel; a worker that fails leaves the figure to this process; one sent nothing just ends."""
-
-import subprocess
-import sys
+"""The PNG of ``io.output.write_png`` (``figure_spec`` drawn by ``io.png.draw``) is the figure of the
+former single function, pixel for pixel: drawn here by an independent copy of that code."""
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 from matplotlib.image import imread
 
 import vesicle_opt as vo
-from vesicle_opt.io import output, png
+from vesicle_opt.io import output
 from vesicle_opt.mesh import discretize
 
 
-def _field(name, n):
-    d = discretize(vo.load_scene(name, [f"mesh.n={n}"]))
+def test_three_cuts_of_a_grid_as_before(tmp_path):
+    d = discretize(vo.load_scene("torus-table1-3d", ["mesh.n=12"]))
     x = d.nodes
-    return d, np.sin(x[:, 0]) + 0.5 * np.cos(2 * x[:, 1]) + (x[:, 2] if d.dim == 3 else 0.0) - 0.3
-
-
-def test_worker_draws_the_same_pixels(tmp_path):
-    for name, n in (("torus-table1-3d", 12), ("ellipse-2d", 16)):
-        d, phi = _field(name, n)
-        output.write_png(tmp_path / "here.png", d, phi, title="t")
-        with png.Painter() as painter:
-            output.write_png(tmp_path / "worker.png", d, phi, title="t", painter=painter)
-            painter.finish()
-            assert painter.proc is None  # the worker ended, its figure written
-        assert np.array_equal(imread(tmp_path / "here.png"), imread(tmp_path / "worker.png"))
-
-
-def test_a_failing_worker_leaves_the_figure_to_this_process(tmp_path, caplog):
-    d, phi = _field("ellipse-2d", 16)
-    painter = png.Painter()
-    painter.proc = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.buffer.read(8); "
-                                     "print('boom', file=sys.stderr); sys.exit(3)"],
-                                    stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    output.write_png(tmp_path / "phi.png", d, phi, title="t", painter=painter)
-    painter.finish()
-    output.write_png(tmp_path / "here.png", d, phi, title="t")
-    assert np.array_equal(imread(tmp_path / "phi.png"), imread(tmp_path / "here.png"))
-    assert "PNG worker failed (boom)" in caplog.text
-
-
-def test_a_worker_sent_nothing_just_ends(tmp_path):
-    with png.Painter() as painter:
-        proc = painter.proc
-    assert painter.proc is None and proc.returncode == 0 and not list(tmp_path.iterdir())
+    phi = np.sin(x[:, 0]) + 0.5 * np.cos(2 * x[:, 1]) + x[:, 2] - 0.3
+    output.write_png(tmp_path / "new.png", d, phi, title="t")
+    F = phi.reshape(d.grid_shape)
+    fig = Figure(figsize=(13, 4.2))
+    axes = fig.subplots(1, 3)
+    fig.subplots_adjust(left=0.04, right=0.9, bottom=0.12, top=0.85, wspace=0.28)
+    lo = [b[0] for b in d.box]
+    hi = [b[1] for b in d.box]
+    for axis, ax in enumerate(axes):
+        cut = np.take(F, 6, axis=axis)
+        o = [k for k in range(3) if k != axis]
+        xs = [np.linspace(lo[k], hi[k], 12, endpoint=False) for k in o]
+        h = [0.5 * (v[1] - v[0]) for v in xs]
+        image = ax.imshow(cut.T, origin="lower", cmap="RdBu_r", vmin=-1, vmax=1,
+                          extent=[xs[0][0] - h[0], xs[0][-1] + h[0], xs[1][0] - h[1], xs[1][-1] + h[1]])
+        ax.contour(xs[0], xs[1], cut.T, levels=[0.0], colors="k")
+        ax.set_title(f"{'xyz'[axis]} = {lo[axis] + 6 * (hi[axis] - lo[axis]) / 12:.3g}", fontsize=9)
+        ax.set_aspect("equal")
+        ax.set_xlabel("xyz"[o[0]])
+        ax.set_ylabel("xyz"[o[1]])
+    fig.suptitle("t", fontsize=10)
+    fig.colorbar(image, cax=fig.add_axes((0.92, 0.17, 0.012, 0.63)), label="phi")
+    FigureCanvasAgg(fig)
+    fig.savefig(tmp_path / "old.png", dpi=100)
+    assert np.array_equal(imread(tmp_path / "new.png"), imread(tmp_path / "old.png"))

@@ -1,13 +1,9 @@
-"""The PNG of a field: what is drawn (``figure_spec``, numpy only) apart from drawing it (``draw``,
-matplotlib), so that a second process can draw it (``Painter``).
+"""The PNG of a field, drawn by matplotlib from plain arrays (``io.output.figure_spec`` says what).
 
-matplotlib costs ~0.35 s at import and ~0.15 s to draw the three cuts of a 64^3 grid, a third of
-a converged 64^3 spectral solve's overhead. ``Painter.start()`` launches ``python -I -c`` running
-this file (it imports nothing of the package: numpy and matplotlib only), which imports matplotlib
-while the solve runs and then draws the figure it is sent (a pickle of ``figure_spec``'s plain
-arrays on its stdin) into the file named. ``Painter.finish()`` waits for it; if it could not start,
-failed or sent nothing back, the figure is drawn in this process instead (the same ``draw``), so a
-PNG is always written or an error raised, exactly as without the worker.
+matplotlib costs ~0.35 s at import and ~0.15 s to draw the three cuts of a 64^3 grid. Drawing it
+in a worker process that imported matplotlib while the solve ran was measured and dropped: on this
+2-core machine the worker slowed the solve more than it saved (whole process 3.13-3.37 s against
+2.88-3.04 s drawing here, three interleaved pairs, load 1.4).
 
 Figures: 2D, phi with its zero level and a colorbar (grids: an image; meshes: Gouraud triangles);
 3D, three central cuts (x, y, z = the middle plane), in physical coordinates, axis labels, colorbar.
@@ -15,18 +11,10 @@ Figures: 2D, phi with its zero level and a colorbar (grids: an image; meshes: Go
 
 from __future__ import annotations
 
-import logging
-import pickle
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 
-log = logging.getLogger(__name__)  # a worker that failed (the PNG is then drawn here)
-
 AXES = "xyz"
-WAIT_S = 120.0  # at most this long for the worker's PNG (drawing takes ~0.2 s) before drawing here
 
 
 def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "", *, endpoint: bool = False):
@@ -78,96 +66,3 @@ def draw(path, spec: dict) -> None:
         fig.tight_layout()
     FigureCanvasAgg(fig)
     fig.savefig(path, dpi=100)
-
-
-def _serve() -> int:
-    """The worker: matplotlib imported first (while the parent solves), then one figure drawn."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: F401  (warm the imports)
-    from matplotlib.figure import Figure  # noqa: F401
-    size = sys.stdin.buffer.read(8)
-    if len(size) < 8:  # the parent had nothing to draw (a failed solve, an error): nothing to do
-        return 0
-    path, spec = pickle.loads(sys.stdin.buffer.read(int.from_bytes(size, "little")))
-    draw(path, spec)
-    return 0
-
-
-class Painter:
-    """A worker process that draws one PNG (module docstring); a context manager that always ends it."""
-
-    def __init__(self):
-        self.proc = None
-        self.sent = None
-
-    def start(self) -> "Painter":
-        try:
-            self.proc = subprocess.Popen(
-                [sys.executable, "-I", "-c", f"import runpy; runpy.run_path({str(Path(__file__))!r}, "
-                 "run_name='__png_worker__')"],
-                stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        except OSError as exc:  # no process to be had: every figure is drawn here
-            log.debug("PNG worker not started (%s); drawing in this process", exc)
-            self.proc = None
-        return self
-
-    def paint(self, path, spec: dict) -> None:
-        """Send the figure to the worker (or draw it here when there is none or it is gone)."""
-        if self.proc is None or self.sent is not None:
-            draw(path, spec)
-            return
-        try:
-            data = pickle.dumps((str(path), spec), protocol=pickle.HIGHEST_PROTOCOL)
-            self.proc.stdin.write(len(data).to_bytes(8, "little") + data)  # length-prefixed: no EOF needed
-            self.proc.stdin.flush()
-            self.sent = (path, spec)
-        except OSError:  # the worker died (its error is in finish's log line): draw here
-            self._stop()
-            draw(path, spec)
-
-    def finish(self) -> None:
-        """Wait for the worker's PNG; draw it here if the worker failed."""
-        if self.proc is None:
-            return
-        if self.sent is None:
-            self._stop()
-            return
-        path, spec = self.sent
-        try:
-            _, err = self.proc.communicate(timeout=WAIT_S)
-            ok = self.proc.returncode == 0 and Path(path).is_file()
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            _, err = self.proc.communicate()
-            ok = False
-        self.proc = None
-        if not ok:
-            tail = (err or b"").decode(errors="replace").strip().splitlines()[-1:]
-            log.warning("the PNG worker failed (%s); drawing %s here", tail[0] if tail else "no message",
-                        Path(path).name)
-            draw(path, spec)
-
-    def _stop(self) -> None:
-        """End the worker without a figure (it reads the end of its input and exits)."""
-        if self.proc is None:
-            return
-        try:
-            self.proc.communicate(timeout=WAIT_S)
-        except (subprocess.TimeoutExpired, OSError):
-            self.proc.kill()
-            self.proc.communicate()
-        self.proc = None
-
-    def __enter__(self) -> "Painter":
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        if exc[0] is None:
-            self.finish()
-        elif self.proc is not None:  # an error on the way: the worker's figure will not be needed
-            self.proc.kill()
-            self.proc.communicate()
-            self.proc = None
-
-
-if __name__ == "__png_worker__":
-    sys.exit(_serve())
