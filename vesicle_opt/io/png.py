@@ -11,10 +11,7 @@ Figures: 2D, phi with its zero level and a colorbar (grids: an image; meshes: Go
 
 from __future__ import annotations
 
-
 import numpy as np
-
-AXES = "xyz"
 
 
 def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "", *, endpoint: bool = False):
