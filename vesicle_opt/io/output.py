@@ -3,20 +3,22 @@ the phi = 0 surface of 3D grids (``io.surface``) and a PNG of the level set (mat
 atomic json/npz files are ``io.files``.
 
 Nothing non-finite is ever written: ``Result.summary`` maps NaN/inf to null, and fields with
-non-finite values are refused here rather than written. meshio loads with this module only (not
-with ``import vesicle_opt``), matplotlib (~0.4 s) and scipy.interpolate only when a PNG is drawn.
+non-finite values are refused here rather than written. meshio loads only when a mesh's .vtu or
+a surface file is written (a grid's .vtu is ``io.vtk``'s), matplotlib (~0.35 s) and
+scipy.interpolate only when a PNG is drawn.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import meshio
 import numpy as np
 
+from vesicle_opt.io import png
 from vesicle_opt.io import surface as zero_level
 from vesicle_opt.io import vtk
 from vesicle_opt.io.files import package_version, write_json
+from vesicle_opt.io.png import draw_cut  # noqa: F401  (the studies' figures use it from here)
 
 
 def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:
@@ -26,31 +28,18 @@ def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:
 
 
 def write_vtk(path: Path, disc, phi: np.ndarray) -> None:
-    """phi on the mesh (FEM) or on the complete periodic grid with its cells (FD, spectral) for
-    ParaView: the grid's wrap row/plane is appended (``vtk.wrapped``), so the cells cover the box."""
-    if disc.mesh is not None:
-        values = disc.unfold @ phi if disc.unfold is not None else phi
-        cell = "triangle" if disc.dim == 2 else "tetra"
-        points = disc.mesh.p.T
-        cells = [(cell, disc.mesh.t.T)]
-    else:  # periodic grid, completed: (n + 1)^d points, n^d quads/hexahedra
-        F = vtk.wrapped(disc, phi)
-        origin, spacing = vtk.grid_geometry(disc)
-        axes = [origin[d] + spacing[d] * np.arange(k) for d, k in enumerate(F.shape)]
-        points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, disc.dim)
-        # int32 connectivity where it fits: half the bytes to compress (VTK reads either)
-        idx = np.arange(F.size, dtype=np.int32 if F.size < 2**31 else np.int64).reshape(F.shape)
-        if disc.dim == 2:
-            c = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], axis=-1).reshape(-1, 4)
-            cells = [("quad", c)]
-        else:
-            s = (slice(None, -1), slice(1, None))
-            corners = [idx[s[i], s[j], s[k]] for i, j, k in
-                       [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]]
-            cells = [("hexahedron", np.stack(corners, axis=-1).reshape(-1, 8))]
-        values = F.ravel()
+    """phi on the mesh (FEM; meshio) or on the complete periodic grid with its cells (FD, spectral;
+    ``vtk.write_vtu_grid``) for ParaView: the grid's wrap row/plane is appended (``vtk.wrapped``), so
+    the cells cover the box."""
+    if disc.mesh is None:
+        vtk.write_vtu_grid(path, disc, {"phi": np.asarray(phi, float)})
+        return
+    import meshio  # third-party, lazy (module docstring): only meshes' .vtu files need it
+    values = disc.unfold @ phi if disc.unfold is not None else phi
+    points = disc.mesh.p.T
     if points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
+    cells = [("triangle" if disc.dim == 2 else "tetra", disc.mesh.t.T)]
     meshio.write(str(path), meshio.Mesh(points, cells, point_data={"phi": np.asarray(values, float)}))
 
 
@@ -72,66 +61,37 @@ def _coords(disc, axis: int) -> np.ndarray:
 AXES = "xyz"
 
 
-def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
-    """2D: phi with its zero level set; 3D: three central cuts (x, y, z = the box's middle plane), in
-    physical coordinates, with axis labels and a colorbar of phi."""
-    import matplotlib  # third-party, lazy: only a PNG needs it (~0.4 s at import)
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import matplotlib.tri as mtri
+def figure_spec(disc, phi: np.ndarray, title: str = "") -> dict:
+    """What ``png.draw`` draws for phi (plain arrays and strings; a worker process can be sent it):
+    2D, the field (grids) or its triangles (meshes); 3D, the three central cuts."""
     box = disc.box
     if disc.dim == 2:
-        fig, ax = plt.subplots(figsize=(5.6, 5))
         if disc.grid_shape is not None:
-            image = draw_cut(ax, _grid_field(disc, phi), (box[0][0], box[1][0]), (box[0][1], box[1][1]))
-        else:
-            tri = mtri.Triangulation(disc.mesh.p[0], disc.mesh.p[1], disc.mesh.t.T)
-            vals = disc.unfold @ phi if disc.unfold is not None else phi
-            image = ax.tripcolor(tri, vals, cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
-            ax.tricontour(tri, vals, levels=[0.0], colors="k")
-        ax.set_aspect("equal")
-        ax.set_xlabel("x")
-        ax.set_ylabel("y")
-        ax.set_title(title, fontsize=9)
-        fig.colorbar(image, ax=ax, shrink=0.8, label="phi (+1 inside, -1 outside)")
+            return {"kind": "image", "field": _grid_field(disc, phi), "lo": (box[0][0], box[1][0]),
+                    "hi": (box[0][1], box[1][1]), "title": title}
+        vals = disc.unfold @ phi if disc.unfold is not None else phi
+        return {"kind": "triangles", "x": disc.mesh.p[0], "y": disc.mesh.p[1], "triangles": disc.mesh.t.T,
+                "values": np.asarray(vals, float), "title": title}
+    if disc.grid_shape is not None:
+        F = _grid_field(disc, phi)
+        mid = [k // 2 for k in disc.grid_shape]
+        cuts = [F[mid[0], :, :], F[:, mid[1], :], F[:, :, mid[2]]]
+        at = [_coords(disc, d)[mid[d]] for d in range(3)]
     else:
-        # a fixed layout: matplotlib's constrained layout measured 0.35 s of a 0.78 s PNG at 64^3
-        fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
-        fig.subplots_adjust(left=0.04, right=0.9, bottom=0.12, top=0.85, wspace=0.28)
-        if disc.grid_shape is not None:
-            F = _grid_field(disc, phi)
-            mid = [k // 2 for k in disc.grid_shape]
-            cuts = [F[mid[0], :, :], F[:, mid[1], :], F[:, :, mid[2]]]
-            at = [_coords(disc, d)[mid[d]] for d in range(3)]
-        else:
-            cuts = [_sample_cut(disc, phi, axis) for axis in range(3)]
-            at = [0.5 * (box[d][0] + box[d][1]) for d in range(3)]
-        for axis, (ax, cut) in enumerate(zip(axes, cuts)):
-            other = [d for d in range(3) if d != axis]
-            lo, hi = (box[other[0]][0], box[other[1]][0]), (box[other[0]][1], box[other[1]][1])
-            image = draw_cut(ax, cut, lo, hi, f"{AXES[axis]} = {at[axis]:.3g}",
-                             endpoint=disc.grid_shape is None)
-            ax.set_xlabel(AXES[other[0]])
-            ax.set_ylabel(AXES[other[1]])
-        fig.suptitle(title, fontsize=10)
-        fig.colorbar(image, cax=fig.add_axes((0.92, 0.17, 0.012, 0.63)), label="phi")
-    if disc.dim == 2:
-        fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+        cuts = [_sample_cut(disc, phi, axis) for axis in range(3)]
+        at = [0.5 * (box[d][0] + box[d][1]) for d in range(3)]
+    others = [[d for d in range(3) if d != axis] for axis in range(3)]
+    return {"kind": "cuts", "cuts": [np.ascontiguousarray(c) for c in cuts],
+            "lo": [(box[o[0]][0], box[o[1]][0]) for o in others], "hi": [(box[o[0]][1], box[o[1]][1]) for o in others],
+            "labels": [f"{AXES[axis]} = {at[axis]:.3g}" for axis in range(3)],
+            "axis_names": [(AXES[o[0]], AXES[o[1]]) for o in others], "endpoint": disc.grid_shape is None,
+            "title": title}
 
 
-def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "", *, endpoint: bool = False):
-    """A 2D section of phi (first index along x) over [lo, hi) (a periodic grid; ``endpoint``: samples
-    including hi) with its zero level, in physical coordinates; returns the image (for a colorbar)."""
-    xs = [np.linspace(a, b, k, endpoint=endpoint) for a, b, k in zip(lo, hi, cut.shape)]
-    half = [0.5 * (x[1] - x[0]) for x in xs]  # pixels centred on the samples
-    image = ax.imshow(cut.T, origin="lower", cmap="RdBu_r", vmin=-1, vmax=1,
-                      extent=[xs[0][0] - half[0], xs[0][-1] + half[0], xs[1][0] - half[1], xs[1][-1] + half[1]])
-    ax.contour(xs[0], xs[1], cut.T, levels=[0.0], colors="k")
-    ax.set_title(title, fontsize=9)
-    ax.set_aspect("equal")
-    return image
+def write_png(path: Path, disc, phi: np.ndarray, title: str = "") -> None:
+    """2D: phi with its zero level set; 3D: three central cuts (x, y, z = the box's middle plane), in
+    physical coordinates, with axis labels and a colorbar of phi (``png.draw`` of ``figure_spec``)."""
+    png.draw(path, figure_spec(disc, phi, title))
 
 
 def _sample_cut(disc, phi, axis: int, n: int = 64) -> np.ndarray:
@@ -169,6 +129,9 @@ def write_result(out: Path, scene, disc, result) -> dict:
         arrays = {"phi": result.phi, "nodes": disc.nodes}
         if result.w is not None:
             arrays["w"] = result.w
+
+        # written one after the other: the .npz and .vtu in a thread beside the PNG and the .vti text
+        # were measured no faster on this 2-core machine (2.96-3.15 s against 2.93-2.95 s a process)
         np.savez(out / "phi.npz", **arrays)  # uncompressed: doubles barely compress (1.0 s vs 0.13 s)
         write_vtk(out / "phi.vtu", disc, result.phi)
         if disc.grid_shape is not None:

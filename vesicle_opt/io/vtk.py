@@ -6,16 +6,25 @@ node 0 again. ``wrapped`` appends that last row/plane, so the written image cove
 [lo, hi] (a viewer otherwise shows a missing strip of one cell at the far edges). ImageData orders
 points x fastest; the grid field F[i, j, k] (first index along x) is written in Fortran order.
 The ``.vti`` and ``.pvd`` files are plain XML (VTK's XML formats, ASCII data): meshio writes
-unstructured meshes but no ImageData, so these two small writers are here.
+unstructured meshes but no ImageData, so these two small writers are here. The ``.vtu`` of a grid
+(its cells as quads/hexahedra, ``write_vtu_grid``) is written here too, in the encoding meshio
+uses (binary, base64, zlib blocks of 32 KiB) but at zlib level ``VTU_ZLIB_LEVEL``: meshio's fixed
+level 6 spent 0.56 s on the 64^3 grid's 17 MB against 0.14 s at level 1, for 5.4 against 6.1 MB.
 """
 
 from __future__ import annotations
 
+import base64
 import os
+import zlib
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+
+VTU_ZLIB_LEVEL = 1  # zlib's fastest level (module docstring: 4x faster than 6, 13% larger)
+VTU_BLOCK = 32768  # bytes per compressed block (meshio's and VTK's default)
+VTK_CELL_TYPES = {2: ("quad", 9), 3: ("hexahedron", 12)}  # VTK's cell type ids of a grid's cells
 
 
 def wrapped(disc, phi: np.ndarray) -> np.ndarray:
@@ -47,7 +56,7 @@ def write_vti(path: Path, disc, fields: dict[str, np.ndarray]) -> None:
     extent = " ".join(f"0 {k - 1}" for k in shape)
     body = []
     for name, F in arrays.items():
-        values = " ".join(repr(float(v)) for v in F.ravel(order="F"))
+        values = " ".join(map(repr, F.ravel(order="F").tolist()))  # shortest round-trip repr of each value
         body.append(f'        <DataArray type="Float64" Name={quoteattr(name)} format="ascii">{values}</DataArray>')
     text = ('<?xml version="1.0"?>\n'
             '<VTKFile type="ImageData" version="1.0" byte_order="LittleEndian">\n'
@@ -76,3 +85,60 @@ def read_vti(path: Path) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]
     fields = {a.get("Name"): np.array(a.text.split(), float).reshape(shape, order="F")
               for a in img.iter("DataArray")}
     return fields, np.array(img.get("Origin").split(), float), np.array(img.get("Spacing").split(), float)
+
+
+def grid_cells(disc) -> tuple[np.ndarray, np.ndarray]:
+    """(points, cells) of a periodic grid completed by its wrap row/plane: (n+1)^d points (3D
+    coordinates), n^d quads (2D) or hexahedra (3D) as rows of point indices in VTK's corner order."""
+    shape = tuple(k + 1 for k in disc.grid_shape)
+    origin, spacing = grid_geometry(disc)
+    axes = [origin[d] + spacing[d] * np.arange(k) for d, k in enumerate(shape)]
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, disc.dim)
+    if disc.dim == 2:
+        points = np.column_stack([points, np.zeros(len(points))])
+    # int32 connectivity where it fits: half the bytes to compress (VTK reads either)
+    size = int(np.prod(shape))
+    idx = np.arange(size, dtype=np.int32 if size < 2**31 else np.int64).reshape(shape)
+    s = (slice(None, -1), slice(1, None))
+    if disc.dim == 2:
+        corners = [idx[s[i], s[j]] for i, j in [(0, 0), (1, 0), (1, 1), (0, 1)]]
+    else:
+        corners = [idx[s[i], s[j], s[k]] for i, j, k in
+                   [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]]
+    return points, np.stack(corners, axis=-1).reshape(-1, len(corners))
+
+
+_VTU_TYPES = {np.dtype("float64"): "Float64", np.dtype("int32"): "Int32", np.dtype("int64"): "Int64",
+              np.dtype("uint8"): "UInt8"}
+
+
+def _binary_array(name: str, data: np.ndarray, components: int | None = None) -> str:
+    """One DataArray in VTK's compressed binary encoding: base64 of the UInt32 header (blocks,
+    block size, last block's size, each compressed size), then base64 of the zlib blocks."""
+    raw = np.ascontiguousarray(data).astype(data.dtype.newbyteorder("<"), copy=False).tobytes()
+    blocks = [zlib.compress(raw[i:i + VTU_BLOCK], VTU_ZLIB_LEVEL) for i in range(0, len(raw), VTU_BLOCK)]
+    last = len(raw) - (len(blocks) - 1) * VTU_BLOCK if blocks else 0
+    header = np.array([len(blocks), VTU_BLOCK, last] + [len(b) for b in blocks], dtype="<u4")
+    ncomp = f' NumberOfComponents="{components}"' if components else ""
+    return (f'<DataArray type="{_VTU_TYPES[data.dtype]}" Name={quoteattr(name)}{ncomp} format="binary">'
+            + base64.b64encode(header.tobytes()).decode() + base64.b64encode(b"".join(blocks)).decode()
+            + "</DataArray>\n")
+
+
+def write_vtu_grid(path: Path, disc, fields: dict[str, np.ndarray]) -> None:
+    """Nodal fields of a periodic grid on its complete cells (``grid_cells``) as a VTK XML
+    UnstructuredGrid (the encoding of the module docstring; meshio and VTK read it)."""
+    points, cells = grid_cells(disc)
+    name, vtk_type = VTK_CELL_TYPES[disc.dim]
+    offsets = np.arange(1, len(cells) + 1, dtype=cells.dtype) * cells.shape[1]
+    data = "".join(_binary_array(k, wrapped(disc, f).ravel()) for k, f in fields.items())
+    text = ('<?xml version="1.0"?>\n'
+            '<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian" '
+            'compressor="vtkZLibDataCompressor">\n<UnstructuredGrid>\n'
+            f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{len(cells)}">\n'
+            '<Points>\n' + _binary_array("Points", points, 3) + '</Points>\n<Cells>\n'
+            + _binary_array("connectivity", cells.ravel()) + _binary_array("offsets", offsets)
+            + _binary_array("types", np.full(len(cells), vtk_type, np.uint8)) + '</Cells>\n'
+            f'<PointData Scalars={quoteattr(next(iter(fields)))}>\n' + data
+            + '</PointData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n')
+    _atomic_text(path, text)

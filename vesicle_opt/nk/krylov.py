@@ -37,7 +37,7 @@ class SubspacePreconditioner:
     def __call__(self, r: np.ndarray) -> np.ndarray:
         z = self.apply_pinv(r)
         if self.C is not None:
-            z = z - self.U @ np.linalg.solve(self.S, self.C.T @ z)
+            z -= self.U @ np.linalg.solve(self.S, self.C.T @ z)
         return z
 
 
@@ -66,6 +66,7 @@ def projected_pcg(hvp, b: np.ndarray, precond: SubspacePreconditioner, eta: floa
         rel = float(np.sqrt(max(rz_new, 0.0) / rz0))
         if rel <= eta:
             return CGResult(x, it, "converged", rel)
-        p = z + (rz_new / rz) * p
+        p *= rz_new / rz  # p = z + (rz_new / rz) p, in place (the same bits: + commutes)
+        p += z
         rz = rz_new
     return CGResult(x, max_iter, "max_iter", rel)

@@ -97,18 +97,19 @@ class Objective:
         return None
 
     def hvp(self, pt: Point):
-        parts = self.pf.hessian_parts(pt.st)
-        rig, cB = self.rig, -pt.mu[1]
+        product = self.pf.hvp_operator(pt.st, self.pf.hessian_parts(pt.st), self.rig, -pt.mu[1])
         rA, rB = self.rho
         dA, dB = pt.dA, pt.dB
+        # dA = m: on grids one value, so rA (dA . v) dA is that scalar times it (the same bits)
+        dA_value = self.pf.uniform_weight
 
         def H(v):
             t0 = time.perf_counter()
-            out = self.pf.hvp(pt.st, parts, v, rig, cB)
+            out = product(v)
             if rA:
-                out += rA * float(dA @ v) * dA
+                out += (rA * float(dA @ v)) * (dA if dA_value is None else dA_value)
             if rB:
-                out += rB * float(dB @ v) * dB
+                out += (rB * float(dB @ v)) * dB
             self.cnt.hvp += 1
             self.cnt.deriv_time += time.perf_counter() - t0
             return out

@@ -145,8 +145,10 @@ def _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations) -> _Level
     del dA, dB
     Q = Qall[:sum(kept[:2])]
 
+    product = pf.hvp_operator(st, parts, rig, cB)  # its coefficients formed once for every product
+
     def h_u(u):  # M^{-1/2} H_L M^{-1/2} u / mu_ref
-        return pf.hvp(st, parts, u / s, rig, cB) / s / ref
+        return product(u / s) / s / ref
 
     def rows_of(f):  # blocks are rows (``block_eig``), filled in place
         def apply(U):
