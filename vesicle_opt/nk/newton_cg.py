@@ -46,6 +46,17 @@ class Counters:
     history: dict = field(default_factory=lambda: {"f": [], "dual_rel": [], "cg": [], "step": [],
                                                    "cg_status": []})
 
+    def record(self, f: float, dual_rel: float, cg, step: float) -> None:
+        """One Newton step done (numpy and ``nk_jax`` alike): its count and history row; ``cg`` the
+        inner solve (iterations, status); ``step`` the accepted line-search step, 0 if none."""
+        self.newton += 1
+        h = self.history
+        h["f"].append(f)
+        h["dual_rel"].append(dual_rel)
+        h["cg"].append(cg.iterations)
+        h["cg_status"].append(cg.status)
+        h["step"].append(step)
+
 
 @dataclass
 class Point:
@@ -155,13 +166,7 @@ def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, 
                     accepted = trial
                     break
             t *= 0.5
-        cnt.newton += 1
-        h = cnt.history
-        h["f"].append(pt.f)
-        h["dual_rel"].append(pt.rel)
-        h["cg"].append(cg.iterations)
-        h["cg_status"].append(cg.status)
-        h["step"].append(t if accepted is not None else 0.0)
+        cnt.record(pt.f, pt.rel, cg, t if accepted is not None else 0.0)
         log.debug("Newton %3d  f = %.12g  kkt_dual = %.2e  cg = %3d (%s)  step = %.3g", cnt.newton, pt.f, pt.rel,
                   cg.iterations, cg.status, t if accepted is not None else 0.0)
         if cnt.on_step is not None:

@@ -128,13 +128,7 @@ def newton_minimize(obj: DeviceObjective, phi, tol: float, max_iter: int, max_cg
                     accepted = cand
                     break
             t *= 0.5
-        cnt.newton += 1
-        h = cnt.history
-        h["f"].append(pt.f)
-        h["dual_rel"].append(pt.rel)
-        h["cg"].append(cg.iterations)
-        h["cg_status"].append(cg.status)
-        h["step"].append(t if accepted is not None else 0.0)
+        cnt.record(pt.f, pt.rel, cg, t if accepted is not None else 0.0)
         if accepted is None:
             return pt, "line_search_failed"
         if t * pmax <= STALL * max(1.0, float(obj._amax(pt.phi))):
