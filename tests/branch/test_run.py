@@ -15,6 +15,7 @@ import pytest
 from vesicle_opt import cli
 from vesicle_opt.branch import COLUMNS, branch
 from vesicle_opt.branch import run as branch_run
+from vesicle_opt.errors import InputError
 from vesicle_opt.scene.schema import from_dict
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -135,6 +136,18 @@ def test_bad_input_is_one_line_exit_2_before_any_work(tmp_path, capsys, args, fl
     assert code == 2 and len(err) == 1 and flag in err[0], err
     assert (out / "branch.csv").read_text() == "computed before\n"
     assert not (out / "points").exists() and not (out / "branch.json").exists()
+
+
+@pytest.mark.parametrize("turn", ["wide", -0.1])
+def test_a_bad_turn_is_refused_before_the_output_is_touched(tmp_path, turn):
+    """The Python keyword ``turn`` (no CLI flag): InputError naming it, before the store is opened."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "branch.csv").write_text("computed before\n")
+    with pytest.raises(InputError, match="turn"):
+        branch(scene(), "reduced_volume", to=0.9, step=-0.01, out=out, turn=turn)
+    assert (out / "branch.csv").read_text() == "computed before\n"
+    assert not (out / "branch.json").exists()
 
 
 def test_a_resume_under_other_arguments_is_refused(tmp_path, capsys):

@@ -200,7 +200,7 @@ class _Run:
             else:
                 phi_start = seed if phi_start is None else phi_start
                 if self.par.name == "reduced_volume" and not 0 < p <= 1:
-                    return arc.Attempt(p, phi_start, False, 0, (None, f"reduced_volume {p:.6g} outside (0, 1]", 0.0))
+                    return arc.Attempt(p, phi_start, False, 0, (None, f"reduced_volume {p:.6g} outside (0, 1]", 0.0, None))
                 sc = self.par.scene_at(self.scene, p)
             restarted = None
             try:
@@ -213,15 +213,14 @@ class _Run:
             except InputError as exc:  # infeasible data beyond the range of a start: a failed point
                 if start:
                     raise
-                return arc.Attempt(p, phi_start, False, 0, (None, str(exc), time.perf_counter() - t0))
+                return arc.Attempt(p, phi_start, False, 0, (None, str(exc), time.perf_counter() - t0, None))
             return arc.Attempt(p, res.phi, res.converged, res.iterations,
                                (res, None, time.perf_counter() - t0, restarted))
         return correct
 
     def row(self, branch: int, st: arc.Step) -> tuple[dict, object]:
         a = st.attempt
-        res, message, wall, *more = a.payload
-        restarted = more[0] if more else None
+        res, message, wall, restarted = a.payload  # (Result or None, why not, seconds, restarted)
         rows = self.store.rows()
         point = len(rows)
         sc = self.scene
@@ -296,12 +295,12 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     check_end(scene, par, to)
     if not (isinstance(max_points, int) and max_points >= 2):
         raise InputError("max_points", f"allowed range >= 2, got {max_points!r}")
+    if not (isinstance(turn, (int, float)) and 0 <= turn):
+        raise InputError("turn", f"allowed range >= 0 (|t_p| below which the arclength corrector runs), got {turn!r}")
     meta = _meta(scene, param, to, step, backend, switch)
     if turn != arc.Settings.turn:
         meta["turn"] = float(turn)
     store = Store(None if out is None else Path(out), meta, snapshots)
-    if not (isinstance(turn, (int, float)) and 0 <= turn):
-        raise InputError("turn", f"allowed range >= 0 (|t_p| below which the arclength corrector runs), got {turn!r}")
     settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn))
     run = _Run(scene, par, settings, store, backend, options, reference, progress)
     stopped = {0: run.follow(0, par.start, None)}
