@@ -18,7 +18,6 @@ from vesicle_opt.io import png
 from vesicle_opt.io import surface as zero_level
 from vesicle_opt.io import vtk
 from vesicle_opt.io.files import package_version, write_json
-from vesicle_opt.io.png import draw_cut  # noqa: F401  (the studies' figures use it from here)
 
 
 def _grid_field(disc, phi: np.ndarray) -> np.ndarray | None:
@@ -62,8 +61,8 @@ AXES = "xyz"
 
 
 def figure_spec(disc, phi: np.ndarray, title: str = "") -> dict:
-    """What ``png.draw`` draws for phi (plain arrays and strings; a worker process can be sent it):
-    2D, the field (grids) or its triangles (meshes); 3D, the three central cuts."""
+    """What ``png.draw`` draws for phi, as plain arrays and strings (the mesh-dependent part, apart
+    from the drawing): 2D, the field (grids) or its triangles (meshes); 3D, the three central cuts."""
     box = disc.box
     if disc.dim == 2:
         if disc.grid_shape is not None:

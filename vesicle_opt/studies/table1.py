@@ -31,7 +31,7 @@ import numpy as np
 
 from vesicle_opt import scene
 from vesicle_opt.api import solve
-from vesicle_opt.io.output import draw_cut
+from vesicle_opt.io.png import draw_cut
 from vesicle_opt.nk.setup import prepare
 from vesicle_opt.studies._common import TABLE1, TABLE1_M, pyplot as plt, torus_check
 from vesicle_opt.studies.runner import run_cases

@@ -62,7 +62,7 @@ from vesicle_opt.flows.api import flow
 from vesicle_opt.flows.equilibrium import EquilibriumTracker, flow_to_equilibrium
 from vesicle_opt.flows.run import COLUMNS as FLOW_COLUMNS, write_flow
 from vesicle_opt.flows.trackers import HistoryTracker
-from vesicle_opt.io.output import draw_cut
+from vesicle_opt.io.png import draw_cut
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.studies._common import TABLE1, TABLE1_M, pyplot as plt, torus_check
 from vesicle_opt.studies.runner import run_cases
