@@ -25,7 +25,9 @@ class CGResult:
 
 
 class SubspacePreconditioner:
-    """z = P^{-1} r projected onto {C^T z = 0} along U = P^{-1} C (see module docstring)."""
+    """z = P^{-1} r projected onto {C^T z = 0} along U = P^{-1} C (see module docstring).
+    ``apply_pinv`` returns a new array (every preconditioner of ``nk.precond`` does): the projection
+    updates it in place, so an ``apply_pinv`` that returned r itself would overwrite the caller's r."""
 
     def __init__(self, apply_pinv, C: np.ndarray | None):
         self.apply_pinv = apply_pinv
