@@ -251,7 +251,6 @@ def _settled(tol):
         del steps[:-RATE_WINDOW - 1]
         if len(steps) < 2:
             return 0
-        q = Q_MAX
         ratios = [s1 / np.maximum(s0, np.finfo(float).tiny) for s0, s1 in zip(steps[:-1], steps[1:])]
         q = np.minimum(np.max(ratios, axis=0), Q_MAX)
         remaining = steps[-1] * q / (1.0 - q)
