@@ -42,7 +42,7 @@ import numpy as np
 from vesicle_opt.api import with_reports
 from vesicle_opt.backends import supports
 from vesicle_opt.mesh import discretize
-from vesicle_opt.mesh.spectral import FourierGrid
+from vesicle_opt.mesh.spectral import FourierGrid, fft_library
 from vesicle_opt.model import functionals as F
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
@@ -157,9 +157,10 @@ class IpoptCorrector:
         """``res`` with the second-order and topology reports of the front door (module docstring)."""
         so, t0 = None, time.perf_counter()
         if scene.solver.second_order and res.converged:
-            if self.matrix_free:
-                so = rotation_modulo(lobpcg.check(scene, res, prepare(scene, self.fourier),
-                                                  rotations=scene.mesh.kind != "fem-p1"), scene.dim)
+            if self.matrix_free:  # with the FFTs the front door's check uses (solver.fft)
+                with fft_library(scene.solver.fft):
+                    so = rotation_modulo(lobpcg.check(scene, res, prepare(scene, self.fourier),
+                                                      rotations=scene.mesh.kind != "fem-p1"), scene.dim)
             else:  # the front door's assembled check on the point's own (constant) NLP
                 so = second_order.check(build_nlp(scene, self.disc, check=False), res)
         res = with_reports(res, so, seconds=time.perf_counter() - t0)
