@@ -11,7 +11,7 @@ from vesicle_opt.errors import InputError
 from vesicle_opt.mesh.fd import grid as fd_grid
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField
 from vesicle_opt.nk.precond import FourierPreconditioner
-from vesicle_opt.mesh.spectral import fourier_grid
+from vesicle_opt.mesh.spectral import even_fft_size, fourier_grid
 
 BOX2 = ((-4.0, 4.0), (-3.0, 3.0))
 BOX3 = ((-np.pi, np.pi),) * 3
@@ -163,3 +163,16 @@ def test_penalised_and_augmented_objective_vs_finite_differences(lam, rho, rng):
     gp, gm = obj.point(phi + t * v).g, obj.point(phi - t * v).g
     hv = obj.hvp(pt)(v)
     assert np.max(np.abs(hv - (gp - gm) / (2 * t))) <= 1e-6 * np.max(np.abs(hv))  # as above
+
+
+def test_even_fft_size_is_the_least_even_5_smooth_size_at_or_above():
+    """Against a brute-force search over every integer (shared by the check's coarse grids and the
+    energy diagram's fitted boxes)."""
+    def smooth(n):
+        for p in (2, 3, 5):
+            while n % p == 0:
+                n //= p
+        return n == 1
+    for x in [-1.0, 0.0, 0.5, 2.0, 2.01, 13.0, 13.5, 14.0, 97.3, 255.9, 1000.0]:
+        expected = next(n for n in range(2, 2000, 2) if n >= x and smooth(n))
+        assert even_fft_size(x) == expected, (x, even_fft_size(x), expected)

@@ -249,6 +249,20 @@ class FourierDiscretization(Discretization):
         return self.fourier.laplacian(np.asarray(v, float))
 
 
+def even_fft_size(x: float) -> int:
+    """The least even integer >= x whose prime factors are 2, 3, 5 (a fast FFT length that a
+    nested iteration can halve); 2 for x <= 2."""
+    k = max(2, 2 * int(np.ceil(x / 2)))
+    while True:
+        r = k
+        for p in (2, 3, 5):
+            while r % p == 0:
+                r //= p
+        if r == 1:
+            return k
+        k += 2
+
+
 def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
     """The trigonometric interpolant of a periodic grid field on another grid of the same box
     (C-ordered nodes): per axis, the rfft truncated or zero-padded, the unpaired Nyquist bin of an

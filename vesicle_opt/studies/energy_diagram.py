@@ -47,6 +47,7 @@ import numpy as np
 
 from vesicle_opt.branch import COLUMNS, branch, diagram
 from vesicle_opt.io.files import load_npz, write_json
+from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric, elastica
 from vesicle_opt.studies._common import num, select
@@ -99,27 +100,13 @@ def scene(case: dict):
     return from_dict(raw, case["case"])
 
 
-def _smooth_even(k: float) -> int:
-    """The least even 5-smooth integer >= k (a fast FFT length that the nested iteration can halve)."""
-    n = max(4, int(math.ceil(k)))
-    while True:
-        if n % 2 == 0:
-            m = n
-            for p in (2, 3, 5):
-                while m % p == 0:
-                    m //= p
-            if m == 1:
-                return n
-        n += 1
-
-
 def fitted_box(extent: tuple[float, float, float], epsilon: float, eps_over_h: float = EPS_OVER_H_FITTED,
                gap_over_eps: float = GAP_OVER_EPS) -> tuple[list[list[float]], list[int]]:
     """(box, n) of a periodic box centred at 0 holding a shape of this sharp extent with ``gap_over_eps``
     eps of free space to its image on every axis, at the uniform spacing h = eps / eps_over_h (h
     rounded down so that every side is n h with n an even 5-smooth integer)."""
     h = epsilon / eps_over_h
-    n = [_smooth_even((e + gap_over_eps * epsilon) / h) for e in extent]
+    n = [even_fft_size(max(4.0, (e + gap_over_eps * epsilon) / h)) for e in extent]
     return [[-k * h / 2, k * h / 2] for k in n], n
 
 

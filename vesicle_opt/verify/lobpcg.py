@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from vesicle_opt.mesh.spectral import fourier_grid, resample
+from vesicle_opt.mesh.spectral import even_fft_size, fourier_grid, resample
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField, State
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.verify import block_eig
@@ -175,16 +175,7 @@ def _setup_level(disc, pf, prec, translations, scene, phi, cB, ref, rotations):
 
 def _even_at_least(x: float, smooth: bool) -> int:
     """The least even integer >= x (with ``smooth``: whose prime factors are 2, 3, 5: fast FFTs)."""
-    k = 2 * int(np.ceil(x / 2))
-    while smooth:
-        r = k
-        for p in (2, 3, 5):
-            while r % p == 0:
-                r //= p
-        if r == 1:
-            break
-        k += 2
-    return max(k, MIN_COARSE_N)
+    return max(even_fft_size(x) if smooth else 2 * int(np.ceil(x / 2)), MIN_COARSE_N)
 
 
 def _coarse_shape(disc, epsilon: float):
