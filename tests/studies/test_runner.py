@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from vesicle_opt.verify.metrics import observed_order, restrict, richardson, trig_matrix
+from vesicle_opt.verify.metrics import observed_order, restrict, richardson, richardson_fixed, trig_matrix
 import vesicle_opt
 from vesicle_opt import cli
 from vesicle_opt.errors import InputError
@@ -123,6 +123,15 @@ def test_richardson_recovers_limit_and_order():
     E_inf, p = richardson(h[:3], 1.0 - 2.0 * h[:3] ** 1.5)  # from below, p = 1.5
     assert E_inf == pytest.approx(1.0, abs=1e-12) and p == pytest.approx(1.5, abs=1e-8)  # as above
     assert all(map(np.isnan, richardson(h[:3], [1.0, 1.1, 1.0])))
+
+
+def test_fixed_order_richardson_is_exact_on_its_own_model():
+    """E = E_inf + C h^p with p known: the two finest points give E_inf back (to round-off, 1e-13 at
+    these magnitudes); with the wrong p it does not (the remaining error is O(h^2 - h^p))."""
+    h = np.array([0.2, 0.14, 0.1])
+    assert richardson_fixed(h, 1.5 + 0.3 * h**2, 2.0) == pytest.approx(1.5, abs=1e-13)
+    assert richardson_fixed(h, 1.5 + 0.3 * h**1.5, 1.5) == pytest.approx(1.5, abs=1e-13)
+    assert abs(richardson_fixed(h, 1.5 + 0.3 * h**1.5, 2.0) - 1.5) > 1e-3
 
 
 def test_observed_order_of_fd_energy_on_a_quick_sequence():

@@ -52,7 +52,7 @@ from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric, elastica
 from vesicle_opt.studies._common import num, select
 from vesicle_opt.studies.runner import run_cases
-from vesicle_opt.verify.metrics import richardson
+from vesicle_opt.verify.metrics import richardson, richardson_fixed
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
@@ -265,8 +265,7 @@ def extrapolate_crossing(per_eps: dict) -> dict:
     for key in ("reduced_volume", "reduced_energy"):
         y = np.array([per_eps[e][key] for e in eps])
         out[key + "_richardson"], out["order_" + key] = richardson(eps, y) if len(eps) >= 3 else (math.nan, math.nan)
-        out[key + "_p2"] = (float(y[-1] + (y[-1] - y[-2]) / ((eps[-2] / eps[-1]) ** 2 - 1))
-                            if len(eps) >= 2 else math.nan)
+        out[key + "_p2"] = richardson_fixed(eps, y, 2.0) if len(eps) >= 2 else math.nan
     return out
 
 

@@ -66,7 +66,7 @@ from vesicle_opt.sharp import elastica
 from vesicle_opt.studies._common import column, plt, savefig
 from vesicle_opt.studies.runner import run_cases
 from vesicle_opt.verify import lobpcg
-from vesicle_opt.verify.metrics import richardson
+from vesicle_opt.verify.metrics import richardson, richardson_fixed
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
@@ -206,7 +206,7 @@ def summarise(rows: list[dict]) -> list[dict]:
         elif ok and closed:
             e_inf, p = richardson(eps, e)
             p_fit = polyfit_order(eps, e)
-            e_p2 = e[-1] + (e[-1] - e[-2]) / ((eps[-2] / eps[-1]) ** 2 - 1)
+            e_p2 = richardson_fixed(eps, e, 2.0)
             # E = e + a eps + b eps^2 through the three finest points (polynomial extrapolation)
             e_12 = float(np.linalg.solve(np.vander(eps[-3:], 3, increasing=True), e[-3:])[0])
             status = "certified" if math.isfinite(p) else "no Richardson fit (differences not monotone)"

@@ -107,6 +107,13 @@ def richardson(h, E) -> tuple[float, float]:
     return float(E3 - C * h3**p), float(p)
 
 
+def richardson_fixed(h, E, p: float = 2.0) -> float:
+    """E_inf with E = E_inf + C h^p, p given, through the two points of smallest h (the last two,
+    h decreasing)."""
+    (h1, h2), (E1, E2) = (np.asarray(h, float)[-2:], np.asarray(E, float)[-2:])
+    return float(E2 + (E2 - E1) / ((h1 / h2) ** p - 1))
+
+
 def translation(disc: Discretization, phi: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """Shift s (per axis, in box units) with phi(x + s) ~ ref(x), from the first Fourier modes.
 
