@@ -40,15 +40,11 @@ def _sphere_measure(k: int) -> float:
     return 2 * math.pi ** (k / 2) / math.gamma(k / 2)
 
 
-@lru_cache(maxsize=256)
-def radial_minimum(k: int, mass: float, epsilon: float, r_box: float) -> float:
-    """min of the k-dimensional radial B subject to integral (phi + 1) = mass, phi(r_out) = -1.
-
-    r_out = max(R + 12 eps, r_box): a small mass may spread into a shallow bump of lower B than a
-    saturated ball (the phase field is not a sharp interface), so the profile gets the box's room.
-    """
-    if mass <= 0:
-        return 0.0
+def _radial_grid(k: int, mass: float, epsilon: float, r_box: float):
+    """The 1D grid of the k-dimensional radial problem: (r, dr, node weights wn, midpoint weights
+    wm, the sharp radius R). r_out = max(R + 12 eps, r_box): a small mass may spread into a shallow
+    bump of lower B than a saturated ball (the phase field is not a sharp interface), so the profile
+    gets the box's room."""
     S = _sphere_measure(k)
     R = (mass / 2 / (S / k)) ** (1 / k)  # sharp radius: |ball_R| = mass / 2
     r_out = max(R + 12 * epsilon, r_box)
@@ -60,6 +56,48 @@ def radial_minimum(k: int, mass: float, epsilon: float, r_box: float) -> float:
     wn[[0, -1]] = dr / 2
     wn = S * wn * r ** (k - 1)  # trapezoid weights of the radial measure
     wm = S * dr * rm ** (k - 1)
+    return r, dr, wn, wm, R
+
+
+def _tanh_profile(r: np.ndarray, radius: float, epsilon: float) -> np.ndarray:
+    """The optimal 1D profile tanh((radius - r) / (sqrt 2 eps)), with phi(r_out) = -1."""
+    phi = np.tanh((radius - r) / (math.sqrt(2) * epsilon))
+    phi[-1] = -1.0
+    return phi
+
+
+def radial_competitor(k: int, mass: float, epsilon: float, r_box: float) -> float:
+    """The radial B of one feasible profile of ``radial_minimum``'s problem, on its grid: the tanh
+    profile whose radius is set (bisection, to round-off) so that integral (phi + 1) = mass. An
+    upper bound of that problem's minimum, in closed form up to the radius (no NLP); inf when the
+    mass does not fit the grid."""
+    if mass <= 0:
+        return 0.0
+    r, dr, wn, wm, R = _radial_grid(k, mass, epsilon, r_box)
+
+    def excess(radius):
+        return float(wn @ (_tanh_profile(r, radius, epsilon) + 1)) - mass
+    lo, hi = -12 * epsilon, r[-1] + 12 * epsilon  # the mass grows with the radius from ~0 to ~the grid's
+    if excess(lo) > 0 or excess(hi) < 0:
+        return math.inf
+    for _ in range(200):  # bisection to adjacent doubles (each step halves the bracket)
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        lo, hi = (mid, hi) if excess(mid) < 0 else (lo, mid)
+    phi = _tanh_profile(r, hi, epsilon)
+    grad = np.diff(phi) / dr
+    return float(epsilon / 2 * (wm @ grad**2) + wn @ (phi**2 - 1) ** 2 / (4 * epsilon))
+
+
+@lru_cache(maxsize=256)
+def radial_minimum(k: int, mass: float, epsilon: float, r_box: float) -> float:
+    """min of the k-dimensional radial B subject to integral (phi + 1) = mass, phi(r_out) = -1
+    (grid: ``_radial_grid``)."""
+    if mass <= 0:
+        return 0.0
+    r, dr, wn, wm, R = _radial_grid(k, mass, epsilon, r_box)
+    n = r.size
     import casadi as ca  # third-party, lazy (0.25 s at import): only this bound's small NLP needs it
     phi = ca.SX.sym("phi", n)
     grad = (phi[1:] - phi[:-1]) / dr
@@ -79,8 +117,9 @@ def radial_minimum(k: int, mass: float, epsilon: float, r_box: float) -> float:
     return math.nan  # no bound: check_feasible then warns instead of refusing
 
 
-def beta_min(alpha: float, epsilon: float, box, boundary: str) -> float:
-    """The least B over the ball/cylinder/slab candidates at A = alpha (see module docstring)."""
+def _least_radial_b(alpha: float, epsilon: float, box, boundary: str, radial) -> float:
+    """The least B over the constant state and the ball/cylinder/slab candidates at A = alpha, each
+    k-dimensional radial value from ``radial(k, mass, epsilon, r_box)`` (NaN: no bound)."""
     lengths = sorted(b - a for a, b in box)
     d = len(box)
     volume = math.prod(lengths)
@@ -92,15 +131,30 @@ def beta_min(alpha: float, epsilon: float, box, boundary: str) -> float:
         # the walls at right angles); periodic: the whole k-ball, repeated across the box
         pieces = 2**k if boundary == "natural" else 1
         r_box = lengths[d - k] * (1.0 if boundary == "natural" else 0.5)
-        value = cross * radial_minimum(k, pieces * mass / cross, epsilon, r_box) / pieces
+        value = cross * radial(k, pieces * mass / cross, epsilon, r_box) / pieces
         if math.isnan(value):
             return math.nan
         best = min(best, value)
     return best
 
 
+def beta_min(alpha: float, epsilon: float, box, boundary: str) -> float:
+    """The least B over the ball/cylinder/slab candidates at A = alpha (see module docstring)."""
+    return _least_radial_b(alpha, epsilon, box, boundary, radial_minimum)
+
+
+def beta_upper(alpha: float, epsilon: float, box, boundary: str) -> float:
+    """An upper bound of ``beta_min`` in closed form (no NLP): the least B of the same candidates'
+    tanh profiles (``radial_competitor``), each feasible for its radial problem."""
+    return _least_radial_b(alpha, epsilon, box, boundary, radial_competitor)
+
+
 def check_feasible(alpha: float, beta: float, scene, disc=None) -> float:
-    """Refuse infeasible (alpha, beta) with a one-line InfeasibleError; warn near the bound."""
+    """Refuse infeasible (alpha, beta) with a one-line InfeasibleError; warn near the bound. Returns
+    the bound beta was checked against: ``beta_upper`` when beta is at least (1 + WARN) times it
+    (then beta >= (1 + WARN) beta_min, so neither refusal nor warning can follow, and the three
+    small NLPs of ``beta_min`` with CasADi's import, 0.13-0.29 s of a CLI run, are skipped),
+    else ``beta_min`` (NaN: not computable, warned)."""
     volume = scene.domain.volume if disc is None else disc.volume
     if not -volume < alpha < volume:
         raise InfeasibleError("constraints.alpha",
@@ -108,6 +162,9 @@ def check_feasible(alpha: float, beta: float, scene, disc=None) -> float:
     if not beta > 0:
         raise InfeasibleError("constraints.beta", f"beta = {beta:.6g} must be > 0")
     box = scene.domain.box if disc is None else disc.box  # a mesh file brings its own bounding box
+    upper = beta_upper(alpha, scene.model.epsilon, box, scene.domain.boundary)
+    if beta >= upper * (1 + WARN):  # evidently feasible (docstring)
+        return upper
     bound = beta_min(alpha, scene.model.epsilon, box, scene.domain.boundary)
     if math.isnan(bound):
         warnings.warn("the phase-field feasibility bound could not be computed for these data; "
