@@ -1,9 +1,12 @@
-"""The PNG of a field, drawn by matplotlib from plain arrays (``io.output.figure_spec`` says what).
+"""The PNG of a field (``io.output.figure_spec`` says what): grid images and cuts as pixel arrays
+(``io.raster``, Pillow), a mesh's 2D triangles by matplotlib; ``draw_cut``, one matplotlib panel,
+for the studies' own figures.
 
-matplotlib costs ~0.35 s at import and ~0.15 s to draw the three cuts of a 64^3 grid. Drawing it
-in a worker process that imported matplotlib while the solve ran was measured and dropped: on this
-2-core machine the worker slowed the solve more than it saved (whole process 3.13-3.37 s against
-2.88-3.04 s drawing here, three interleaved pairs, load 1.4).
+matplotlib costs ~0.35 s at import and ~0.15 s to draw the three cuts of a 64^3 grid, so grid
+fields (every FD and spectral run, and the sampled cuts of a 3D mesh) no longer use it. Drawing
+it in a worker process that imported matplotlib while the solve ran was measured and dropped: on
+this 2-core machine the worker slowed the solve more than it saved (whole process 3.13-3.37 s
+against 2.88-3.04 s drawing here, three interleaved pairs, load 1.4).
 
 Figures: 2D, phi with its zero level and a colorbar (grids: an image; meshes: Gouraud triangles);
 3D, three central cuts (x, y, z = the middle plane), in physical coordinates, axis labels, colorbar.
@@ -12,6 +15,8 @@ Figures: 2D, phi with its zero level and a colorbar (grids: an image; meshes: Go
 from __future__ import annotations
 
 import numpy as np
+
+from vesicle_opt.io import raster
 
 
 def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "", *, endpoint: bool = False):
@@ -29,37 +34,29 @@ def draw_cut(ax, cut: np.ndarray, lo: tuple, hi: tuple, title: str = "", *, endp
 
 def draw(path, spec: dict) -> None:
     """Draw ``spec`` (``figure_spec``) into the PNG file ``path``."""
-    # third-party, lazy: only a PNG needs them (~0.35 s at import); a Figure on the Agg canvas, not
-    # pyplot (its state machine and backend switching add 0.07 s and are not needed for one file)
+    if spec["kind"] in ("cuts", "image"):
+        raster.draw(path, spec)
+        return
+    _draw_triangles(path, spec)
+
+
+def _draw_triangles(path, spec: dict) -> None:
+    """A mesh's 2D field (Gouraud triangles) with its zero level, by matplotlib."""
+    # third-party, lazy: only a mesh's PNG needs them (~0.35 s at import); a Figure on the Agg
+    # canvas, not pyplot (its state machine and backend switching add 0.07 s, not needed for a file)
+    import matplotlib.tri as mtri
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    if spec["kind"] == "cuts":
-        # a fixed layout: matplotlib's constrained layout measured 0.35 s of a 0.78 s PNG at 64^3
-        fig = Figure(figsize=(13, 4.2))
-        axes = fig.subplots(1, 3)
-        fig.subplots_adjust(left=0.04, right=0.9, bottom=0.12, top=0.85, wspace=0.28)
-        for ax, cut, lo, hi, label, (xl, yl) in zip(axes, spec["cuts"], spec["lo"], spec["hi"], spec["labels"],
-                                                    spec["axis_names"]):
-            image = draw_cut(ax, cut, lo, hi, label, endpoint=spec["endpoint"])
-            ax.set_xlabel(xl)
-            ax.set_ylabel(yl)
-        fig.suptitle(spec["title"], fontsize=10)
-        fig.colorbar(image, cax=fig.add_axes((0.92, 0.17, 0.012, 0.63)), label="phi")
-    else:
-        fig = Figure(figsize=(5.6, 5))
-        ax = fig.subplots()
-        if spec["kind"] == "image":
-            image = draw_cut(ax, spec["field"], spec["lo"], spec["hi"])
-        else:  # "triangles"
-            import matplotlib.tri as mtri
-            tri = mtri.Triangulation(spec["x"], spec["y"], spec["triangles"])
-            image = ax.tripcolor(tri, spec["values"], cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
-            ax.tricontour(tri, spec["values"], levels=[0.0], colors="k")
-        ax.set_aspect("equal")
-        ax.set_xlabel("x")
-        ax.set_ylabel("y")
-        ax.set_title(spec["title"], fontsize=9)
-        fig.colorbar(image, ax=ax, shrink=0.8, label="phi (+1 inside, -1 outside)")
-        fig.tight_layout()
+    fig = Figure(figsize=(5.6, 5))
+    ax = fig.subplots()
+    tri = mtri.Triangulation(spec["x"], spec["y"], spec["triangles"])
+    image = ax.tripcolor(tri, spec["values"], cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
+    ax.tricontour(tri, spec["values"], levels=[0.0], colors="k")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_title(spec["title"], fontsize=9)
+    fig.colorbar(image, ax=ax, shrink=0.8, label="phi (+1 inside, -1 outside)")
+    fig.tight_layout()
     FigureCanvasAgg(fig)
     fig.savefig(path, dpi=100)
