@@ -68,8 +68,14 @@ def test_surface_file_opens_with_meshio(tmp_path):
     _, _, _, s = _torus(16)
     write_surface(tmp_path / "surface.ply", s)
     m = meshio.read(tmp_path / "surface.ply")
-    assert np.allclose(m.points, s.vertices, rtol=0, atol=1e-12)  # meshio's PLY keeps float64
+    assert np.array_equal(m.points, s.vertices)  # the PLY keeps float64: bitwise
     assert np.array_equal(m.cells_dict["triangle"], s.faces)
+    # and the same as meshio's own PLY of the same triangles, read back
+    meshio.write(str(tmp_path / "meshio.ply"), meshio.Mesh(s.vertices, [("triangle", s.faces)]))
+    theirs = meshio.read(tmp_path / "meshio.ply")
+    assert np.array_equal(theirs.points, m.points) and np.array_equal(theirs.cells_dict["triangle"], s.faces)
+    write_surface(tmp_path / "surface.vtu", s)  # other suffixes through meshio
+    assert np.array_equal(meshio.read(tmp_path / "surface.vtu").cells_dict["triangle"], s.faces)
 
 
 @pytest.mark.slow

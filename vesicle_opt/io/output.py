@@ -1,11 +1,11 @@
 """Writers of a result: summary.json, phi.npz, VTK files (meshio ``.vtu``; ``io.vtk``: ``.vti``, ``.pvd``),
-the phi = 0 surface of 3D grids (``io.surface``) and a PNG of the level set (matplotlib); the
-atomic json/npz files are ``io.files``.
+the phi = 0 surface of 3D grids (``io.surface``) and a PNG of the level set (``io.png``: grids by
+Pillow, ``io.raster``; a mesh's 2D triangles by matplotlib); the atomic json/npz files are ``io.files``.
 
 Nothing non-finite is ever written: ``Result.summary`` maps NaN/inf to null, and fields with
-non-finite values are refused here rather than written. meshio loads only when a mesh's .vtu or
-a surface file is written (a grid's .vtu is ``io.vtk``'s), matplotlib (~0.35 s) and
-scipy.interpolate only when a PNG is drawn.
+non-finite values are refused here rather than written. meshio loads only when a mesh's .vtu is
+written (a grid's .vtu is ``io.vtk``'s, a surface.ply ``io.surface``'s), matplotlib (~0.35 s) only
+for a mesh's 2D PNG and scipy.interpolate only for the PNG cuts of a 3D mesh.
 """
 
 from __future__ import annotations

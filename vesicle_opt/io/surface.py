@@ -57,8 +57,28 @@ def zero_surface(disc, phi: np.ndarray) -> Surface | None:
     return Surface(verts, faces, area, volume)
 
 
+def _write_ply(path: Path, surface: Surface) -> None:
+    """Binary little-endian PLY in meshio's layout (double x, y, z; faces as a uint8 count and int32
+    indices): the format is a text header and two packed tables, and meshio's import (0.03-0.08 s,
+    its CLI and rich included) was a tenth of a 64^3 run's writing."""
+    vertices = np.ascontiguousarray(surface.vertices, dtype="<f8")
+    faces = np.empty(len(surface.faces), dtype=[("n", "u1"), ("v", "<i4", (3,))])
+    faces["n"], faces["v"] = 3, surface.faces
+    header = ("ply\nformat binary_little_endian 1.0\ncomment Created by vesicle_opt\n"
+              f"element vertex {len(vertices)}\nproperty double x\nproperty double y\nproperty double z\n"
+              f"element face {len(faces)}\nproperty list uint8 int32 vertex_indices\nend_header\n")
+    with open(path, "wb") as f:
+        f.write(header.encode("ascii"))
+        f.write(vertices.tobytes())
+        f.write(faces.tobytes())
+
+
 def write_surface(path: Path, surface: Surface) -> None:
-    """The triangles as a mesh file meshio writes (``.ply``, ``.stl``, ``.vtu``, ``.obj`` by suffix)."""
+    """The triangles as a mesh file: ``.ply`` written here (``_write_ply``), any other suffix meshio
+    writes (``.stl``, ``.vtu``, ``.obj``)."""
+    if Path(path).suffix == ".ply":
+        _write_ply(path, surface)
+        return
     import meshio  # with the writers only (module docstring of ``io.output``)
 
     meshio.write(str(path), meshio.Mesh(surface.vertices, [("triangle", surface.faces)]))
