@@ -56,7 +56,7 @@ def test_vtu_of_a_grid_covers_the_box(tmp_path):
 
 
 def test_grid_vtu_equals_meshios_own_file(tmp_path):
-    """``vtk.write_vtu_grid`` (zlib level 1) against meshio's writer on the same points, cells and
+    """``vtk.write_vtu_grid`` (ISA-L level 1) against meshio's writer on the same points, cells and
     values (``vtk.grid_cells``), both read back by meshio: every array bitwise equal, 2D and 3D."""
     for name, n in (("ellipse-2d", 8), ("torus-table1-3d", 6)):
         d, phi = _disc_and_field(name, n)
