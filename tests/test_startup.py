@@ -1,11 +1,11 @@
 """Start-up cost: ``import vesicle_opt`` loads no library that only some paths need (CasADi for an
-IPOPT solve, matplotlib for a PNG, scipy.signal, scipy.optimize): checked in a fresh interpreter,
+IPOPT solve, matplotlib or Pillow for a PNG, scipy.signal, scipy.optimize): checked in a fresh interpreter,
 where the module table says what an import pulled in."""
 
 import subprocess
 import sys
 
-HEAVY = ("casadi", "matplotlib", "scipy.signal", "scipy.optimize")
+HEAVY = ("casadi", "matplotlib", "PIL", "scipy.signal", "scipy.optimize")
 
 
 def test_import_loads_no_heavy_optional_library():
