@@ -164,7 +164,7 @@ def draw(path, spec: dict) -> None:
             _text(canvas, (p.left - 7, py), _label(t), font, "rm")
         _text(canvas, ((p.left + right) / 2, bottom + 30), xname, font)
         _text(canvas, (p.left - 40, (p.top + bottom) / 2), yname, font)
-        _text(canvas, ((p.left + right) / 2, p.top - 10), title, font, "mb")
+        _text(canvas, ((p.left + right) / 2, p.top - 12), title, font, "ms")
     # the colorbar: phi from -1 (bottom) to 1 (top), ticks every 0.5
     top, bottom = panels[0].top, max(p.top + p.size[1] for p in panels)
     left = panels[-1].left + panels[-1].size[0] + MARGIN["gap"] // 2
