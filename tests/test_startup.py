@@ -21,3 +21,13 @@ def test_the_ipopt_path_still_finds_casadi():
             "print(r.converged, 'casadi' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split()[-2:] == ["True", "True"], out.stdout + out.stderr
+
+
+def test_the_solve_verb_loads_no_flow_code():
+    """``vesicle_opt.flow`` / ``FlowResult`` load the flows package on first use (PEP 562), the CLI's
+    flow verb imports it itself: ``import vesicle_opt.cli`` does not, and the attributes still work."""
+    code = ("import sys, vesicle_opt.cli, vesicle_opt as vo; print('vesicle_opt.flows' in sys.modules); "
+            "from vesicle_opt.flows.api import flow, FlowResult; "
+            "print(vo.flow is flow, vo.FlowResult is FlowResult, 'flow' in vo.__all__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "True", "True", "True"], out.stdout + out.stderr
