@@ -39,8 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.branch import COLUMNS, branch
-from vesicle_opt.io.files import load_npz, write_json
+from vesicle_opt.api import solve
+from vesicle_opt.io.files import load_npz, save_npz, write_json
 from vesicle_opt.mesh import cosine
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
@@ -63,6 +63,8 @@ AREA = 4 * math.pi
 # oblate radius 1.240 (0.59), half-thickness 0.382 (0.71)
 HALF_EXTENT = {"prolate": (2.36, 0.60, 0.60), "oblate": (1.25, 1.25, 0.39)}
 START_AXES = {"prolate": [1.75, 0.65, 0.65], "oblate": [1.25, 1.25, 0.4]}  # ellipsoids near v = 0.71
+V_QUICK = (0.71, 0.69)
+TOL = 1e-8  # the exact solve's KKT tolerance (the energy_diagram branches' value)
 FIT_DEGREE = 3  # the crossing's fits e(v) per branch: cubic (the sharp branches' crossing from the
 # same v grid is recovered to < 1e-5 by it, a test; linear interpolation is off by ~5e-4 there)
 
@@ -77,34 +79,69 @@ def octant_box(half_extent, epsilon: float, eps_over_h: float = EPS_OVER_H,
 
 
 def cases(quick: bool) -> list[dict]:
-    base = {"dim": 3, "area": AREA, "step": V_STEP, "start_v": V_RANGE[0], "to": V_RANGE[1], "max_iter": 500}
+    """One case per (eps, form, v), in the order they run (one worker): each branch's v descending,
+    so that a point warm-starts from the one before it (``run``)."""
     seq = (0.25,) if quick else EPS_SEQUENCE
+    vs = V_QUICK if quick else tuple(round(V_RANGE[0] + k * V_STEP, 6)
+                                    for k in range(int(round((V_RANGE[1] - V_RANGE[0]) / V_STEP)) + 1))
     out = []
     for eps in seq:
         for f in ("prolate", "oblate"):
             box, n = octant_box(HALF_EXTENT[f], eps)
-            out.append({**base, "case": f"{f}-eps{eps:g}", "form": f, "epsilon": eps, "box": box, "n": n,
-                        **({"to": 0.67} if quick else {}),
-                        "initial": {"shape": "ellipsoid", "semi_axes": START_AXES[f], "center": [0.0, 0.0, 0.0]}})
+            for i, v in enumerate(vs):
+                out.append({"case": f"{f}-eps{eps:g}-v{v:g}", "branch": f"{f}-eps{eps:g}", "form": f,
+                            "epsilon": eps, "box": box, "n": n, "v": v, "previous_v": vs[i - 1] if i else None,
+                            "area": AREA, "max_iter": 500,
+                            "initial": {"shape": "ellipsoid", "semi_axes": START_AXES[f], "center": [0.0, 0.0, 0.0]}})
     return out
 
 
 def scene(case: dict):
     raw = {"domain": {"box": case["box"], "boundary": "natural"},
            "mesh": {"kind": "spectral", "n": case["n"]}, "model": {"epsilon": case["epsilon"]},
-           "constraints": {"reduced_volume": case["start_v"], "area": case["area"]},
+           "constraints": {"reduced_volume": case["v"], "area": case["area"]},
            "initial": case["initial"],
-           "solver": {"method": "exact", "tol": 1e-8, "backend": "newton-krylov", "max_iter": case["max_iter"]}}
+           "solver": {"method": "exact", "tol": TOL, "backend": "newton-krylov", "max_iter": case["max_iter"]}}
     return from_dict(raw, case["case"])
 
 
-def sharp_reference(which: str):
-    def f(param: str, value: float, dim: int):
-        if param != "reduced_volume" or not 0 < value < 1:
-            return None
-        sol = axisymmetric.solve(value, which)
-        return float(sol.reduced_energy) if sol.converged else None
-    return f
+def sharp_energy(v: float, which: str) -> float:
+    """The sharp axisymmetric prolate / oblate reduced energy at v (nan where it does not converge)."""
+    sol = axisymmetric.solve(v, which)
+    return float(sol.reduced_energy) if sol.converged else math.nan
+
+
+def _field_path(case: dict, v: float) -> Path:
+    return Path(case["out"]) / case["branch"] / f"phi-v{v:g}.npz"
+
+
+def run(case: dict) -> list[dict]:
+    """One point: the front door at (eps, form, v), warm-started from the branch's previous point
+    (its certified field, saved beside the CSV) or, for the first point or after a failure, cold
+    from the case's ellipsoid (nested iteration from coarser grids)."""
+    sc = scene(case)
+    prev = None if case["previous_v"] is None else load_npz(_field_path(case, case["previous_v"]))
+    r = solve(sc, x0=None if prev is None else prev["phi"], throw=False)
+    ex = r.extra
+    snap = {"phi": r.phi, "grid_shape": np.array(case["n"]), "box": np.array(case["box"])}
+    found, aspect = form(snap)
+    gap, gap_eps = image_gap(snap, case["epsilon"])
+    if r.converged:
+        save_npz(_field_path(case, case["v"]), phi=r.phi)
+    ref = sharp_energy(case["v"], case["form"])
+    return [{"scene": case["branch"], "method": "exact", "n": "x".join(map(str, case["n"])),
+             "h": case["epsilon"] / EPS_OVER_H, "energy": r.energy, "volume_residual": r.volume_residual,
+             "area_residual": r.area_residual, "lambda_volume": r.lambda_volume, "lambda_area": r.lambda_area,
+             "iterations": r.iterations, "wall_time_s": r.wall_time_s, "status": str(r.outcome),
+             "branch_form": case["form"], "epsilon": case["epsilon"], "nodes": int(np.prod(case["n"])),
+             "target_v": case["v"], "start": "cold" if prev is None else "warm",
+             "reduced_volume": ex.get("reduced_volume"), "reduced_energy": ex.get("reduced_energy"),
+             "sharp_reduced_energy": ref, "error_vs_sharp": ex.get("reduced_energy", math.nan) - ref,
+             "volume": ex.get("volume"), "area": ex.get("area"), "kkt_residual": r.kkt_residual,
+             "converged": r.converged, "second_order": ex.get("second_order"),
+             "second_order_min_eigenvalue": ex.get("second_order_min_eigenvalue"),
+             "second_order_excluded": ex.get("second_order_excluded"), "topology": ex.get("topology"),
+             "form": found, "aspect": aspect, "image_gap": gap, "gap_over_eps": gap_eps}]
 
 
 def unfolded_inside(snapshot: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -142,24 +179,10 @@ def image_gap(snapshot: dict, epsilon: float) -> tuple[float, float]:
     return g, g / epsilon
 
 
-EXTRA = [c for c in COLUMNS if c != "case"] + ["form", "branch_form", "aspect", "image_gap", "gap_over_eps",
-                                              "nodes", "branch_stopped"]
-
-
-def run(case: dict) -> list[dict]:
-    out = Path(case["out"]) / case["case"]
-    b = branch(scene(case), "reduced_volume", to=case["to"], step=case["step"], out=out, switch=False,
-               reference=sharp_reference(case["form"]))
-    rows = []
-    for r in b.rows:
-        row = {**r, "scene": case["case"], "method": "exact", "branch_form": case["form"],
-               "nodes": int(np.prod(case["n"])), "branch_stopped": b.stopped[r["branch"]]}
-        snap = load_npz(out / "points" / f"point-{int(r['point']):04d}.npz") if r["accepted"] else None
-        if snap is not None:
-            row["form"], row["aspect"] = form(snap)
-            row["image_gap"], row["gap_over_eps"] = image_gap(snap, case["epsilon"])
-        rows.append(row)
-    return rows
+EXTRA = ["branch_form", "epsilon", "nodes", "target_v", "start", "reduced_volume", "reduced_energy",
+         "sharp_reduced_energy", "error_vs_sharp", "volume", "area", "kkt_residual", "converged", "second_order",
+         "second_order_min_eigenvalue", "second_order_excluded", "topology", "form", "aspect", "image_gap",
+         "gap_over_eps"]
 
 
 def _true(x) -> bool:
@@ -167,8 +190,8 @@ def _true(x) -> bool:
 
 
 def good_points(rows: list[dict], shape: str) -> list[dict]:
-    """Accepted, certified points that are closed vesicles of the branch's own form."""
-    return [r for r in rows if _true(r.get("accepted")) and _true(r.get("converged")) and r.get("form") == shape
+    """Certified points that are closed vesicles of the branch's own form."""
+    return [r for r in rows if _true(r.get("converged")) and r.get("form") == shape
             and str(r.get("topology", "")).startswith("sphere-like")]
 
 
@@ -201,23 +224,35 @@ def extrapolate(per_eps: dict) -> dict:
     return out
 
 
+def _clean(x):
+    """JSON-safe: non-finite floats as None (``write_json`` refuses NaN)."""
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    return x
+
+
 def summary(rows: list[dict], case_list: list[dict]) -> dict:
+    """Per branch: points, certified closed vesicles of its form, verdicts, time per point; per eps
+    the crossing and its distance to the sharp one; the extrapolation; the branch errors' order."""
     out: dict = {"branches": {}}
     by_eps: dict = {}
-    for c in case_list:
-        sel = select(rows, scene=c["case"])
-        acc = [r for r in sel if _true(r.get("accepted"))]
+    for name in dict.fromkeys(c["branch"] for c in case_list):
+        c = next(c for c in case_list if c["branch"] == name)
+        sel = select(rows, scene=name)
         good = good_points(sel, c["form"])
-        walls = [num(r.get("wall_time_s")) for r in acc]
-        out["branches"][c["case"]] = {
+        walls = [num(r.get("wall_time_s")) for r in sel]
+        out["branches"][name] = {
             "epsilon": c["epsilon"], "n": c["n"], "nodes": int(np.prod(c["n"])),
-            "full_box_nodes_equivalent": 8 * int(np.prod(c["n"])), "points": len(acc), "attempts": len(sel),
-            "good_points": len(good),
-            "minimum_within_mirror_class": sum(r.get("second_order") == "minimum" for r in acc),
-            "saddle": sum(r.get("second_order") == "saddle" for r in acc),
-            "stopped": sel[-1].get("branch_stopped") if sel else None,
+            "doubled_box_nodes": 8 * int(np.prod(c["n"])), "points": len(sel),
+            "certified": sum(_true(r.get("converged")) for r in sel), "good_points": len(good),
+            "minimum_within_mirror_class": sum(r.get("second_order") == "minimum" for r in sel),
+            "saddle_within_mirror_class": sum(r.get("second_order") == "saddle" for r in sel),
             "median_wall_time_s_per_point": float(np.nanmedian(walls)) if walls else None,
-            "min_gap_over_eps": min((num(r.get("gap_over_eps")) for r in acc), default=None)}
+            "min_gap_over_eps": min((num(r.get("gap_over_eps")) for r in sel), default=None)}
         by_eps.setdefault(c["epsilon"], {})[c["form"]] = good
     per_eps, err = {}, {}
     for eps, both in sorted(by_eps.items(), reverse=True):
@@ -228,28 +263,32 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
             per_eps[eps] = x
         for f, pts in both.items():
             for r in pts:
-                ref = num(r.get("sharp_reduced_energy"))
-                if math.isfinite(ref):
-                    err.setdefault(f, {}).setdefault(round(num(r["target"]), 6), {})[eps] = num(r["reduced_energy"]) - ref
+                d = num(r.get("error_vs_sharp"))
+                if math.isfinite(d):
+                    err.setdefault(f, {}).setdefault(num(r["target_v"]), {})[eps] = d
     v_s, e_s = axisymmetric.crossing()
     out["crossing_sharp"] = {"reduced_volume": v_s, "reduced_energy": e_s,
                              "literature": "Seifert, Berndl & Lipowsky, PRA 44, 1182 (1991): v ~ 0.652"}
     out["crossing_eps"] = {f"{e:g}": {**x, "dv_to_sharp": x["reduced_volume"] - v_s,
                                       "de_to_sharp": x["reduced_energy"] - e_s} for e, x in per_eps.items()}
+    if per_eps:
+        eps = sorted(per_eps, reverse=True)
+        out["crossing_order_observed"] = {
+            key: observed_order(eps, [abs(per_eps[e][key] - ref) for e in eps]) if len(eps) >= 2 else math.nan
+            for key, ref in (("reduced_volume", v_s), ("reduced_energy", e_s))}
     if len(per_eps) >= 2:
         ex = extrapolate(per_eps)
         for key, ref in (("reduced_volume", v_s), ("reduced_energy", e_s)):
             for how in ("_richardson", "_p2"):
                 ex[key + how + "_minus_sharp"] = ex[key + how] - ref
         out["crossing_extrapolated"] = ex
-    orders = {}
-    for f, by_v in err.items():
-        common = [v for v, d in by_v.items() if len(d) == len(by_eps) and len(d) >= 2]
-        orders[f] = {f"{v:g}": {"errors": {f"{e:g}": d for e, d in sorted(by_v[v].items(), reverse=True)},
-                                "order": observed_order(list(by_v[v]), [abs(x) for x in by_v[v].values()])}
-                     for v in sorted(common)}
-    out["energy_error_vs_sharp"] = orders
-    return out
+    out["energy_error_vs_sharp"] = {
+        f: {f"{v:g}": {"errors": {f"{e:g}": d for e, d in sorted(by_v[v].items(), reverse=True)},
+                       "order": observed_order(sorted(by_v[v], reverse=True),
+                                               [abs(by_v[v][e]) for e in sorted(by_v[v], reverse=True)])}
+            for v in sorted(by_v) if len(by_v[v]) >= 2}
+        for f, by_v in err.items()}
+    return _clean(out)
 
 
 def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int:
@@ -262,5 +301,5 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
     write_json(out / f"{NAME}.json", info)
     for name, v in info.items():
         log.info(f"{NAME}: {name}: {v}")
-    ok = all(v["points"] >= 2 and v["good_points"] == v["points"] for v in info["branches"].values())
+    ok = all(v["points"] >= 2 and v["certified"] == v["points"] for v in info["branches"].values())
     return 0 if ok else 1
