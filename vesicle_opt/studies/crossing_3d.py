@@ -15,9 +15,10 @@ started from a prolate / oblate ellipsoid centred at the corner 0, on a box fitt
 sharp half-extent over that range (``HALF_EXTENT``, from ``vesicle_opt.sharp.axisymmetric``) plus
 ``GAP_OVER_EPS`` / 2 eps, so that the free space to the mirror image across a far face is
 ``GAP_OVER_EPS`` eps; uniform spacing h = eps / ``EPS_OVER_H`` (``octant_box``). The crossing per eps
-(``crossing``): a cubic least-squares fit of each branch's reduced energy in v over its points that
-are certified closed vesicles of the branch's own form (``form`` on the unfolded field, topology
-sphere-like), the root of the difference inside both ranges; its eps -> 0 limit
+(``crossing``): a cubic spline of each branch's reduced energy in v through its points that are
+certified closed vesicles of the branch's own form (``form`` on the unfolded field, topology
+sphere-like), the root of the difference inside both ranges (on the sharp branches at the same v
+grid it recovers the sharp crossing to 2e-6 in v, 8e-6 in e; linear interpolation: ~5e-4); its eps -> 0 limit
 (``extrapolate``): Richardson with free order through the three finest eps (the observed order) and
 with fixed order 2 through the two finest, against the sharp crossing v* = 0.651076, e* = 1.823471
 (``sharp.axisymmetric.crossing``, computed here; Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 1182
@@ -38,6 +39,8 @@ import math
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.optimize import brentq
 
 from vesicle_opt.api import solve
 from vesicle_opt.io.files import load_npz, save_npz, write_json
@@ -52,7 +55,7 @@ from vesicle_opt.verify.metrics import observed_order, richardson, richardson_fi
 log = logging.getLogger(__name__)
 
 NAME = "crossing_3d"
-EPS_SEQUENCE = (0.1, 0.07, 0.05, 0.035)
+EPS_SEQUENCE = (0.1, 0.07, 0.06, 0.05, 0.035)
 EPS_OVER_H = 2.5  # the spacing of the earlier fitted periodic boxes (energy_diagram), for comparison
 GAP_OVER_EPS = 8.0  # free space to the mirror image: tanh tails overlap ~ exp(-sqrt 2 * 8) ~ 1e-5
 V_RANGE = (0.71, 0.59)
@@ -65,8 +68,6 @@ HALF_EXTENT = {"prolate": (2.36, 0.60, 0.60), "oblate": (1.25, 1.25, 0.39)}
 START_AXES = {"prolate": [1.75, 0.65, 0.65], "oblate": [1.25, 1.25, 0.4]}  # ellipsoids near v = 0.71
 V_QUICK = (0.71, 0.69)
 TOL = 1e-8  # the exact solve's KKT tolerance (the energy_diagram branches' value)
-FIT_DEGREE = 3  # the crossing's fits e(v) per branch: cubic (the sharp branches' crossing from the
-# same v grid is recovered to < 1e-5 by it, a test; linear interpolation is off by ~5e-4 there)
 
 
 def octant_box(half_extent, epsilon: float, eps_over_h: float = EPS_OVER_H,
@@ -105,12 +106,6 @@ def scene(case: dict):
     return from_dict(raw, case["case"])
 
 
-def sharp_energy(v: float, which: str) -> float:
-    """The sharp axisymmetric prolate / oblate reduced energy at v (nan where it does not converge)."""
-    sol = axisymmetric.solve(v, which)
-    return float(sol.reduced_energy) if sol.converged else math.nan
-
-
 def _field_path(case: dict, v: float) -> Path:
     return Path(case["out"]) / case["branch"] / f"phi-v{v:g}.npz"
 
@@ -128,7 +123,6 @@ def run(case: dict) -> list[dict]:
     gap, gap_eps = image_gap(snap, case["epsilon"])
     if r.converged:
         save_npz(_field_path(case, case["v"]), phi=r.phi)
-    ref = sharp_energy(case["v"], case["form"])
     return [{"scene": case["branch"], "method": "exact", "n": "x".join(map(str, case["n"])),
              "h": case["epsilon"] / EPS_OVER_H, "energy": r.energy, "volume_residual": r.volume_residual,
              "area_residual": r.area_residual, "lambda_volume": r.lambda_volume, "lambda_area": r.lambda_area,
@@ -136,7 +130,6 @@ def run(case: dict) -> list[dict]:
              "branch_form": case["form"], "epsilon": case["epsilon"], "nodes": int(np.prod(case["n"])),
              "target_v": case["v"], "start": "cold" if prev is None else "warm",
              "reduced_volume": ex.get("reduced_volume"), "reduced_energy": ex.get("reduced_energy"),
-             "sharp_reduced_energy": ref, "error_vs_sharp": ex.get("reduced_energy", math.nan) - ref,
              "volume": ex.get("volume"), "area": ex.get("area"), "kkt_residual": r.kkt_residual,
              "converged": r.converged, "second_order": ex.get("second_order"),
              "second_order_min_eigenvalue": ex.get("second_order_min_eigenvalue"),
@@ -180,9 +173,9 @@ def image_gap(snapshot: dict, epsilon: float) -> tuple[float, float]:
 
 
 EXTRA = ["branch_form", "epsilon", "nodes", "target_v", "start", "reduced_volume", "reduced_energy",
-         "sharp_reduced_energy", "error_vs_sharp", "volume", "area", "kkt_residual", "converged", "second_order",
-         "second_order_min_eigenvalue", "second_order_excluded", "topology", "form", "aspect", "image_gap",
-         "gap_over_eps"]
+         "volume", "area", "kkt_residual", "converged", "second_order", "second_order_min_eigenvalue",
+         "second_order_excluded", "topology", "form", "aspect", "image_gap", "gap_over_eps"]
+# (the sharp reference per v is computed once per run, in ``summary``: one warm-started sharp branch)
 
 
 def _true(x) -> bool:
@@ -195,22 +188,25 @@ def good_points(rows: list[dict], shape: str) -> list[dict]:
             and str(r.get("topology", "")).startswith("sphere-like")]
 
 
-def crossing(va, ea, vb, eb, degree: int = FIT_DEGREE) -> dict | None:
-    """Where two branches' reduced energies cross: least-squares polynomials e(v) of ``degree`` (at
-    most one less than the points) per branch, the root of their difference on the overlap of the
-    ranges (the one nearest its middle); None when there is none."""
+def crossing(va, ea, vb, eb) -> dict | None:
+    """Where two branches' reduced energies cross: a cubic spline e(v) through each branch's points
+    (not-a-knot; error O(dv^4)), the root of their difference on the overlap of the ranges (brentq
+    on the first sign change, from the high-v end); None when there is none."""
     va, ea, vb, eb = (np.asarray(x, float) for x in (va, ea, vb, eb))
     if len(va) < 2 or len(vb) < 2:
         return None
-    pa = np.polyfit(va, ea, min(degree, len(va) - 1))
-    pb = np.polyfit(vb, eb, min(degree, len(vb) - 1))
+    ia, ib = np.argsort(va), np.argsort(vb)
+    sa, sb = CubicSpline(va[ia], ea[ia]), CubicSpline(vb[ib], eb[ib])
     lo, hi = max(va.min(), vb.min()), min(va.max(), vb.max())
-    roots = [float(z.real) for z in np.roots(np.polysub(pa, pb)) if abs(z.imag) < 1e-12 and lo <= z.real <= hi]
-    if not roots:
+    if not lo < hi:
         return None
-    vx = min(roots, key=lambda z: abs(z - (lo + hi) / 2))
-    return {"reduced_volume": vx, "reduced_energy": float(np.polyval(pa, vx)),
-            "fit_rms": float(max(np.std(np.polyval(pa, va) - ea), np.std(np.polyval(pb, vb) - eb)))}
+    grid = np.linspace(hi, lo, 201)
+    d = sa(grid) - sb(grid)
+    k = next((i for i in range(len(grid) - 1) if d[i] == 0 or d[i] * d[i + 1] < 0), None)
+    if k is None:
+        return None
+    vx = float(grid[k]) if d[k] == 0 else float(brentq(lambda v: float(sa(v) - sb(v)), grid[k + 1], grid[k], xtol=1e-14))
+    return {"reduced_volume": vx, "reduced_energy": float(sa(vx))}
 
 
 def extrapolate(per_eps: dict) -> dict:
@@ -254,6 +250,10 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
             "median_wall_time_s_per_point": float(np.nanmedian(walls)) if walls else None,
             "min_gap_over_eps": min((num(r.get("gap_over_eps")) for r in sel), default=None)}
         by_eps.setdefault(c["epsilon"], {})[c["form"]] = good
+    vs = sorted({num(c["v"]) for c in case_list}, reverse=True)
+    sharp = {f: {s.v: s for s in axisymmetric.branch(vs, f, second_order=False)} for f in ("prolate", "oblate")}
+    out["sharp_branches"] = {f: {f"{v:g}": {"reduced_energy": s.reduced_energy, "kkt_residual": s.kkt_residual}
+                                 for v, s in by_v.items()} for f, by_v in sharp.items()}
     per_eps, err = {}, {}
     for eps, both in sorted(by_eps.items(), reverse=True):
         pro, obl = both.get("prolate", []), both.get("oblate", [])
@@ -262,10 +262,9 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
         if x is not None:
             per_eps[eps] = x
         for f, pts in both.items():
-            for r in pts:
-                d = num(r.get("error_vs_sharp"))
-                if math.isfinite(d):
-                    err.setdefault(f, {}).setdefault(num(r["target_v"]), {})[eps] = d
+            for r in pts:  # the sharp branch's value at the point's target v (its v to 1e-8)
+                d = num(r["reduced_energy"]) - sharp[f][num(r["target_v"])].reduced_energy
+                err.setdefault(f, {}).setdefault(num(r["target_v"]), {})[eps] = d
     v_s, e_s = axisymmetric.crossing()
     out["crossing_sharp"] = {"reduced_volume": v_s, "reduced_energy": e_s,
                              "literature": "Seifert, Berndl & Lipowsky, PRA 44, 1182 (1991): v ~ 0.652"}
