@@ -66,8 +66,10 @@ AREA = 4 * math.pi
 # oblate radius 1.240 (0.59), half-thickness 0.382 (0.71)
 HALF_EXTENT = {"prolate": (2.36, 0.60, 0.60), "oblate": (1.25, 1.25, 0.39)}
 START_AXES = {"prolate": [1.75, 0.65, 0.65], "oblate": [1.25, 1.25, 0.4]}  # ellipsoids near v = 0.71
-V_DENSE = (0.70, 0.68, 0.66)  # added where eps >= DENSE_FROM_EPS: there the oblate opens into a torus
-DENSE_FROM_EPS = 0.06  # just below the crossing (at v ~ 0.67 for eps = 0.07, ~0.63 for 0.05, measured)
+V_DENSE = (0.70, 0.68, 0.66)  # added at DENSE_EPS: there the oblate opens into a torus just below the
+DENSE_EPS = (0.07, 0.06)  # crossing (measured: at v = 0.67 for eps = 0.07, 0.63 for 0.05)
+FINEST_V_END = 0.63  # the finest eps stops here: its crossing lies near 0.66 and a point costs ~5 min
+# (525 k nodes, 2 shared cores, load ~4), the points below would not move it
 V_QUICK = (0.71, 0.69)
 TOL = 1e-8  # the exact solve's KKT tolerance (the energy_diagram branches' value)
 
@@ -88,8 +90,10 @@ def cases(quick: bool) -> list[dict]:
     base = tuple(round(V_RANGE[0] + k * V_STEP, 6) for k in range(int(round((V_RANGE[1] - V_RANGE[0]) / V_STEP)) + 1))
     out = []
     for eps in seq:
-        vs = V_QUICK if quick else tuple(sorted(set(base) | (set(V_DENSE) if eps >= DENSE_FROM_EPS else set()),
+        vs = V_QUICK if quick else tuple(sorted(set(base) | (set(V_DENSE) if eps in DENSE_EPS else set()),
                                                 reverse=True))
+        if not quick and eps == min(seq):
+            vs = tuple(v for v in vs if v >= FINEST_V_END)
         for f in ("prolate", "oblate"):
             box, n = octant_box(HALF_EXTENT[f], eps)
             for i, v in enumerate(vs):
