@@ -68,7 +68,7 @@ HALF_EXTENT = {"prolate": (2.36, 0.60, 0.60), "oblate": (1.25, 1.25, 0.39)}
 START_AXES = {"prolate": [1.75, 0.65, 0.65], "oblate": [1.25, 1.25, 0.4]}  # ellipsoids near v = 0.71
 V_DENSE = (0.70, 0.68, 0.66)  # added at DENSE_EPS: there the oblate opens into a torus just below the
 DENSE_EPS = (0.07, 0.06)  # crossing (measured: at v = 0.67 for eps = 0.07, 0.63 for 0.05)
-FINEST_V_END = 0.63  # the finest eps stops here: its crossing lies near 0.66 and a point costs ~5 min
+FINEST_V_END = 0.65  # the finest eps stops here: its crossing lies near 0.66 and a point costs ~5 min
 # (525 k nodes, 2 shared cores, load ~4), the points below would not move it
 V_QUICK = (0.71, 0.69)
 TOL = 1e-8  # the exact solve's KKT tolerance (the energy_diagram branches' value)
