@@ -57,3 +57,14 @@ def test_quick_runs_resumes_and_writes_its_files(tmp_path):
     before = (tmp_path / "crossing_3d.csv").read_text()
     assert run_study("crossing_3d", tmp_path, quick=True) == 0  # resumed: nothing re-run, no row twice
     assert (tmp_path / "crossing_3d.csv").read_text() == before
+
+
+def test_extrapolation_recovers_a_quadratic_limit():
+    """y = y0 + c eps^2 exactly: every extrapolation gives y0 to round-off, the free order 2."""
+    per_eps = {e: {"reduced_volume": 0.65 + 3 * e**2, "reduced_energy": 1.8 - 2 * e**2}
+               for e in (0.07, 0.06, 0.05, 0.035)}
+    ex = cx.extrapolate(per_eps)
+    for key, y0 in (("reduced_volume", 0.65), ("reduced_energy", 1.8)):
+        for how in ("_richardson", "_p2", "_lsq_p2"):
+            assert ex[key + how] == pytest.approx(y0, abs=1e-12), key + how  # round-off of O(1) sums
+        assert ex["order_" + key] == pytest.approx(2.0, abs=1e-6)  # brentq's tolerance on p

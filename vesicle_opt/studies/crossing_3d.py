@@ -19,8 +19,8 @@ sharp half-extent over that range (``HALF_EXTENT``, from ``vesicle_opt.sharp.axi
 certified closed vesicles of the branch's own form (``form`` on the unfolded field, topology
 sphere-like), the root of the difference inside both ranges (on the sharp branches at the same v
 grid it recovers the sharp crossing to 2e-6 in v, 8e-6 in e; linear interpolation: ~5e-4); its eps -> 0 limit
-(``extrapolate``): Richardson with free order through the three finest eps (the observed order) and
-with fixed order 2 through the two finest, against the sharp crossing v* = 0.651076, e* = 1.823471
+(``extrapolate``): Richardson with free order through the three finest eps (the observed order),
+with fixed order 2 through the two finest, and the least-squares line in eps^2 through all, against the sharp crossing v* = 0.651076, e* = 1.823471
 (``sharp.axisymmetric.crossing``, computed here; Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 1182
 (1991), Fig. 8, place the prolate/oblate crossing of the spontaneous-curvature model at c0 = 0 at
 v ~ 0.652, which is as far as the figure can be read). Each point's reduced energy is also compared
@@ -224,6 +224,9 @@ def extrapolate(per_eps: dict) -> dict:
         y = np.array([per_eps[e][key] for e in eps])
         out[key + "_richardson"], out["order_" + key] = richardson(eps, y) if len(eps) >= 3 else (math.nan, math.nan)
         out[key + "_p2"] = richardson_fixed(eps, y, 2.0) if len(eps) >= 2 else math.nan
+        if len(eps) >= 3:  # least squares y = y0 + c eps^2 over every level, and its residual
+            c, y0 = np.polyfit(eps**2, y, 1)
+            out[key + "_lsq_p2"], out[key + "_lsq_p2_rms"] = float(y0), float(np.std(y - (y0 + c * eps**2)))
     return out
 
 
@@ -285,8 +288,9 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
     if len(per_eps) >= 2:
         ex = extrapolate(per_eps)
         for key, ref in (("reduced_volume", v_s), ("reduced_energy", e_s)):
-            for how in ("_richardson", "_p2"):
-                ex[key + how + "_minus_sharp"] = ex[key + how] - ref
+            for how in ("_richardson", "_p2", "_lsq_p2"):
+                if key + how in ex:
+                    ex[key + how + "_minus_sharp"] = ex[key + how] - ref
         out["crossing_extrapolated"] = ex
     out["energy_error_vs_sharp"] = {
         f: {f"{v:g}": {"errors": {f"{e:g}": d for e, d in sorted(by_v[v].items(), reverse=True)},
