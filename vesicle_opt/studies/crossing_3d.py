@@ -9,26 +9,47 @@ vesicle's (``mesh.cosine``'s scaling convention). The second-order check on this
 mirror-symmetric perturbations: ``second_order = "minimum"`` here means a minimum within that class
 (the column ``second_order_excluded`` says so), never more.
 
-Per eps of ``EPS_SEQUENCE``: the prolate and the oblate branch (``vesicle_opt.branch``, Newton-Krylov,
-exact constraints, tol 1e-8) from v = ``V_RANGE[0]`` down to ``V_RANGE[1]`` (area 4 pi, so R0 = 1),
-started from a prolate / oblate ellipsoid centred at the corner 0, on a box fitted to the branch's
-sharp half-extent over that range (``HALF_EXTENT``, from ``vesicle_opt.sharp.axisymmetric``) plus
-``GAP_OVER_EPS`` / 2 eps, so that the free space to the mirror image across a far face is
-``GAP_OVER_EPS`` eps; uniform spacing h = eps / ``EPS_OVER_H`` (``octant_box``). The crossing per eps
-(``crossing``): a cubic spline of each branch's reduced energy in v through its points that are
-certified closed vesicles of the branch's own form (``form`` on the unfolded field, topology
-sphere-like), the root of the difference inside both ranges (on the sharp branches at the same v
-grid it recovers the sharp crossing to 2e-6 in v, 8e-6 in e; linear interpolation: ~5e-4); its eps -> 0 limit
+Per eps of ``EPS_SEQUENCE``: the prolate and the oblate branch at the v of ``V_RANGE`` in steps of
+``V_STEP`` (plus ``V_DENSE`` at ``DENSE_EPS``; the finest eps from 0.71 to ``FINEST_V_END`` only),
+each point the front door's exact-constraint Newton-Krylov solve (tol 1e-8, area 4 pi, so R0 = 1)
+warm-started from the branch's previous point, the first cold from a prolate / oblate ellipsoid
+centred at the corner 0; on a box fitted to the branch's sharp half-extent over that range
+(``HALF_EXTENT``, from ``vesicle_opt.sharp.axisymmetric``) plus ``GAP_OVER_EPS`` / 2 eps, so that
+the free space to the mirror image across a far face is ``GAP_OVER_EPS`` eps; uniform spacing
+h = eps / ``EPS_OVER_H`` (``octant_box``). The crossing per eps (``crossing``): a cubic spline of
+each branch's reduced energy in v through its points that are certified closed vesicles of the
+branch's own form (``form`` on the unfolded field, topology sphere-like), the root of the
+difference inside both ranges (on the sharp branches at the same v grid it recovers the sharp
+crossing to 2e-6 in v, 8e-6 in e; linear interpolation: ~5e-4); its eps -> 0 limit
 (``extrapolate``): Richardson with free order through the three finest eps (the observed order),
-with fixed order 2 through the two finest, and the least-squares line in eps^2 through all, against the sharp crossing v* = 0.651076, e* = 1.823471
-(``sharp.axisymmetric.crossing``, computed here; Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 1182
-(1991), Fig. 8, place the prolate/oblate crossing of the spontaneous-curvature model at c0 = 0 at
-v ~ 0.652, which is as far as the figure can be read). Each point's reduced energy is also compared
-with the sharp prolate / oblate of its own v (``sharp_reduced_energy``), and the branch errors' observed
-order in eps (``order_energy_error``) is fitted (``metrics.observed_order``) at the v common to all eps.
+with fixed order 2 through the two finest, and the least-squares line in eps^2 through all,
+against the sharp crossing v* = 0.651076, e* = 1.823471 (``sharp.axisymmetric.crossing``,
+computed here; the literature reference for the prolate/oblate crossing of the
+spontaneous-curvature model at c0 = 0 is Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 1182 (1991),
+whose value, v ~ 0.652, is quoted from memory and was not checked against the paper). Each
+point's reduced energy is compared with the sharp prolate / oblate at its v (one warm-started
+sharp branch per run, ``summary``'s ``sharp_branches``) and the errors' observed order in eps
+fitted (``metrics.observed_order``, ``energy_error_vs_sharp``).
 
-Each branch is one case of the study runner (rows appended as a branch finishes; each branch resumes
-point by point in ``<out>/<case>/``). ``--quick``: eps = 0.25 only, v 0.71 -> 0.67 (a smoke run).
+Measured (full run, 2 shared cores, load 2-5; ``vesicle-opt study crossing_3d``): the crossing v =
+0.68309, 0.67424, 0.66741, 0.65914 and reduced energy 1.81530, 1.81937, 1.82020, 1.82179 at eps =
+0.07, 0.06, 0.05, 0.035 (v - v* = 0.0320, 0.0232, 0.0163, 0.0081: observed order 1.98); fixed
+order 2 from the two finest: v = 0.651206, e = 1.823307 (1.3e-4 and -1.6e-4 from v*, e*); free-order
+Richardson on v through the three finest: 0.650185 (order 1.83); on e none (its differences are not
+monotone: 4.1e-3 then 8e-4 then 1.6e-3). The branch energies' error against the sharp ones is
+O(eps^2): prolate 0.207, 0.095, 0.046, 0.022 at v = 0.71 (order 2.14 over eps = 0.1 ... 0.035),
+oblate 0.071, 0.052, 0.036, 0.017 (order 2.03). Not every eps has both branches near the crossing:
+the oblate opens into a torus (genus 1, lower energy: tori reach the Willmore bound pi/2 ~ 1.57 in
+reduced units) once the discocyte's centre is thinner than ~6.5 eps: at every v for eps = 0.1, below
+0.68 for 0.07, 0.66 for 0.06, 0.65 for 0.05 (the sharp centre thickness is 0.55 at v = 0.71, 0.38 at
+0.65); and the prolate at v = 0.59 joins its mirror image across the far face (a tube: "wraps") at
+eps = 0.07 and 0.05, longer than the sharp shape. Those points stay in the CSV and are left out of
+the crossing (``good_points``). eps = 0.1 therefore has no crossing. Nodes and time per point (the
+runner's case time, solve and check): eps = 0.035 prolate 524 880 (4.2 M in the doubled box) 242-372 s,
+oblate 400 000 84-129 s; eps = 0.05 205 k / 192 k 15-65 s; eps = 0.06 156 k / 123 k 4-13 s.
+
+Each point (eps, form, v) is one case of the study runner (a row appended as it finishes; a killed
+run resumes at the next point, warm-started from the certified field saved in ``<out>/<branch>/``). ``--quick``: eps = 0.25 only, v 0.71 -> 0.67 (a smoke run).
 Writes ``crossing_3d.csv``, ``crossing_3d.json``.
 """
 
