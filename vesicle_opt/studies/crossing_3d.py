@@ -35,7 +35,8 @@ Measured (full run, 2 shared cores, load 2-5; ``vesicle-opt study crossing_3d``)
 0.68309, 0.67424, 0.66741, 0.65914 and reduced energy 1.81530, 1.81937, 1.82020, 1.82179 at eps =
 0.07, 0.06, 0.05, 0.035 (v - v* = 0.0320, 0.0232, 0.0163, 0.0081: observed order 1.98); fixed
 order 2 from the two finest: v = 0.651206, e = 1.823307 (1.3e-4 and -1.6e-4 from v*, e*); free-order
-Richardson on v through the three finest: 0.650185 (order 1.83); on e none (its differences are not
+Richardson on v through the three finest: 0.650185 (order 1.83); least squares in eps^2 through all
+four: v = 0.651132, e = 1.824312; on e no free-order Richardson (its differences are not
 monotone: 4.1e-3 then 8e-4 then 1.6e-3). The branch energies' error against the sharp ones is
 O(eps^2): prolate 0.207, 0.095, 0.046, 0.022 at v = 0.71 (order 2.14 over eps = 0.1 ... 0.035),
 oblate 0.071, 0.052, 0.036, 0.017 (order 2.03). Not every eps has both branches near the crossing:
