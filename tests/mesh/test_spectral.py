@@ -125,8 +125,12 @@ def test_scene_spectral_validation():
     raw = {"domain": {"box": [[-1, 1], [-1, 1]], "boundary": "natural"}, "mesh": {"kind": "spectral", "n": 8},
            "model": {"epsilon": 0.2}, "constraints": {"alpha": 0.0, "beta": 1.0},
            "initial": {"shape": "circle", "radius": 0.5}}
-    with pytest.raises(InputError, match="domain.boundary"):
+    # natural boundaries: the mirror grid (mesh.cosine, issue 11), whose |Omega| is the doubled box's
+    assert S.from_dict(raw).domain.mirror_cells == 4 and S.from_dict(raw).domain.volume == 16.0
+    raw["mesh"]["mass"] = "consistent"
+    with pytest.raises(InputError, match="mesh.mass"):
         S.from_dict(raw)
+    raw["mesh"]["mass"] = "lumped"
     raw["domain"]["boundary"] = "periodic"
     raw["mesh"]["mass"] = "consistent"
     with pytest.raises(InputError, match="mesh.mass"):

@@ -33,6 +33,7 @@ import scipy.fft as sfft
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from vesicle_opt.mesh import cosine
 from vesicle_opt.mesh.base import Discretization
 
 WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
@@ -263,11 +264,14 @@ def even_fft_size(x: float) -> int:
         k += 2
 
 
-def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
+def resample(phi: np.ndarray, shape_from, shape_to, kind: str = "spectral") -> np.ndarray:
     """The trigonometric interpolant of a periodic grid field on another grid of the same box
     (C-ordered nodes): per axis, the rfft truncated or zero-padded, the unpaired Nyquist bin of an
     even length split (up) or united (down), as ``scipy.signal.resample`` does, without importing
-    scipy.signal (0.3 s of start-up)."""
+    scipy.signal (0.3 s of start-up). ``kind`` = the discretisation's kind: ``"cosine"`` (mirror
+    grids) takes the cosine-series interpolant (``mesh.cosine.resample``)."""
+    if kind == cosine.KIND:
+        return cosine.resample(phi, shape_from, shape_to)
     v = np.asarray(phi, float).reshape(shape_from)
     for axis, num in enumerate(shape_to):
         n_x = v.shape[axis]
@@ -282,8 +286,12 @@ def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
     return np.ascontiguousarray(v).ravel()
 
 
-def fourier_grid(box, n, kind: str = "spectral") -> FourierDiscretization:
-    """The ``spectral`` (or FFT-applied ``fd``) discretisation of a periodic box."""
+def fourier_grid(box, n, kind: str = "spectral"):
+    """The ``spectral`` (or FFT-applied ``fd``) discretisation of a periodic box; ``kind = "cosine"``:
+    the mirror-symmetric grid of ``mesh.cosine`` (natural boundaries), so that a coarse level of any
+    of them is ``fourier_grid(disc.box, shape, disc.kind)``."""
+    if kind == cosine.KIND:
+        return cosine.grid(box, n)
     fg = FourierGrid(box, n, kind)
     N = fg.size
     weights = np.full(N, fg.cell)

@@ -162,10 +162,13 @@ def check_feasible(alpha: float, beta: float, scene, disc=None) -> float:
     if not beta > 0:
         raise InfeasibleError("constraints.beta", f"beta = {beta:.6g} must be > 0")
     box = scene.domain.box if disc is None else disc.box  # a mesh file brings its own bounding box
-    upper = beta_upper(alpha, scene.model.epsilon, box, scene.domain.boundary)
+    # mirror grids (mesh.cosine): alpha, beta are the full symmetric field's, 2^d times the box's own,
+    # whose natural-boundary problem the box's bound covers
+    cells = max(1, round(volume / math.prod(b - a for a, b in box)))
+    upper = cells * beta_upper(alpha / cells, scene.model.epsilon, box, scene.domain.boundary)
     if beta >= upper * (1 + WARN):  # evidently feasible (docstring)
         return upper
-    bound = beta_min(alpha, scene.model.epsilon, box, scene.domain.boundary)
+    bound = cells * beta_min(alpha / cells, scene.model.epsilon, box, scene.domain.boundary)
     if math.isnan(bound):
         warnings.warn("the phase-field feasibility bound could not be computed for these data; "
                       "(alpha, beta) were not checked against it", stacklevel=2)

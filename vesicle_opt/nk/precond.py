@@ -6,7 +6,7 @@ In the bulk phi = +-1, so g'(phi) = -2/eps (c0 = 0) and J = eps Delta_h + g' ~ e
 
     P = (cE/eps) S M_L^{-1} S + cB S + rho_A m m^T.
 
-* Fourier grids: P is diagonal in Fourier space, with sigma = -symbol(Delta_h) >= 0,
+* Fourier grids (and the mirror grids of ``mesh.cosine``, in their cosine basis): P is diagonal in Fourier space, with sigma = -symbol(Delta_h) >= 0,
   p(k) = m [ (cE/eps)(eps sigma + 2/eps)^2 + cB (eps sigma + 2/eps) ] (+ rho_A m^2 N at k = 0);
   cB (a multiplier) may be negative, so p is floored at 0.1 times the bending part.
 * Sparse (P1 lumped): P^{-1} ~ (eps/cE) S^{-1} M_L S^{-1}; cB and rho_A are left to CG. S^{-1} is
@@ -85,6 +85,8 @@ class FourierPreconditioner:
         return lambda r: self.f.apply_symbol(r, inv)
 
     def dual_norm(self, v: np.ndarray) -> float:
+        if hasattr(self.f, "quadratic_form"):  # mirror grids (mesh.cosine): orthonormal DCT, Parseval
+            return float(np.sqrt(max(self.f.quadratic_form(v, self._p0_inv), 0.0)))
         vh = self.f.fft(v)
         # Parseval for rfft: interior half-spectrum columns count twice
         w = np.full(vh.shape[-1], 2.0)

@@ -70,9 +70,10 @@ def prepare(scene, disc=None, tensor_fft: bool = True):
     deriv = fourier
 
     def translations(phi):
-        if deriv is None:
+        rows = None if deriv is None else deriv.derivatives(phi)
+        if not rows:  # a mesh, or a mirror grid (``mesh.cosine``: no translation modes)
             return None
-        return np.column_stack(deriv.derivatives(phi))
+        return np.column_stack(rows)
 
     return disc, pf, prec, translations
 
@@ -94,7 +95,7 @@ def coarse_levels(disc, epsilon: float, min_n: int = 16) -> list[tuple[int, ...]
     return shapes[::-1]
 
 
-def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
+def resample(phi: np.ndarray, shape_from, shape_to, kind: str = "spectral") -> np.ndarray:
     """The trigonometric interpolant of a periodic grid field on another grid (same box):
-    ``mesh.spectral.resample``."""
-    return fourier_resample(phi, shape_from, shape_to)
+    ``mesh.spectral.resample`` (the cosine series on the mirror grids, ``kind = "cosine"``)."""
+    return fourier_resample(phi, shape_from, shape_to, kind)

@@ -341,7 +341,7 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
     for shape in levels:
         cdisc = fourier_grid(disc.box, shape, disc.kind)
         start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \
-            resample(phi, prev_shape, shape)
+            resample(phi, prev_shape, shape, disc.kind)
         n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
         _, cstages, *_, W = _run_level(scene, cdisc, start, cnt, log, max(tol, opts.coarse_tol), opts, W=W)
         level_log.append({"n": list(shape), "status": cstages[-1].status, "newton": cnt.newton - n0,
@@ -350,7 +350,7 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
     if phi is None:
         phi = initial_guess(scene, disc) if x0 is None else np.array(x0, float)
     else:
-        phi = resample(phi, prev_shape, disc.grid_shape)
+        phi = resample(phi, prev_shape, disc.grid_shape, disc.kind)
     n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
     disc, stages, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol, opts, W, setup)
     level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": stages[-1].status,

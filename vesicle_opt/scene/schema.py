@@ -25,6 +25,8 @@ from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES, Shape, number, numb
 class Domain:
     box: tuple[tuple[float, float], ...]
     boundary: str  # "periodic" | "natural"
+    mirror_cells: int = 1  # spectral + natural (``mesh.cosine``): 2^d, the box is one mirror cell of the
+    # doubled periodic box, and |Omega| (so alpha, volume, area, energy) is the full symmetric field's
 
     @property
     def dim(self) -> int:
@@ -32,7 +34,8 @@ class Domain:
 
     @property
     def volume(self) -> float:
-        return math.prod(b - a for a, b in self.box)
+        """|Omega|: the box's volume, times ``mirror_cells`` on mirror grids (``mesh.cosine``)."""
+        return self.mirror_cells * math.prod(b - a for a, b in self.box)
 
 
 @dataclass(frozen=True)
@@ -296,15 +299,14 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
         raise InputError("mesh.n", f"expected an integer or {dim} integers, got {n_raw!r}")
     if min(n) < 4:
         raise InputError("mesh.n", f"must be >= 4 cells per side, got {n_raw!r}")
-    domain = Domain(box, val["domain.boundary"])
+    mirrored = val["mesh.kind"] == "spectral" and val["domain.boundary"] == "natural"
+    domain = Domain(box, val["domain.boundary"], 2**dim if mirrored else 1)
     _check_ranges(val, box, n)
     if val["mesh.kind"] == "fd" and domain.boundary != "periodic":
         raise InputError("domain.boundary", "mesh.kind 'fd' supports only 'periodic'")
     if val["mesh.kind"] == "fd" and val["mesh.mass"] == "consistent":
         raise InputError("mesh.mass", "mesh.kind 'fd' is lumped by construction; use 'lumped'")
-    if val["mesh.kind"] == "spectral":  # Fourier pseudo-spectral grids (issue 6)
-        if domain.boundary != "periodic":
-            raise InputError("domain.boundary", "mesh.kind 'spectral' supports only 'periodic'")
+    if val["mesh.kind"] == "spectral":  # Fourier pseudo-spectral grids (issue 6); natural: mesh.cosine
         if val["mesh.mass"] == "consistent":
             raise InputError("mesh.mass", "mesh.kind 'spectral' is lumped by construction; use 'lumped'")
     if val["mesh.quadrature"] == "gauss" and val["mesh.kind"] != "fem-p1":
@@ -347,6 +349,9 @@ def _check_array(val: dict) -> None:
     if val["mesh.kind"] not in ("fd", "spectral"):
         raise InputError("solver.array", f"'jax' needs a periodic grid (mesh.kind 'fd' or 'spectral'), "
                          f"got mesh.kind {val['mesh.kind']!r}")
+    if val["domain.boundary"] != "periodic":
+        raise InputError("solver.array", "'jax' needs domain.boundary = 'periodic' (the mirror grids of "
+                         "spectral + natural run on numpy only), got 'natural'")
     if importlib.util.find_spec("jax") is None:
         raise InputError("solver.array", "'jax' needs the optional extra: pip install 'vesicle_opt[jax]'")
 

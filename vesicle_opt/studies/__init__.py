@@ -26,6 +26,7 @@ DESCRIPTIONS = {
     "bench_certificate": "the second-order certificate against the solve: time, memory, verdict (torus, NK)",
     "bench_equilibrium": "IPOPT exact solve: iterations, time, Hessian nnz, memory against mesh size",
     "bench_overhead": "cost of the abstractions: bare CasADi model against build_nlp + solve",
+    "crossing_3d": "3D prolate/oblate crossing on mirror (octant) grids: v and reduced energy per eps, eps -> 0",
     "diagonal": "Theorem 3.4: h -> 0 and M -> inf together; the rule M(h)",
     "energy_decay": "Figure 3 analogue: log(E_M - E_min) against t for k and k/2 (scheme (18))",
     "energy_diagram": "branches of equilibria in reduced volume: 2D elastica, 3D prolate/oblate, their crossing",

@@ -103,6 +103,8 @@ def _symmetry_modes(disc, translations, phi, rotations: bool):
         modes = translation_modes(disc, phi)
         return (V.TRANSLATIONS if modes else V.NONE), modes
     g = fourier.derivatives(phi)  # the translations d_i phi (what ``translations`` gives, as rows)
+    if not g:  # a mirror grid (``mesh.cosine``): only mirror-symmetric perturbations exist at all
+        return V.MIRROR_CLASS, []
     if not rotations:
         return V.TRANSLATIONS, g
     x = disc.nodes
@@ -294,8 +296,9 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         cprec = type(prec)(cdisc.fourier, cdisc.weights[0], scene.model.epsilon)
 
         def ctrans(p, f=cdisc.fourier):
-            return np.column_stack(f.derivatives(p))
-        cphi = resample(phi, disc.grid_shape, shape)
+            rows = f.derivatives(p)
+            return np.column_stack(rows) if rows else None
+        cphi = resample(phi, disc.grid_shape, shape, disc.kind)
         cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter)
         clev = _setup_level(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations)
         settled = _settled(COARSE_EIG_TOL)
@@ -304,7 +307,7 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
                                lambda th, res: _coarse_stop(settled(th), res))
         counts.append((shape, out.iterations))
-        return np.stack([resample(v / clev.s, shape, disc.grid_shape) for v in out.vectors])
+        return np.stack([resample(v / clev.s, shape, disc.grid_shape, disc.kind) for v in out.vectors])
     return None
 
 

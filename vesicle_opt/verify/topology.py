@@ -13,6 +13,9 @@ closed cells (pixels/voxels) of the nodes with phi > 0, with the box's periodici
   along that axis leaves it one component instead of two) — a "vesicle" that is really a slab
   or a tube across the box, not a closed membrane.
 
+On mirror grids (``mesh.cosine``) the inside is first reflected into the doubled periodic box
+(``cosine.unfold``), so a vesicle centred at the box's corner counts as the one closed body it is.
+
 On unstructured meshes only the components are computed (graph of mesh edges between nodes with
 phi > 0); chi and wraps are None there.
 """
@@ -25,6 +28,8 @@ from itertools import product
 import numpy as np
 import scipy.sparse as sp
 from scipy import ndimage
+
+from vesicle_opt.mesh import cosine
 
 
 @dataclass(frozen=True)
@@ -104,6 +109,8 @@ def analyse(disc, phi: np.ndarray) -> Topology:
     inside = phi > 0
     if disc.grid_shape is not None:
         X = inside.reshape(disc.grid_shape)
+        if disc.kind == cosine.KIND:  # a mirror grid: count on the doubled periodic box it stands for
+            X = cosine.unfold(X, disc.grid_shape)
         n = _label_periodic(X, periodic=True)
         wraps = tuple(a for a in range(X.ndim)
                       if _label_periodic(np.concatenate([X, X], axis=a), periodic=True) < 2 * n)

@@ -40,6 +40,9 @@ TOL_REL = 1e-6  # least eigenvalues measured: saddles -3.2 (FD 64^2), -9.9 (P1 3
 # +4.1e-3 (FD 64^2), +3.4e-4 (torus 32^3): negative means below -1e-6, far from all of them and far
 # above the assembled check's error bounds (~1e-11)
 NONE, TRANSLATIONS, TRANSLATIONS_ROTATIONS = "none", "translations", "translations, rotations"
+# mirror grids (``mesh.cosine``, spectral with natural boundaries): the check sees only perturbations
+# symmetric in every coordinate plane, so its "minimum" is a minimum within that class, no more
+MIRROR_CLASS = "all but mirror-symmetric perturbations (mirror grid: minimum within the symmetric class only)"
 
 
 @dataclass(frozen=True)
