@@ -51,7 +51,7 @@ oblate 400 000 84-129 s; eps = 0.05 205 k / 192 k 15-65 s; eps = 0.06 156 k / 12
 
 Each point (eps, form, v) is one case of the study runner (a row appended as it finishes; a killed
 run resumes at the next point, warm-started from the certified field saved in ``<out>/<branch>/``). ``--quick``: eps = 0.25 only, v 0.71 -> 0.67 (a smoke run).
-Writes ``crossing_3d.csv``, ``crossing_3d.json``.
+Writes ``crossing_3d.csv``, ``crossing_3d.json``, ``crossing_3d.png`` (the energy diagram near the crossing).
 """
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ from vesicle_opt.mesh import cosine
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric
-from vesicle_opt.studies._common import num, select
+from vesicle_opt.studies._common import num, plt, savefig, select
 from vesicle_opt.studies.runner import run_cases
 from vesicle_opt.verify.metrics import observed_order, richardson, richardson_fixed
 
@@ -323,6 +323,38 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
     return _clean(out)
 
 
+def figure(rows: list[dict], info: dict, path: Path) -> None:
+    """The energy diagram near the crossing: reduced energy against v per eps (prolate solid, oblate
+    dashed; the certified closed vesicles of the branch's own form, ``good_points``), the sharp
+    branches (black) and each crossing (x), the sharp one (star)."""
+    pyplot = plt()
+    fig, ax = pyplot.subplots(figsize=(6.4, 4.6))
+    eps_all = sorted({num(r["epsilon"]) for r in rows}, reverse=True)
+    colours = pyplot.cm.viridis(np.linspace(0.0, 0.85, max(1, len(eps_all))))
+    for colour, eps in zip(colours, eps_all):
+        for shape, style in (("prolate", "o-"), ("oblate", "s--")):
+            good = sorted(good_points([r for r in rows if num(r["epsilon"]) == eps and r.get("branch_form") == shape],
+                                      shape), key=lambda r: num(r["reduced_volume"]))
+            if good:
+                ax.plot([num(r["reduced_volume"]) for r in good], [num(r["reduced_energy"]) for r in good],
+                        style, color=colour, ms=3, lw=1, label=f"{shape}, eps = {eps:g}")
+        x = info.get("crossing_eps", {}).get(f"{eps:g}")
+        if x:
+            ax.plot(x["reduced_volume"], x["reduced_energy"], "x", color=colour, ms=8)
+    for shape, style in (("prolate", "-"), ("oblate", "--")):
+        pts = sorted((float(v), d["reduced_energy"]) for v, d in info.get("sharp_branches", {}).get(shape, {}).items())
+        if pts:
+            ax.plot(*zip(*pts), style, color="k", lw=1.5, label=f"{shape}, sharp")
+    xs = info.get("crossing_sharp")
+    if xs:
+        ax.plot(xs["reduced_volume"], xs["reduced_energy"], "*", color="k", ms=11, label="sharp crossing")
+    ax.set_xlabel("reduced volume v")
+    ax.set_ylabel("reduced energy E / (16 sqrt(2) pi / 3)")
+    ax.set_title("3D prolate / oblate, octant mirror grids (x: crossing per eps)", fontsize=9)
+    ax.legend(fontsize=6, ncol=2)
+    savefig(fig, path)
+
+
 def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -331,6 +363,8 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
                      extra_columns=EXTRA)
     info = summary(rows, case_list)
     write_json(out / f"{NAME}.json", info)
+    if rows:
+        figure(rows, info, out / f"{NAME}.png")
     for name, v in info.items():
         log.info(f"{NAME}: {name}: {v}")
     ok = all(v["points"] >= 2 and v["certified"] == v["points"] for v in info["branches"].values())
