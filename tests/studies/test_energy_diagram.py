@@ -34,16 +34,6 @@ def test_quick_runs_and_writes_its_files(tmp_path):
         assert (tmp_path / name).stat().st_size > 0, name
 
 
-def test_crossing_of_two_lines_is_where_they_meet():
-    """Two straight branches e = 1 + v and e = 2 - v cross at v = 0.5, e = 1.5 (exact for the linear
-    interpolation), also on different v grids."""
-    a = [{"reduced_volume": v, "reduced_energy": 1 + v} for v in np.linspace(0.2, 0.9, 8)]
-    b = [{"reduced_volume": v, "reduced_energy": 2 - v} for v in np.linspace(0.1, 0.95, 5)]
-    x = ed.crossing(a, b)
-    assert abs(x["reduced_volume"] - 0.5) < 1e-12 and abs(x["reduced_energy"] - 1.5) < 1e-12  # round-off
-    assert ed.crossing(a, [{"reduced_volume": v, "reduced_energy": 5 + v} for v in (0.3, 0.6)]) is None
-
-
 def test_fitted_box_holds_the_shape_with_the_gap_at_the_spacing():
     box, n = ed.fitted_box((4.85, 1.23, 1.23), 0.1)
     h = [(hi - lo) / k for (lo, hi), k in zip(box, n)]
@@ -63,15 +53,6 @@ def test_sequence_extents_hold_the_sharp_shapes():
             assert z.max() - z.min() <= length and 2 * r.max() <= width
         r, z = axisymmetric.solve(v, "oblate").meridian()
         assert 2 * r.max() <= ed.EXTENT["oblate"][0] and z.max() - z.min() <= ed.EXTENT["oblate"][2]
-
-
-def test_crossing_extrapolation_of_a_quadratic_sequence():
-    """Crossings v*(eps) = 0.65 + 0.5 eps^2 at eps = 0.2, 0.14, 0.1: both extrapolations give 0.65
-    (exact for the p = 2 form; the free-order fit finds p = 2)."""
-    per = {e: {"reduced_volume": 0.65 + 0.5 * e**2, "reduced_energy": 1.82 - 0.3 * e**2} for e in (0.2, 0.14, 0.1)}
-    x = ed.extrapolate_crossing(per)
-    assert abs(x["reduced_volume_p2"] - 0.65) < 1e-12 and abs(x["reduced_energy_p2"] - 1.82) < 1e-12  # round-off
-    assert abs(x["reduced_volume_richardson"] - 0.65) < 1e-9 and abs(x["order_reduced_volume"] - 2) < 1e-6  # brentq
 
 
 def test_the_bulk_offset_is_the_volume_multipliers_response():

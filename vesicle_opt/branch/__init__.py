@@ -13,6 +13,7 @@
   or at fixed p (the IPOPT corrector's fallback);
 * ``store``: branch.csv, the snapshots and the resume after a kill;
 * ``run``: ``branch(...)`` and its frozen result ``Branch``;
+* ``crossing``: where two branches cross (cubic splines) and its eps -> 0 extrapolation;
 * ``diagram``: the energy-diagram PNG (matplotlib is imported there only).
 """
 

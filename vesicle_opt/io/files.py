@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -16,6 +17,18 @@ def package_version() -> str:
         return version("vesicle_opt")
     except PackageNotFoundError:  # a source tree on sys.path without an install
         return "unknown"
+
+
+def json_safe(x):
+    """``x`` with every non-finite float as None (JSON null): ``write_json`` refuses NaN, which a
+    summary uses for "too few levels to extrapolate"."""
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_safe(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    return x
 
 
 def write_json(path: Path, data: dict) -> None:

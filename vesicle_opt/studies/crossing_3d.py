@@ -61,18 +61,17 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.optimize import brentq
 
 from vesicle_opt.api import solve
-from vesicle_opt.io.files import load_npz, save_npz, write_json
+from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
+from vesicle_opt.io.files import json_safe, load_npz, save_npz, write_json
 from vesicle_opt.mesh import cosine
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric
 from vesicle_opt.studies._common import num, plt, savefig, select
 from vesicle_opt.studies.runner import run_cases
-from vesicle_opt.verify.metrics import observed_order, richardson, richardson_fixed
+from vesicle_opt.verify.metrics import observed_order
 
 log = logging.getLogger(__name__)
 
@@ -217,52 +216,6 @@ def good_points(rows: list[dict], shape: str) -> list[dict]:
             and str(r.get("topology", "")).startswith("sphere-like")]
 
 
-def crossing(va, ea, vb, eb) -> dict | None:
-    """Where two branches' reduced energies cross: a cubic spline e(v) through each branch's points
-    (not-a-knot; error O(dv^4)), the root of their difference on the overlap of the ranges (brentq
-    on the first sign change, from the high-v end); None when there is none."""
-    va, ea, vb, eb = (np.asarray(x, float) for x in (va, ea, vb, eb))
-    if len(va) < 2 or len(vb) < 2:
-        return None
-    ia, ib = np.argsort(va), np.argsort(vb)
-    sa, sb = CubicSpline(va[ia], ea[ia]), CubicSpline(vb[ib], eb[ib])
-    lo, hi = max(va.min(), vb.min()), min(va.max(), vb.max())
-    if not lo < hi:
-        return None
-    grid = np.linspace(hi, lo, 201)
-    d = sa(grid) - sb(grid)
-    k = next((i for i in range(len(grid) - 1) if d[i] == 0 or d[i] * d[i + 1] < 0), None)
-    if k is None:
-        return None
-    vx = float(grid[k]) if d[k] == 0 else float(brentq(lambda v: float(sa(v) - sb(v)), grid[k + 1], grid[k], xtol=1e-14))
-    return {"reduced_volume": vx, "reduced_energy": float(sa(vx))}
-
-
-def extrapolate(per_eps: dict) -> dict:
-    """eps -> 0 of the crossing's v and reduced energy (module docstring); nan where too few eps."""
-    eps = np.array(sorted(per_eps, reverse=True), float)
-    out = {"epsilons": [float(e) for e in eps]}
-    for key in ("reduced_volume", "reduced_energy"):
-        y = np.array([per_eps[e][key] for e in eps])
-        out[key + "_richardson"], out["order_" + key] = richardson(eps, y) if len(eps) >= 3 else (math.nan, math.nan)
-        out[key + "_p2"] = richardson_fixed(eps, y, 2.0) if len(eps) >= 2 else math.nan
-        if len(eps) >= 3:  # least squares y = y0 + c eps^2 over every level, and its residual
-            c, y0 = np.polyfit(eps**2, y, 1)
-            out[key + "_lsq_p2"], out[key + "_lsq_p2_rms"] = float(y0), float(np.std(y - (y0 + c * eps**2)))
-    return out
-
-
-def _clean(x):
-    """JSON-safe: non-finite floats as None (``write_json`` refuses NaN)."""
-    if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    return x
-
-
 def summary(rows: list[dict], case_list: list[dict]) -> dict:
     """Per branch: points, certified closed vesicles of its form, verdicts, time per point; per eps
     the crossing and its distance to the sharp one; the extrapolation; the branch errors' order."""
@@ -308,7 +261,7 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
             key: observed_order(eps, [abs(per_eps[e][key] - ref) for e in eps]) if len(eps) >= 2 else math.nan
             for key, ref in (("reduced_volume", v_s), ("reduced_energy", e_s))}
     if len(per_eps) >= 2:
-        ex = extrapolate(per_eps)
+        ex = extrapolate_crossing(per_eps)
         for key, ref in (("reduced_volume", v_s), ("reduced_energy", e_s)):
             for how in ("_richardson", "_p2", "_lsq_p2"):
                 if key + how in ex:
@@ -320,7 +273,7 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
                                                [abs(by_v[v][e]) for e in sorted(by_v[v], reverse=True)])}
             for v in sorted(by_v) if len(by_v[v]) >= 2}
         for f, by_v in err.items()}
-    return _clean(out)
+    return json_safe(out)
 
 
 def figure(rows: list[dict], info: dict, path: Path) -> None:

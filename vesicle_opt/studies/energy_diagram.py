@@ -8,8 +8,8 @@ finds from the symmetric (circle) start, a saddle, followed as far as it holds.
 oblate branch from v = 0.75 down to 0.575 (the sharp crossing is at v* = 0.651) at each eps of
 ``EPS_SEQUENCE``, started from a prolate and an oblate ellipsoid, each in a periodic box fitted to
 its shape (``fitted_box``: the sharp extent ``EXTENT`` plus 8 eps of free space on every axis, one
-spacing h = eps / 2.5); their crossing per eps (v and reduced energy, linear interpolation of the
-difference of the two branches, over the points that are closed vesicles of the branch's own form:
+spacing h = eps / 2.5); their crossing per eps (v and reduced energy, ``branch.crossing``: cubic splines of the
+two branches, over the points that are closed vesicles of the branch's own form:
 ``form`` and ``topology``), and its eps -> 0 extrapolation (``extrapolate_crossing``).
 
 Why no cubic box: in [-3, 3]^3 at 64^3, eps = 0.2, both the prolate start (v = 0.95) and the oblate
@@ -46,13 +46,13 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.branch import COLUMNS, branch, diagram
-from vesicle_opt.io.files import load_npz, write_json
+from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
+from vesicle_opt.io.files import json_safe, load_npz, write_json
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric, elastica
 from vesicle_opt.studies._common import num, select
 from vesicle_opt.studies.runner import run_cases
-from vesicle_opt.verify.metrics import richardson, richardson_fixed
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
@@ -195,27 +195,6 @@ def run(case: dict) -> list[dict]:
     return rows
 
 
-def crossing(a: list[dict], b: list[dict]) -> dict | None:
-    """Where the reduced energies of two branches cross (linear interpolation in v of their
-    difference on the overlap of their ranges); None when they do not."""
-    va, ea = (np.array([num(r["reduced_volume"]) for r in a]), np.array([num(r["reduced_energy"]) for r in a]))
-    vb, eb = (np.array([num(r["reduced_volume"]) for r in b]), np.array([num(r["reduced_energy"]) for r in b]))
-    if len(va) < 2 or len(vb) < 2:
-        return None
-    ia, ib = np.argsort(va), np.argsort(vb)
-    va, ea, vb, eb = va[ia], ea[ia], vb[ib], eb[ib]
-    lo, hi = max(va[0], vb[0]), min(va[-1], vb[-1])
-    v = np.unique(np.concatenate([va, vb]))
-    v = v[(v >= lo) & (v <= hi)]
-    d = np.interp(v, va, ea) - np.interp(v, vb, eb)
-    for k in range(len(v) - 1):
-        if d[k] == 0 or d[k] * d[k + 1] < 0:
-            t = d[k] / (d[k] - d[k + 1]) if d[k] != d[k + 1] else 0.0
-            vx = v[k] + t * (v[k + 1] - v[k])
-            return {"reduced_volume": float(vx), "reduced_energy": float(np.interp(vx, va, ea))}
-    return None
-
-
 def summary(rows: list[dict], case_list: list[dict]) -> dict:
     out = {}
     for c in case_list:
@@ -242,8 +221,10 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
     seq = sorted({c["sequence"] for c in case_list if "sequence" in c}, reverse=True)
     per_eps = {}
     for eps in seq:
-        x = crossing(acc(select(rows, scene=f"prolate-3d-eps{eps:g}"), "prolate"),
-                     acc(select(rows, scene=f"oblate-3d-eps{eps:g}"), "oblate"))
+        pro = acc(select(rows, scene=f"prolate-3d-eps{eps:g}"), "prolate")
+        obl = acc(select(rows, scene=f"oblate-3d-eps{eps:g}"), "oblate")
+        x = crossing([num(r["reduced_volume"]) for r in pro], [num(r["reduced_energy"]) for r in pro],
+                     [num(r["reduced_volume"]) for r in obl], [num(r["reduced_energy"]) for r in obl])
         if x is not None:
             per_eps[eps] = x
     if per_eps:
@@ -255,20 +236,6 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
     return out
 
 
-def extrapolate_crossing(per_eps: dict) -> dict:
-    """eps -> 0 of the crossing's v and reduced energy from {eps: crossing}: the free-order
-    Richardson fit through the three finest eps (``metrics.richardson``; its order ``order_*``),
-    and the fixed order p = 2 from the two finest (``*_p2``; the 2D sequence's observed order is 2);
-    nan where too few levels."""
-    eps = np.array(sorted(per_eps, reverse=True), float)
-    out = {"epsilons": [float(e) for e in eps]}
-    for key in ("reduced_volume", "reduced_energy"):
-        y = np.array([per_eps[e][key] for e in eps])
-        out[key + "_richardson"], out["order_" + key] = richardson(eps, y) if len(eps) >= 3 else (math.nan, math.nan)
-        out[key + "_p2"] = richardson_fixed(eps, y, 2.0) if len(eps) >= 2 else math.nan
-    return out
-
-
 def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -276,7 +243,7 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
     rows = run_cases(NAME, case_list, run, out / f"{NAME}.csv", executor=executor, workers=workers,
                      extra_columns=EXTRA)
     info = summary(rows, case_list)
-    write_json(out / f"{NAME}.json", info)
+    write_json(out / f"{NAME}.json", json_safe(info))
     series = []
     for c in case_list:
         b_dir = out / c["case"]
