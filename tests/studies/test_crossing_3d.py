@@ -41,7 +41,7 @@ def test_quick_runs_resumes_and_writes_its_files(tmp_path):
     assert all(r["second_order_excluded"].startswith("all but mirror-symmetric") for r in rows)
     info = json.loads((tmp_path / "crossing_3d.json").read_text())
     assert info["crossing_sharp"]["reduced_volume"] == pytest.approx(0.651076, abs=1e-6)
-    assert code == 0
+    assert code == 0 and (tmp_path / "crossing_3d.png").stat().st_size > 0
     before = (tmp_path / "crossing_3d.csv").read_text()
     assert run_study("crossing_3d", tmp_path, quick=True) == 0  # resumed: nothing re-run, no row twice
     assert (tmp_path / "crossing_3d.csv").read_text() == before
