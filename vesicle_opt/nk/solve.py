@@ -99,12 +99,10 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
            lam0=None, nearby=False):
     """Augmented Lagrangian with dual Newton steps. dual_model = (W, rho, ...) of a coarser level: with
     the same rho, W = dc/dlam is a mesh-independent quantity, so it carries over to discretisation
-    accuracy and the finer level needs no W solves unless its |c| stops falling. ``nearby``: the
-    dual model is a nearby solution's (a branch's previous point): rho starts afresh (as without
-    one; a carried rho would grow 10x at every point where |c| falls slowly in the last outer
-    iteration, measured along a 3D branch) and W is moved to it (``dual_model_at``). lam0: the
-    start multipliers (physical, as the Result's), e.g. a branch's prediction; None: the
-    least-squares ones at the start field."""
+    accuracy and the finer level needs no W solves unless its |c| stops falling. ``nearby``: it is
+    a nearby solution's (a branch's last point): rho starts afresh (carried, it grew 10x a point
+    along a 3D branch) and W is moved to it (``dual_model_at``). lam0: the start multipliers
+    (physical), e.g. a branch's prediction; None: least squares at the start field."""
     prec, rig = obj.prec, obj.rig
     pt = obj.point(pt0_phi)
     obj.lam = _least_squares_multipliers(prec, rig, pt.dE, pt.dA, pt.dB) if lam0 is None else \
@@ -146,8 +144,7 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
             W, w_rho = _dual_hessian(obj, pt, opts.w_tol), obj.rho.copy()
         W = dual_update(obj, W, pt.c, crel, prev_c)
         prev_c = crel
-    # (W, the rho reached, the rho W belongs to): a finer level takes the first two as they are,
-    # a nearby solution's solve (``nearby``) moves W from the third to its fresh rho
+    # (W, the rho reached, the rho W belongs to): a finer level takes the first two, ``nearby`` the third
     return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy(), w_rho))
 
 
@@ -337,11 +334,9 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
     from the same shape, each finer level started from the Fourier interpolant (the reported wall
     time and counts include the coarse levels). ``check``: refuse infeasible (alpha, beta) before
     any solve. ``setup``: the fine level's ``nk.setup.prepare(scene, disc)``, when the caller
-    reuses it (the second-order check). ``warm``: (lam0, dual_model) of a nearby solution for the
-    method ``exact`` (a branch's previous point: ``branch.nk_corrector``): the fine level's start
-    multipliers (physical; None: least squares at the start) and (W, rho) of its dual Newton step
-    (None: computed), as ``history["dual_model"]`` of an earlier Result holds them ((W, rho, rho
-    of W); rho starts afresh, W moved to it: ``_exact``).
+    reuses it (the second-order check). ``warm``: (lam0, dual_model or None) of a nearby solution
+    for ``exact`` (``branch.nk_corrector``): the fine level's start multipliers and the dual model
+    as an earlier Result's ``history["dual_model"]`` holds it (W, rho, rho of W; ``_exact``).
     """
     opts = options or NewtonKrylovOptions.from_scene(scene)
     t0, cpu0 = time.perf_counter(), time.process_time()
