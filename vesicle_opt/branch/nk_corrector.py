@@ -23,6 +23,16 @@ point of the same branch knows:
   from the interpolated coarse ones: the eigenvectors move more between points than the coarse
   level's discretisation error.
 
+Measured per warm point (solve + check, median of 5 points, CPU seconds; two runs each, before
+(the front door per point) and after interleaved, load 3-5 on 2 cores; script: the branch of the
+study's cases with the corrector wrapped): prolate 108 x 48 x 48 (eps = 0.14, ~64^3 nodes) 8.6,
+8.8 -> 6.8, 7.0 s (check wall 3.4, 2.9 -> 2.2, 2.0 s; the CG count per solve about the same,
+218-329 against 220-368: most of the solve is the Newton-CG work itself); oblate 72 x 72 x 36
+(eps = 0.14) 3.6, 3.6 -> 2.4, 2.4 s (CG 116-218 -> 77-178); prolate 90 x 36 x 36 (eps = 0.2) 2.7,
+2.6 -> 2.1, 1.95 s. Tried and dropped: a looser first inner tolerance (1e-2: 9 Newton steps and
+260 CG against 7 and 215; 1e-3: no change), restoring the constraints of the prediction first
+(11 Newton steps against 10).
+
 A warm check is kept only where its verdict is decided and equals the previous point's; else the
 point is checked again cold (``second_order_warm`` in extra says which was reported): every
 stability change is found by the cold check, as it would be without the warm start. A warm start
