@@ -3,6 +3,8 @@ verdicts of cold runs: every point certified, each warm second-order check agree
 check of the same point on the verdict and on mu_min within the two reported error bounds, and a
 warm solve landing on the front door's (cold) point."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -109,3 +111,26 @@ def test_cold_check_every_cold_every_points(monkeypatch):
     runs = "".join("w" if u else "c" for u in used).split("c")
     assert used[0] is False and max(len(r) for r in runs) <= 2 and "w" in "".join(runs), used
     assert np.all([so.verdict == cold.verdict for _, so, cold in seen])
+
+
+def test_the_step_control_aims_at_the_corrector_kinds_own_iterations(monkeypatch):
+    """The walk gets the Newton-Krylov corrector's TARGET_ITERATIONS (Newton steps), IPOPT keeps the
+    arclength default (IPOPT iterations); captured at the walk's start, before any solve."""
+    import importlib
+    branch_run = importlib.import_module("vesicle_opt.branch.run")
+    seen = []
+
+    class Captured(Exception):
+        pass
+
+    def walk(settings, *a, **kw):
+        seen.append(settings.target_iterations)
+        raise Captured
+    monkeypatch.setattr(branch_run.arc, "walk", walk)
+    spectral = scene_2d()
+    fd = spectral.replace(mesh=dataclasses.replace(spectral.mesh, kind="fd"))  # IPOPT takes no spectral mesh
+    for sc, backend in ((spectral, "newton-krylov"), (fd, "ipopt")):
+        with pytest.raises(Captured):
+            branch(sc, "reduced_volume", to=0.8, step=-0.02, backend=backend, switch=False)
+    assert seen == [nc.TARGET_ITERATIONS, branch_run.arc.Settings.target_iterations]
+    assert nc.TARGET_ITERATIONS != branch_run.arc.Settings.target_iterations  # else nothing is tested

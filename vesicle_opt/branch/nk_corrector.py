@@ -40,6 +40,9 @@ cannot bring in a mode that is absent from the previous block (the cold start mi
 for that, ``verify.lobpcg``); a mode falling below the least one from outside the block without a
 verdict change goes unseen until a cold check, which ``COLD_EVERY`` bounds.
 
+Step control: ``branch.run`` gives the walk ``TARGET_ITERATIONS`` as its target where the corrector
+is Newton-Krylov; the count is Newton steps, of which a warm point needs ~6 at any step size.
+
 A resumed branch (``branch.store``) starts its first point after the resume without the dual model
 and with a cold check: the same point to the certificate's tolerance, other iteration counts.
 """
@@ -65,6 +68,11 @@ from vesicle_opt.result import Result
 from vesicle_opt.scene.schema import Scene
 from vesicle_opt.verify import lobpcg
 
+TARGET_ITERATIONS = 8  # the Newton steps a point's step control aims at on this corrector (``branch.run``;
+# IPOPT's 6 is ``arclength.Settings``): the median of the converged warm points of the ~64^3 prolate
+# (108 x 48 x 48, eps = 0.14: 12, 8, 8, 9, 7). A warm point takes >= 6 whatever the step (the exact
+# loop's 3-4 outer iterations of 1-2 steps: the oblate 72 x 72 x 36 at a fixed step 6, 6, 6, 6), so on
+# IPOPT's target every step of the prolate shrank by 13-30% (module docstring, step control)
 COLD_EVERY = 8  # every 8th check of a branch is cold even where the warm one agrees: a mode from
 # outside the warm block is found within 8 points (module docstring); the rest cost ~0.6x a cold one
 

@@ -15,7 +15,7 @@ with the front door's certificate, its second-order verdict (``second_order``,
   free (``branch.bordered``: Newton on the KKT system bordered by the arclength equation), its
   point then certified at its own p by the fixed-p IPOPT solve, so a branch passes a turning point;
 * on Newton-Krylov (``backend="newton-krylov"``, large 3D spectral grids): ``branch.nk_corrector``
-  at fixed p, the front door's solve and check warm from the branch's previous point (predicted
+  at fixed p (the step control aiming at its ``TARGET_ITERATIONS`` Newton steps), the front door's solve and check warm from the branch's previous point (predicted
   multipliers, the dual model, the check's coarsest eigenvectors; ``second_order_warm`` in the
   Result's extra), and near a fold the scalar iteration on p of ``branch.arclength`` (which
   approaches a fold but does not pass it); with ``solver.array = "jax"`` the front door itself.
@@ -55,7 +55,7 @@ from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import arclength as arc
 from vesicle_opt.branch.bordered import Affine, BorderedCorrector
 from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
-from vesicle_opt.branch.nk_corrector import NewtonKrylovCorrector
+from vesicle_opt.branch.nk_corrector import TARGET_ITERATIONS as NK_TARGET_ITERATIONS, NewtonKrylovCorrector
 from vesicle_opt.branch.params import Parameter, check_end, check_range, explicit_derivative, parameter
 from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
@@ -310,7 +310,11 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     if turn != arc.Settings.turn:
         meta["turn"] = float(turn)
     store = Store(None if out is None else Path(out), meta, snapshots)
-    settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn))
+    # the step control's target in the corrector's own iterations (Newton steps on Newton-Krylov)
+    target = NK_TARGET_ITERATIONS if choose_backend(scene, backend) == "newton-krylov" else \
+        arc.Settings.target_iterations
+    settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn),
+                            target_iterations=target)
     run = _Run(scene, par, settings, store, backend, options, reference, progress)
     stopped = {0: run.follow(0, par.start, None)}
     if switch:
