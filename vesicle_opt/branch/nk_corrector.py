@@ -31,7 +31,12 @@ study's cases with the corrector wrapped): prolate 108 x 48 x 48 (eps = 0.14, ~6
 (eps = 0.14) 3.6, 3.6 -> 2.4, 2.4 s (CG 116-218 -> 77-178); prolate 90 x 36 x 36 (eps = 0.2) 2.7,
 2.6 -> 2.1, 1.95 s. Tried and dropped: a looser first inner tolerance (1e-2: 9 Newton steps and
 260 CG against 7 and 215; 1e-3: no change), restoring the constraints of the prediction first
-(11 Newton steps against 10).
+(11 Newton steps against 10); the dual model's CG solves to 1e-2 instead of 1e-4 (cold point 29 ->
+25 Newton steps, 717 -> 456 CG, but warm points 8-10 Newton steps against 6-9 and no faster: the
+median warm point 6.0 against 5.7 s); W corrected by a symmetric secant (Broyden) update from each
+outer step and moved with rho (as many W refreshes, 4 in 4 points, CG 417/226/215/142 against
+308/218/251/329: the last outer steps' (dlam, dc) are inner-solve noise). Not wasted: the 2-3 CG
+Newton step after a multiplier update (it cuts the dual residual ~700x, 4.9e-3 -> 7.3e-6).
 
 A warm check is kept only where its verdict is decided and equals the previous point's; else the
 point is checked again cold (``second_order_warm`` in extra says which was reported): every

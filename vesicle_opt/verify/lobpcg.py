@@ -23,9 +23,7 @@ one of equal norm (so that no symmetry class is missing: with a tenth of that no
 ended at 0.137 and missed its least pair 0.0039). Each level stops when its Ritz values but the
 guard have settled (``_settled``: to ``COARSE_EIG_TOL`` on coarse levels, to ``EIG_TOL`` on the fine
 one, which also needs a decided verdict and stops at the latest ``DECIDED_EXTRA`` iterations after
-it), when every error bound is below ``TOL``, or at ``MAX_ITER``. The coarsest level's block has
-``COARSE_GUARD`` more columns than k (the nearly degenerate least pair of the prolate: its partner
-settled after 252 iterations of a k block, 95 of a k + 3 one; the rule still settles k - 1 values). Warm start (``warm``, a branch's
+it), when every error bound is below ``TOL``, or at ``MAX_ITER``. Warm start (``warm``, a branch's
 next point, ``branch.nk_corrector``): the coarsest level from the previous point's eigenvectors
 there, the finer ones as above (measured, 108 x 48 x 48 prolate: 26 against 300 coarsest iterations). Measured on the Table-1 torus
 (load ~6-9, one process): 64^3 26^3/40^3/64^3 levels 68/22/4 iterations, 3.0 s (from 32^3, the
@@ -67,7 +65,13 @@ from vesicle_opt.verify.verdict import SecondOrder
 
 K = 3  # block size: the least pair is often degenerate (saddles of the 2D ellipse elongate either way)
 MAX_ITER = 300  # per level; a cap, not the usual end: the levels stop on EIG_TOL (measured: 64^3 torus
-# from its 32^3 start settled after ~10 fine iterations; 32^3 from its interface start ~50)
+# from its 32^3 start settled after ~10 fine iterations; 32^3 from its interface start ~50). The cold
+# check of the eps = 0.14 prolate (108 x 48 x 48) meets it on its 44 x 20 x 20 level (the partner of
+# the nearly degenerate least pair), but the cap costs little there; tried and dropped (cold checks,
+# interleaved, load ~2): a coarsest block of k + 3 (252 -> 95 iterations at v = 0.6955, check 2.0 ->
+# 1.8 s; at v = 0.75 300 -> 174, 2.4-2.8 s -> 2.6-2.7 s, 10 fine iterations against 6; at v = 0.655
+# 1.8-1.9 -> 2.0-2.1 s; 64^3 torus the same), and settling the least value only (2.1 -> 3.2 s: 28
+# fine iterations against 6; 2.5 -> 4.1 s at v = 0.75)
 TOL = 1e-4  # every pair's error bound (mu_ref units) below this also ends a level
 EIG_TOL = 1e-6  # the fine level stops once the verdict is decided and the Ritz values but the guard have
 # settled to EIG_TOL max(1, |mu|) (``_settled``): a tenth of the 1e-5 agreement with the assembled check
@@ -78,10 +82,6 @@ SETTLED_RUN = 2  # iterations in a row the estimate must hold
 DECIDED_EXTRA = 60  # and at most this many iterations after the verdict is first decided: the rest
 # only sharpens the number (measured, 96^3 torus from its 48^3 start: decided early, then 234
 # iterations creeping 1e-8 per step to mu_min 0.1452083 with error bound 5.4e-3, 7.3x the solve)
-COARSE_GUARD = 3  # extra vectors of the coarsest level's block (k + 3 columns), which is settled on the same
-# k - 1 values as a k block; the next level starts from its k lowest (Rayleigh-Ritz). Measured (cold,
-# load ~2.7): prolate 108 x 48 x 48 coarsest 44 x 20 x 20 252 -> 95 iterations, check 2.04 -> 1.80 s;
-# torus 64^3 coarsest 26^3 64 -> 57, 1.35 s both; guard 2: 113 and 63; mu_min within its error bound
 ACCURATE = 1.5  # a coarse level whose eigenvectors start the next one well has eps / h >= this
 # (_coarse_shape); eps / h >= 1 (resolving) is enough for the coarsest, whose start is the interface block
 COARSE_RATIO = 0.75  # a coarse level is worth its setup only when at most this fraction of n per side
@@ -231,7 +231,7 @@ def _interface_block(disc, phi, rotations_kept: bool = False) -> np.ndarray:
     return np.stack(cols)
 
 
-def _settled(tol, wanted: int | None = None):
+def _settled(tol):
     """stop rule: the Ritz values but the last (the guard) are within ``tol`` max(1, |theta|) of their
     limits, estimated from their last steps: d q / (1 - q) with d the last step and q the largest of
     the last ``RATE_WINDOW`` step ratios, capped at ``Q_MAX`` (a linearly converging sequence's
@@ -240,7 +240,7 @@ def _settled(tol, wanted: int | None = None):
     steps, prev, run = [], [None], [0]
 
     def settled(theta) -> int:
-        lead = slice(0, wanted or max(len(theta) - 1, 1))
+        lead = slice(0, max(len(theta) - 1, 1))
         old, prev[0] = prev[0], theta[lead].copy()
         if old is None or len(old) != len(prev[0]):
             steps.clear()
@@ -309,15 +309,14 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         cphi = resample(phi, disc.grid_shape, shape)
         cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels)
         clev = _setup_level(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations)
+        settled = _settled(COARSE_EIG_TOL)
         own = None if cX is not None or warm is None else warm.get(tuple(shape))
-        wide = k + COARSE_GUARD  # the coarsest level's block (module docstring)
         if cX is not None:
             U0 = _block(clev, cX, k)
-        elif own is not None and np.shape(own) == (wide, cphi.size):
-            U0 = _block(clev, own, wide)
+        elif own is not None and np.shape(own) == (k, cphi.size):
+            U0 = _block(clev, own, k)
         else:
-            U0 = _block(clev, _interface_block(cdisc, cphi, not rotations), wide, seed)
-        settled = _settled(COARSE_EIG_TOL, max(k - 1, 1) if len(U0) > k else None)
+            U0 = _block(clev, _interface_block(cdisc, cphi, not rotations), k, seed)
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
                                lambda th, res: _coarse_stop(settled(th), res))
         counts.append((shape, out.iterations))
