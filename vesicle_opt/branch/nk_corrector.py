@@ -47,6 +47,10 @@ verdict change goes unseen until a cold check, which ``COLD_EVERY`` bounds.
 
 Step control: ``branch.run`` gives the walk ``TARGET_ITERATIONS`` as its target where the corrector
 is Newton-Krylov; the count is Newton steps, of which a warm point needs ~6 at any step size.
+Measured (prolate 108 x 48 x 48, eps = 0.14, v 0.75 -> 0.575, the study's step 0.025): 20 -> 16
+points (steady step in v 0.0075-0.008 -> 0.010-0.011; every point a certified minimum, the last
+one's reduced energy the same to 6e-9), the warm point's cost unchanged (median 5.64 against 5.66 s
+over 9 points, interleaved, load ~1-1.5); prolate 90 x 36 x 36 (eps = 0.2): 10 -> 9 points.
 
 A resumed branch (``branch.store``) starts its first point after the resume without the dual model
 and with a cold check: the same point to the certificate's tolerance, other iteration counts.
@@ -77,7 +81,7 @@ TARGET_ITERATIONS = 8  # the Newton steps a point's step control aims at on this
 # IPOPT's 6 is ``arclength.Settings``): the median of the converged warm points of the ~64^3 prolate
 # (108 x 48 x 48, eps = 0.14: 12, 8, 8, 9, 7). A warm point takes >= 6 whatever the step (the exact
 # loop's 3-4 outer iterations of 1-2 steps: the oblate 72 x 72 x 36 at a fixed step 6, 6, 6, 6), so on
-# IPOPT's target every step of the prolate shrank by 13-30% (module docstring, step control)
+# IPOPT's target the prolate's step in v fell from 0.025 to 0.0075-0.008 (module docstring)
 COLD_EVERY = 8  # every 8th check of a branch is cold even where the warm one agrees: a mode from
 # outside the warm block is found within 8 points (module docstring); the rest cost ~0.6x a cold one
 
