@@ -14,9 +14,11 @@ with the front door's certificate, its second-order verdict (``second_order``,
 * near a fold (|t_p| < ``turn``) on IPOPT with lumped mass: the pseudo-arclength corrector with p
   free (``branch.bordered``: Newton on the KKT system bordered by the arclength equation), its
   point then certified at its own p by the fixed-p IPOPT solve, so a branch passes a turning point;
-* otherwise (Newton-Krylov with ``backend="newton-krylov"`` on spectral grids): the front door
-  (``vesicle_opt.solve``) at fixed p, and near a fold the scalar iteration on p of
-  ``branch.arclength`` (which approaches a fold but does not pass it).
+* on Newton-Krylov (``backend="newton-krylov"``, large 3D spectral grids): ``branch.nk_corrector``
+  at fixed p (the step control aiming at its ``TARGET_ITERATIONS`` Newton steps), the front door's solve and check warm from the branch's previous point (predicted
+  multipliers, the dual model, the check's coarsest eigenvectors; ``second_order_warm`` in the
+  Result's extra), and near a fold the scalar iteration on p of ``branch.arclength`` (which
+  approaches a fold but does not pass it); with ``solver.array = "jax"`` the front door itself.
 
 Per accepted point the row also holds
 
@@ -53,6 +55,7 @@ from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import arclength as arc
 from vesicle_opt.branch.bordered import Affine, BorderedCorrector
 from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
+from vesicle_opt.branch.nk_corrector import TARGET_ITERATIONS as NK_TARGET_ITERATIONS, NewtonKrylovCorrector
 from vesicle_opt.branch.params import Parameter, check_end, check_range, explicit_derivative, parameter
 from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
@@ -125,8 +128,12 @@ class _Run:
         self.scene, self.par, self.s, self.store = scene, par, settings, store
         self.backend, self.options, self.reference, self.progress = backend, options, reference, progress
         self.weights = discretize(scene).weights
-        # on IPOPT the NLP, its solver and the check's operators are built once (branch.corrector)
-        self.ipopt = IpoptCorrector(scene, options) if choose_backend(scene, backend) == "ipopt" else None
+        # on IPOPT the NLP, its solver and the check's operators are built once (branch.corrector);
+        # on Newton-Krylov (numpy arrays) the setup, warm from point to point (branch.nk_corrector)
+        chosen = choose_backend(scene, backend)
+        self.ipopt = IpoptCorrector(scene, options) if chosen == "ipopt" else None
+        self.nk = NewtonKrylovCorrector(scene, options) if chosen == "newton-krylov" and \
+            scene.solver.array != "jax" else None
         self._bordered = None  # branch.bordered, built when the walk first nears a fold (IPOPT, lumped)
 
     def free_corrector(self, branch: int) -> Callable | None:
@@ -204,7 +211,9 @@ class _Run:
                 sc = self.par.scene_at(self.scene, p)
             restarted = None
             try:
-                if self.ipopt is None:
+                if self.nk is not None:  # warm: the predicted multipliers (None at a start: least squares)
+                    res = self.nk.solve(sc, phi_start, None if start else self.multipliers(branch, p), branch)
+                elif self.ipopt is None:
                     res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
                 elif start:
                     res = self.ipopt.solve(sc, self.ipopt.nlp.split(self.ipopt.nlp.x0)[0])  # cold
@@ -301,7 +310,11 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     if turn != arc.Settings.turn:
         meta["turn"] = float(turn)
     store = Store(None if out is None else Path(out), meta, snapshots)
-    settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn))
+    # the step control's target in the corrector's own iterations (Newton steps on Newton-Krylov)
+    target = NK_TARGET_ITERATIONS if choose_backend(scene, backend) == "newton-krylov" else \
+        arc.Settings.target_iterations
+    settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn),
+                            target_iterations=target)
     run = _Run(scene, par, settings, store, backend, options, reference, progress)
     stopped = {0: run.follow(0, par.start, None)}
     if switch:

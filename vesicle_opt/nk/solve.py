@@ -89,19 +89,36 @@ def _dual_hessian(obj: Objective, pt, w_tol: float) -> np.ndarray | None:
     return 0.5 * (W + W.T)
 
 
-def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta, log, dual_model=None):
-    """Augmented Lagrangian with dual Newton steps. dual_model = (W, rho) of a coarser level: with
+def dual_model_at(W: np.ndarray, rho: np.ndarray, rho_new: np.ndarray) -> np.ndarray:
+    """W = G^T (H + G diag(rho) G^T)^{-1} G moved to rho_new: W^{-1} = (G^T H^{-1} G)^{-1} + diag(rho)
+    (push-through identity), so W_new^{-1} = W^{-1} + diag(rho_new - rho)."""
+    return np.linalg.inv(np.linalg.inv(W) + np.diag(np.asarray(rho_new, float) - np.asarray(rho, float)))
+
+
+def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta, log, dual_model=None,
+           lam0=None, nearby=False):
+    """Augmented Lagrangian with dual Newton steps. dual_model = (W, rho, ...) of a coarser level: with
     the same rho, W = dc/dlam is a mesh-independent quantity, so it carries over to discretisation
-    accuracy and the finer level needs no W solves unless its |c| stops falling."""
+    accuracy and the finer level needs no W solves unless its |c| stops falling. ``nearby``: it is
+    a nearby solution's (a branch's last point): rho starts afresh (carried, it grew 10x a point
+    along a 3D branch) and W is moved to it (``dual_model_at``). lam0: the start multipliers
+    (physical), e.g. a branch's prediction; None: least squares at the start field."""
     prec, rig = obj.prec, obj.rig
     pt = obj.point(pt0_phi)
-    obj.lam = _least_squares_multipliers(prec, rig, pt.dE, pt.dA, pt.dB)
+    obj.lam = _least_squares_multipliers(prec, rig, pt.dE, pt.dA, pt.dB) if lam0 is None else \
+        np.array(lam0, float)
     W = None
-    if dual_model is not None:
-        W, obj.rho = dual_model
+    if dual_model is not None and not nearby:
+        W, obj.rho = dual_model[:2]
     else:
         pinv = prec.inverse(rig)
         obj.rho = np.array([opts.rho_hat / float(g @ pinv(g)) for g in (pt.dA, pt.dB)])
+        if dual_model is not None:
+            try:
+                W = dual_model_at(dual_model[0], dual_model[2], obj.rho)
+            except np.linalg.LinAlgError:  # a singular W: computed afresh
+                W = None
+    w_rho = obj.rho.copy()  # the rho at which W was computed (dual_update may grow rho after)
     cscale = np.array([volume, abs(beta)])
     prev_c = np.inf
     status = "max_iter"
@@ -124,10 +141,11 @@ def _exact(obj: Objective, pt0_phi, tol, opts: NewtonKrylovOptions, volume, beta
         # Newton step on the dual: lam <- lam - W^{-1} c, W = G^T H_rho^{-1} G; a reused W is
         # refreshed when |c| fell by less than w_refresh over the last outer iteration
         if W is None or crel > opts.w_refresh * prev_c:
-            W = _dual_hessian(obj, pt, opts.w_tol)
+            W, w_rho = _dual_hessian(obj, pt, opts.w_tol), obj.rho.copy()
         W = dual_update(obj, W, pt.c, crel, prev_c)
         prev_c = crel
-    return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy()))
+    # (W, the rho reached, the rho W belongs to): a finer level takes the first two, ``nearby`` the third
+    return pt, status, lam_ls, dual, (None if W is None else (W, obj.rho.copy(), w_rho))
 
 
 def outer_verdict(inner: str, crel: float, dual: float, tol: float, opts: NewtonKrylovOptions,
@@ -233,14 +251,14 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
     return stages
 
 
-def _run_level(scene, disc, phi, cnt, log, tol, opts, W=None, setup=None):
+def _run_level(scene, disc, phi, cnt, log, tol, opts, W=None, setup=None, lam0=None, nearby=False):
     disc, pf, prec, translations = setup or prepare(scene, disc)
     alpha, beta = constraint_data(scene, disc)
     method = scene.solver.method
     obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt)
     if method == "exact":
         (pt, status, lam, dual, W), n, wall, deriv = timed_stage(
-            obj, lambda: _exact(obj, phi, tol, opts, disc.volume, beta, log, W))
+            obj, lambda: _exact(obj, phi, tol, opts, disc.volume, beta, log, W, lam0, nearby))
         stages = [Stage(pt, status, None, (0.0, 0.0), lam, dual, n, wall, deriv)]
     else:
         stages = penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta)
@@ -296,18 +314,18 @@ def pack_run(pack, stages: list[Stage], method: str, cnt, log: list, level_log: 
 
 
 def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
-          check: bool = True, setup=None) -> Result:
+          check: bool = True, setup=None, warm=None) -> Result:
     """``_solve`` (below) with one BLAS thread: its dense work is dot products and N x few
     products, where a second OpenBLAS thread only spin-waits on a busy machine (measured, 48^3
     torus, fresh processes interleaved, load average ~25 on 2 cores: 98.6 s median with the
     default two threads against 27.0 s with one; the issue's quiet-machine figure: <= 4% slower).
     The FFTs are scipy's, one worker (``mesh.spectral.WORKERS``)."""
     with threadpool_limits(limits=1, user_api="blas"):
-        return _solve(scene, disc, x0=x0, options=options, check=check, setup=setup)
+        return _solve(scene, disc, x0=x0, options=options, check=check, setup=setup, warm=warm)
 
 
 def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = None,
-           check: bool = True, setup=None) -> Result:
+           check: bool = True, setup=None, warm=None) -> Result:
     """Solve a scene with the Newton-Krylov backend; the same certified Result as the IPOPT path.
 
     ``x0``: a start phi (nodal values) instead of the scene's initial field (its shape, or the
@@ -316,7 +334,9 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
     from the same shape, each finer level started from the Fourier interpolant (the reported wall
     time and counts include the coarse levels). ``check``: refuse infeasible (alpha, beta) before
     any solve. ``setup``: the fine level's ``nk.setup.prepare(scene, disc)``, when the caller
-    reuses it (the second-order check).
+    reuses it (the second-order check). ``warm``: (lam0, dual_model or None) of a nearby solution
+    for ``exact`` (``branch.nk_corrector``): the fine level's start multipliers and the dual model
+    as an earlier Result's ``history["dual_model"]`` holds it (W, rho, rho of W; ``_exact``).
     """
     opts = options or NewtonKrylovOptions.from_scene(scene)
     t0, cpu0 = time.perf_counter(), time.process_time()
@@ -352,7 +372,10 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
     else:
         phi = resample(phi, prev_shape, disc.grid_shape, disc.kind)
     n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
-    disc, stages, alpha, beta, _ = _run_level(scene, disc, phi, cnt, log, tol, opts, W, setup)
+    lam0, nearby = (None, False) if warm is None else (warm[0], warm[1] is not None)
+    if nearby:
+        W = warm[1]
+    disc, stages, alpha, beta, W = _run_level(scene, disc, phi, cnt, log, tol, opts, W, setup, lam0, nearby)
     level_log.append({"n": list(disc.grid_shape or [disc.n_nodes]), "status": stages[-1].status,
                       "newton": cnt.newton - n0, "cg": cnt.cg - c0, "wall_s": time.perf_counter() - tl})
     bar.close()
@@ -374,4 +397,5 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
                    "kkt_dual": float(st.dual),
                    "kkt_l2_floor": floor, **(extra or {})})
 
+    cnt.history["dual_model"] = W  # (W, rho, rho of W) of the last dual Newton step ('exact'; None: none)
     return pack_run(pack, stages, method, cnt, log, level_log, cpu, wall)

@@ -23,7 +23,9 @@ one of equal norm (so that no symmetry class is missing: with a tenth of that no
 ended at 0.137 and missed its least pair 0.0039). Each level stops when its Ritz values but the
 guard have settled (``_settled``: to ``COARSE_EIG_TOL`` on coarse levels, to ``EIG_TOL`` on the fine
 one, which also needs a decided verdict and stops at the latest ``DECIDED_EXTRA`` iterations after
-it), when every error bound is below ``TOL``, or at ``MAX_ITER``. Measured on the Table-1 torus
+it), when every error bound is below ``TOL``, or at ``MAX_ITER``. Warm start (``warm``, a branch's
+next point, ``branch.nk_corrector``): the coarsest level from the previous point's eigenvectors
+there, the finer ones as above (measured, 108 x 48 x 48 prolate: 26 against 300 coarsest iterations). Measured on the Table-1 torus
 (load ~6-9, one process): 64^3 26^3/40^3/64^3 levels 68/22/4 iterations, 3.0 s (from 32^3, the
 level before this one: 62/19, 4.2 s; from random-mixed 48^3 for 96^3: 238-300 iterations);
 mu_min within 3e-7 of its converged value 0.14520727. scipy's lobpcg (random start, 150 iterations
@@ -63,7 +65,13 @@ from vesicle_opt.verify.verdict import SecondOrder
 
 K = 3  # block size: the least pair is often degenerate (saddles of the 2D ellipse elongate either way)
 MAX_ITER = 300  # per level; a cap, not the usual end: the levels stop on EIG_TOL (measured: 64^3 torus
-# from its 32^3 start settled after ~10 fine iterations; 32^3 from its interface start ~50)
+# from its 32^3 start settled after ~10 fine iterations; 32^3 from its interface start ~50). The cold
+# check of the eps = 0.14 prolate (108 x 48 x 48) meets it on its 44 x 20 x 20 level (the partner of
+# the nearly degenerate least pair), but the cap costs little there; tried and dropped (cold checks,
+# interleaved, load ~2): a coarsest block of k + 3 (252 -> 95 iterations at v = 0.6955, check 2.0 ->
+# 1.8 s; at v = 0.75 300 -> 174, 2.4-2.8 s -> 2.6-2.7 s, 10 fine iterations against 6; at v = 0.655
+# 1.8-1.9 -> 2.0-2.1 s; 64^3 torus the same), and settling the least value only (2.1 -> 3.2 s: 28
+# fine iterations against 6; 2.5 -> 4.1 s at v = 0.75)
 TOL = 1e-4  # every pair's error bound (mu_ref units) below this also ends a level
 EIG_TOL = 1e-6  # the fine level stops once the verdict is decided and the Ritz values but the guard have
 # settled to EIG_TOL max(1, |mu|) (``_settled``): a tenth of the 1e-5 agreement with the assembled check
@@ -284,9 +292,12 @@ def _block(lev: _Level, X_nodal: np.ndarray, k: int, seed: int | None = None) ->
     return U
 
 
-def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_iter):
+def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_iter, warm=None, levels=None):
     """Nodal start block for this level: the coarse eigenvectors interpolated, or None where there
-    is no coarse level (the caller then starts from the interface block mixed with random columns)."""
+    is no coarse level (the caller then starts from the interface block mixed with random columns).
+    ``warm``: {coarse shape: nodal rows} of a nearby point's check (a branch's previous point): the
+    coarsest level starts from its rows instead of the random-mixed interface block (module
+    docstring, warm start); ``levels``: filled with {coarse shape: the nodal rows found there}."""
     shape = _coarse_shape(disc, scene.model.epsilon)
     if shape is not None:
         cdisc = fourier_grid(disc.box, shape, disc.kind)
@@ -299,24 +310,34 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
             rows = f.derivatives(p)
             return np.column_stack(rows) if rows else None
         cphi = resample(phi, disc.grid_shape, shape, disc.kind)
-        cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter)
+        cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels)
         clev = _setup_level(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations)
         settled = _settled(COARSE_EIG_TOL)
-        U0 = (_block(clev, _interface_block(cdisc, cphi, not rotations), k, seed) if cX is None
-              else _block(clev, cX, k))
+        own = None if cX is not None or warm is None else warm.get(tuple(shape))
+        if cX is not None:
+            U0 = _block(clev, cX, k)
+        elif own is not None and np.shape(own) == (k, cphi.size):
+            U0 = _block(clev, own, k)
+        else:
+            U0 = _block(clev, _interface_block(cdisc, cphi, not rotations), k, seed)
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
                                lambda th, res: _coarse_stop(settled(th), res))
         counts.append((shape, out.iterations))
-        return np.stack([resample(v / clev.s, shape, disc.grid_shape, disc.kind) for v in out.vectors])
+        rows = out.vectors / clev.s
+        if levels is not None:
+            levels[tuple(shape)] = rows
+        return np.stack([resample(v, shape, disc.grid_shape, disc.kind) for v in rows])
     return None
 
 
 def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter: int = MAX_ITER,
-             tol: float = TOL, seed: int = 0, X0=None) -> dict:
+             tol: float = TOL, seed: int = 0, X0=None, warm: dict | None = None) -> dict:
     """Everything the check computes: eigenvalues mu/mu_ref (ascending), their error bounds, the
     M-normalised eigenvectors (columns), the excluded modes' label and Rayleigh quotients on T
-    (mu_ref units), mu_ref, the fine level's iteration count and each coarse level's. ``X0``: a
-    nodal start block (columns) instead of the coarse-level / interface start."""
+    (mu_ref units), mu_ref, the fine level's iteration count and each coarse level's, and
+    ``levels``: {coarse shape: the nodal eigenvector rows found there}, which a nearby point's check
+    takes as ``warm`` (``_start``). ``X0``: a nodal start block (columns) instead of the
+    coarse-level / interface start."""
     disc, pf, prec, translations = setup
     phi = np.asarray(result.phi, float)
     cB = -result.lambda_area
@@ -325,10 +346,10 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
         lev = _setup_level(disc, pf, prec, translations, scene, phi, cB, ref, rotations)
         rayleigh = _excluded_rayleigh(lev)
         lev.modes = None  # in Qall now; N x 6 less at the peak
-        coarse = []
+        coarse, levels = [], {}
         rows = None if X0 is None else np.asarray(X0, float).reshape(phi.size, -1).T
         if rows is None:
-            rows = _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, coarse, max_iter)
+            rows = _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, coarse, max_iter, warm, levels)
         if rows is None:
             U0 = _block(lev, _interface_block(disc, phi, not rotations), k, seed)
         else:
@@ -346,7 +367,8 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
         out = block_eig.lobpcg(lev.a_u, lev.t_u, U0, lev.Qall, max_iter, stop)
     return {"eigenvalues": out.values, "errors": out.residuals, "vectors": (out.vectors / lev.s).T,
             "excluded": lev.excluded, "excluded_rayleigh": rayleigh, "mu_ref": ref,
-            "iterations": out.iterations, "coarse_iterations": tuple(coarse), "history": out.history}
+            "iterations": out.iterations, "coarse_iterations": tuple(coarse), "history": out.history,
+            "levels": levels}
 
 
 def reduced_hessian_eigenvalues(scene, result, setup, k: int = K, rotations: bool = False,
@@ -365,14 +387,21 @@ def check(scene, result, setup, rotations: bool = True, **kw) -> SecondOrder:
     """The verdict of ``verify.verdict.classify`` on the matrix-free spectrum; on Fourier grids the
     rotations are excluded by default (the translations always), as the front door does.
     ``lowest_mode`` holds the critical (least) eigenvector, M-normalised, for continuation."""
+    return check_levels(scene, result, setup, rotations, **kw)[0]
+
+
+def check_levels(scene, result, setup, rotations: bool = True, **kw) -> tuple[SecondOrder, dict]:
+    """``check`` and the coarse levels' eigenvectors (``spectrum``'s ``levels``; {} where the
+    check broke down): pass them as ``warm`` to the check of a nearby point (a branch's next)."""
     try:
         sp = spectrum(scene, result, setup, rotations=rotations, **kw)
     except np.linalg.LinAlgError as e:  # a breakdown of the small dense eigenproblems
         nan = float("nan")
-        return SecondOrder("not checked", nan, nan, (nan,), (), nan, f"lobpcg: {e}", errors=(nan,))
+        return SecondOrder("not checked", nan, nan, (nan,), (), nan, f"lobpcg: {e}", errors=(nan,)), {}
     mu, err = float(sp["eigenvalues"][0]), float(sp["errors"][0])
     verdict, reason = V.classify(mu, err, sp["excluded_rayleigh"])
-    return SecondOrder(verdict, mu * sp["mu_ref"], mu, tuple(float(x) for x in sp["eigenvalues"]),
-                       sp["excluded_rayleigh"], float(max(sp["errors"])), reason,
-                       sp["vectors"][:, 0], excluded=sp["excluded"], errors=tuple(float(e) for e in sp["errors"]),
-                       iterations=sp["iterations"])
+    so = SecondOrder(verdict, mu * sp["mu_ref"], mu, tuple(float(x) for x in sp["eigenvalues"]),
+                     sp["excluded_rayleigh"], float(max(sp["errors"])), reason,
+                     sp["vectors"][:, 0], excluded=sp["excluded"], errors=tuple(float(e) for e in sp["errors"]),
+                     iterations=sp["iterations"])
+    return so, sp["levels"]
