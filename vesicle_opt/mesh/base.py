@@ -132,3 +132,25 @@ class Discretization:
 
     def h1_seminorm(self, v: np.ndarray) -> float:
         return float(np.sqrt(max(v @ (self.K @ v), 0.0)))
+
+
+@dataclass(frozen=True, eq=False)
+class TransformDiscretization(Discretization):
+    """A lumped discretisation whose Delta_h is diagonal in a transform's basis and applied by the
+    grid object ``fourier`` (``laplacian(v)``, symmetric): the periodic Fourier grids
+    (``mesh.spectral``) and the mirror-symmetric cosine grids (``mesh.cosine``). K is a
+    ``LinearOperator``, never a matrix."""
+
+    fourier: object = None
+
+    @property
+    def laplacian(self) -> spla.LinearOperator:  # type: ignore[override]
+        n = self.n_nodes
+        return spla.LinearOperator((n, n), matvec=self.fourier.laplacian, rmatvec=self.fourier.laplacian,
+                                   dtype=float)
+
+    def apply_laplacian(self, phi: np.ndarray) -> np.ndarray:
+        return self.fourier.laplacian(np.asarray(phi, float))
+
+    def apply_laplacian_transpose(self, v: np.ndarray) -> np.ndarray:
+        return self.fourier.laplacian(np.asarray(v, float))

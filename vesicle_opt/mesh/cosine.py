@@ -47,7 +47,7 @@ import scipy.fft as sfft
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from vesicle_opt.mesh.base import Discretization
+from vesicle_opt.mesh.base import TransformDiscretization
 
 KIND = "cosine"  # Discretization.kind of these grids (the summary's mesh_kind); the scene says "spectral"
 WORKERS = 1  # DCT threads, as ``mesh.spectral.WORKERS``
@@ -119,23 +119,11 @@ class CosineGrid:
 
 
 @dataclass(frozen=True, eq=False)
-class CosineDiscretization(Discretization):
+class CosineDiscretization(TransformDiscretization):
     """A lumped discretisation on a mirror-symmetric grid, Delta_h applied by DCT (module docstring).
     ``fourier`` holds the :class:`CosineGrid` (the attribute the matrix-free code looks for)."""
 
     fourier: CosineGrid | None = None
-
-    @property
-    def laplacian(self) -> spla.LinearOperator:  # type: ignore[override]
-        n = self.n_nodes
-        return spla.LinearOperator((n, n), matvec=self.fourier.laplacian, rmatvec=self.fourier.laplacian,
-                                   dtype=float)
-
-    def apply_laplacian(self, phi: np.ndarray) -> np.ndarray:
-        return self.fourier.laplacian(np.asarray(phi, float))
-
-    def apply_laplacian_transpose(self, v: np.ndarray) -> np.ndarray:
-        return self.fourier.laplacian(np.asarray(v, float))
 
 
 def grid(box, n) -> CosineDiscretization:

@@ -34,7 +34,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from vesicle_opt.mesh import cosine
-from vesicle_opt.mesh.base import Discretization
+from vesicle_opt.mesh.base import TransformDiscretization
 
 WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
 FFT_LIBRARIES = ("scipy", "pyfftw")  # solver.fft: scipy.fft or FFTW through pyFFTW ("auto": the latter
@@ -232,22 +232,10 @@ class FourierGrid:
 
 
 @dataclass(frozen=True, eq=False)
-class FourierDiscretization(Discretization):
+class FourierDiscretization(TransformDiscretization):
     """A lumped discretisation on a periodic grid with Delta_h applied by FFT (see module doc)."""
 
     fourier: FourierGrid | None = None
-
-    @property
-    def laplacian(self) -> spla.LinearOperator:  # type: ignore[override]
-        n = self.n_nodes
-        return spla.LinearOperator((n, n), matvec=self.fourier.laplacian, rmatvec=self.fourier.laplacian,
-                                   dtype=float)
-
-    def apply_laplacian(self, phi: np.ndarray) -> np.ndarray:
-        return self.fourier.laplacian(np.asarray(phi, float))
-
-    def apply_laplacian_transpose(self, v: np.ndarray) -> np.ndarray:
-        return self.fourier.laplacian(np.asarray(v, float))
 
 
 def even_fft_size(x: float) -> int:
