@@ -163,3 +163,23 @@ def test_settled_waits_for_the_remaining_distance():
     settled = lobpcg._settled(tol)
     runs = [settled(np.array([1 + 1e-6 * t, 2.0])) for t in range(10)]  # creeping 1e-6 per step
     assert max(runs) == 0  # 1e-6 * 9 > tol: never settled
+
+
+def test_the_scene_sets_the_checks_iteration_cap():
+    """``solver.second_order_max_iter`` is the LOBPCG cap of every level: at 2 the fine level stops
+    at 2 iterations and claims no verdict the default cap contradicts (a Ritz value bounds the least
+    eigenvalue from above, so a capped "saddle" stays one; a "minimum" needs converged bounds)."""
+    base = ["mesh.n=32", "mesh.kind='spectral'", "solver.backend='newton-krylov'"]
+    sc = S.load("ellipse-2d", base)
+    capped = S.load("ellipse-2d", base + ["solver.second_order_max_iter=2"])
+    assert sc.solver.second_order_max_iter == lobpcg.MAX_ITER and capped.solver.second_order_max_iter == 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = solve(sc, throw=True)
+    full = lobpcg.spectrum(sc, r, prepare(sc))
+    short = lobpcg.spectrum(capped, r, prepare(capped))
+    assert short["iterations"] <= 2 < full["iterations"] <= lobpcg.MAX_ITER
+    assert all(it <= 2 for _, it in short["coarse_iterations"])
+    decided = lobpcg.check(sc, r, prepare(sc)).verdict
+    assert decided == r.extra["second_order"] and decided in ("minimum", "saddle")
+    assert lobpcg.check(capped, r, prepare(capped)).verdict in ("not checked", decided)

@@ -77,6 +77,7 @@ class Solver:
     max_iter: int
     backend: str = "auto"  # "auto" | "ipopt" | "newton-krylov" (see vesicle_opt.backends.choose_backend)
     second_order: bool = True  # run the second-order check after a converged solve
+    second_order_max_iter: int = 300  # the matrix-free check's LOBPCG cap per level (verify.lobpcg.MAX_ITER)
     # penalty continuation / augmented Lagrangian (see vesicle_opt.continuation)
     M0: float = 10.0
     M_factor: float = 10.0
@@ -161,6 +162,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.max_iter": ("int", 500, ">= 1"),
     "solver.backend": ("str", "auto", ("ipopt", "newton-krylov", "auto")),
     "solver.second_order": ("bool", True, "true or false"),
+    "solver.second_order_max_iter": ("int", 300, ">= 1 (LOBPCG iterations per level of the matrix-free check)"),
     "solver.M0": ("float", 10.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
     "solver.M_factor": ("float", 10.0, "> 1"),
     "solver.M_max": ("float", 1e6, f"M0 <= M_max <= {M_LIMIT:g}"),
@@ -334,7 +336,8 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     _check_array(val)
     _check_fft(val)
     solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
-                    val["solver.backend"], second_order=val["solver.second_order"], M0=val["solver.M0"],
+                    val["solver.backend"], second_order=val["solver.second_order"],
+                    second_order_max_iter=val["solver.second_order_max_iter"], M0=val["solver.M0"],
                     M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
                     max_outer=val["solver.max_outer"], array=val["solver.array"], fft=val["solver.fft"],
                     max_memory_gb=val["solver.max_memory_gb"])

@@ -330,14 +330,17 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
     return None
 
 
-def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter: int = MAX_ITER,
+def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter: int | None = None,
              tol: float = TOL, seed: int = 0, X0=None, warm: dict | None = None) -> dict:
     """Everything the check computes: eigenvalues mu/mu_ref (ascending), their error bounds, the
     M-normalised eigenvectors (columns), the excluded modes' label and Rayleigh quotients on T
     (mu_ref units), mu_ref, the fine level's iteration count and each coarse level's, and
     ``levels``: {coarse shape: the nodal eigenvector rows found there}, which a nearby point's check
     takes as ``warm`` (``_start``). ``X0``: a nodal start block (columns) instead of the
-    coarse-level / interface start."""
+    coarse-level / interface start. ``max_iter``: the LOBPCG cap per level, by default the scene's
+    ``solver.second_order_max_iter`` (``MAX_ITER`` unless the scene raises it)."""
+    if max_iter is None:
+        max_iter = scene.solver.second_order_max_iter
     disc, pf, prec, translations = setup
     phi = np.asarray(result.phi, float)
     cB = -result.lambda_area
@@ -372,7 +375,7 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
 
 
 def reduced_hessian_eigenvalues(scene, result, setup, k: int = K, rotations: bool = False,
-                                max_iter: int = MAX_ITER, tol: float = TOL, seed: int = 0,
+                                max_iter: int | None = None, tol: float = TOL, seed: int = 0,
                                 vectors: bool = False):
     """(eigenvalues mu/mu_ref, error bounds in mu_ref units), ascending (module docstring); with
     ``vectors`` also the M-normalised eigenvectors (columns, nodal values). ``setup`` is the
