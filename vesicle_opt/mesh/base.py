@@ -143,6 +143,22 @@ class TransformDiscretization(Discretization):
 
     fourier: object = None
 
+    @classmethod
+    def of_grid(cls, grid, kind: str, volume: float):
+        """The discretisation of a transform grid (``size``, ``cell``, ``dim``, ``h``, ``shape``,
+        ``box``, ``nodes()``, ``laplacian``): uniform weights m = cell, K = -m Delta_h, M = diag(m);
+        ``volume`` is |Omega| (the mirror grid's is its doubled box's)."""
+        N = grid.size
+        weights = np.full(N, grid.cell)
+
+        def K(v):
+            return -grid.cell * grid.laplacian(np.ravel(v))
+
+        Kop = spla.LinearOperator((N, N), matvec=K, rmatvec=K, dtype=float)
+        return cls(kind=kind, dim=grid.dim, nodes=grid.nodes(), weights=weights, K=Kop,
+                   M=sp.diags(weights, format="csr"), mass="lumped", h=float(grid.h.max()), volume=volume,
+                   box=grid.box, grid_shape=grid.shape, fourier=grid)
+
     @property
     def laplacian(self) -> spla.LinearOperator:  # type: ignore[override]
         n = self.n_nodes

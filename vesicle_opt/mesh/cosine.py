@@ -44,8 +44,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from vesicle_opt.mesh.base import TransformDiscretization
 
@@ -129,17 +127,7 @@ class CosineDiscretization(TransformDiscretization):
 def grid(box, n) -> CosineDiscretization:
     """``mesh.kind = 'spectral'`` with natural boundaries: the cosine-series grid of ``box``."""
     cg = CosineGrid(box, n)
-    N = cg.size
-    weights = np.full(N, cg.cell)
-
-    def K(v):
-        return -cg.cell * cg.laplacian(np.ravel(v))
-
-    Kop = spla.LinearOperator((N, N), matvec=K, rmatvec=K, dtype=float)
-    return CosineDiscretization(kind=KIND, dim=cg.dim, nodes=cg.nodes(), weights=weights, K=Kop,
-                                M=sp.diags(weights, format="csr"), mass="lumped", h=float(cg.h.max()),
-                                volume=float(cg.mirror_cells * np.prod(cg.lengths)), box=cg.box,
-                                grid_shape=cg.shape, fourier=cg)
+    return CosineDiscretization.of_grid(cg, KIND, float(cg.mirror_cells * np.prod(cg.lengths)))
 
 
 def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:

@@ -30,8 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from vesicle_opt.mesh import cosine
 from vesicle_opt.mesh.base import TransformDiscretization
@@ -281,17 +279,7 @@ def fourier_grid(box, n, kind: str = "spectral"):
     if kind == cosine.KIND:
         return cosine.grid(box, n)
     fg = FourierGrid(box, n, kind)
-    N = fg.size
-    weights = np.full(N, fg.cell)
-
-    def K(v):
-        return -fg.cell * fg.laplacian(np.ravel(v))
-
-    Kop = spla.LinearOperator((N, N), matvec=K, rmatvec=K, dtype=float)
-    return FourierDiscretization(kind=kind, dim=fg.dim, nodes=fg.nodes(), weights=weights, K=Kop,
-                                 M=sp.diags(weights, format="csr"), mass="lumped", h=float(fg.h.max()),
-                                 volume=float(np.prod(fg.lengths)), box=fg.box, grid_shape=fg.shape,
-                                 fourier=fg)
+    return FourierDiscretization.of_grid(fg, kind, float(np.prod(fg.lengths)))
 
 
 def grid(box, n) -> FourierDiscretization:
