@@ -49,7 +49,7 @@ from vesicle_opt.nk.setup import prepare
 from vesicle_opt.nlp import NLP, IpoptOptions, PenaltyNLP, build_nlp, solve_nlp
 from vesicle_opt.result import Result
 from vesicle_opt.scene import Scene
-from vesicle_opt.verify import lobpcg, second_order, topology
+from vesicle_opt.verify import lobpcg, second_order, topology, verdict
 
 
 # the methods whose converged result promises A = alpha, B = beta to tol: second-order checked
@@ -188,10 +188,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         # solver.fft: the real FFTs of the solve and its check (scipy.fft or pyFFTW)
         with fft_library(scene.solver.fft):
             result = run(scene, x0=_phi_start(x0, disc), options=options, setup=setup, check=False)
-            # the matrix-free check (verify.lobpcg): on Fourier grids also the rotations, the
-            # continuum's symmetries, excluded (second_order_excluded says which)
-            # (a P1 scene keeps the P1 report, translations only, also where its tensor box runs on FFT)
-            rotations = scene.mesh.kind != "fem-p1"
+            # the matrix-free check (verify.lobpcg), rotations excluded on grids (verdict.excludes_rotations)
+            rotations = verdict.excludes_rotations(scene)
             if check_second_order and result.converged:
                 log.info("%s: second-order check (matrix-free LOBPCG)", scene.name)
             t0 = time.perf_counter()

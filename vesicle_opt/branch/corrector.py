@@ -160,7 +160,7 @@ class IpoptCorrector:
             if self.matrix_free:  # with the FFTs the front door's check uses (solver.fft)
                 with fft_library(scene.solver.fft):
                     so = rotation_modulo(lobpcg.check(scene, res, prepare(scene, self.fourier),
-                                                      rotations=scene.mesh.kind != "fem-p1"), scene.dim)
+                                                      rotations=V.excludes_rotations(scene)), scene.dim)
             else:  # the front door's assembled check on the point's own (constant) NLP
                 so = second_order.check(build_nlp(scene, self.disc, check=False), res)
         res = with_reports(res, so, seconds=time.perf_counter() - t0)

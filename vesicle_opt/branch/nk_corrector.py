@@ -75,7 +75,7 @@ from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import prepare
 from vesicle_opt.result import Result
 from vesicle_opt.scene.schema import Scene
-from vesicle_opt.verify import lobpcg
+from vesicle_opt.verify import lobpcg, verdict
 
 TARGET_ITERATIONS = 8  # the Newton steps a point's step control aims at on this corrector (``branch.run``;
 # IPOPT's 6 is ``arclength.Settings``): the median of the converged warm points of the ~64^3 prolate
@@ -106,7 +106,7 @@ class NewtonKrylovCorrector:
         self.scene = scene.replace(solver=dataclasses.replace(scene.solver, method="exact"))
         self.options = options or NewtonKrylovOptions.from_scene(self.scene)
         resources.check(self.scene, "newton-krylov")  # the memory estimate, once: the mesh is the branch's
-        self.rotations = self.scene.mesh.kind != "fem-p1"  # as the front door: a P1 scene keeps its report
+        self.rotations = verdict.excludes_rotations(self.scene)  # as the front door
         self._setup: tuple[float | None, object] = (None, None)  # (C, nk.setup.prepare of it)
         self.warm: dict[int, _Warm] = {}  # branch id -> its last converged point's data
 

@@ -67,6 +67,13 @@ def mu_ref(rigidity: float, epsilon: float, beta: float, dim: int) -> float:
     return rigidity * F.sharp_energy_sphere(beta, dim) / (epsilon * F.surface_area(beta))
 
 
+def excludes_rotations(scene) -> bool:
+    """Whether the check of ``scene`` removes the rotations with the translations: on grids (FD,
+    Fourier, cosine) they are the continuum's symmetries; a P1 scene keeps the P1 report,
+    translations only, also where its tensor box runs on FFT (``second_order_excluded`` says which)."""
+    return scene.mesh.kind != "fem-p1"
+
+
 def classify(mu: float, err: float, excluded_rayleigh=()) -> tuple[str, str]:
     """(verdict, reason) for mu = mu_min / mu_ref with error bound err (module docstring)."""
     if not (math.isfinite(mu) and math.isfinite(err)):
