@@ -47,6 +47,24 @@ def _agree(ri, rn):
     assert abs(rn.lambda_area - ri.lambda_area) <= LAMBDA_REL * scale
 
 
+def test_projected_pcg_reaches_roundoff_in_the_subspace_for_every_seed():
+    """With the residual update (``SubspacePreconditioner``) CG reaches eta = 1e-13 on every one of
+    20 random problems and its iterate stays in {C^T x = 0} to round-off. Without it the recursive
+    residual tended to C lambda, stalled near 1e-9 and the iterates left the subspace on 7 of
+    these 20 seeds (|C^T x| up to 0.2): whether a test passed depended on its seed."""
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        n, k = 40, 3
+        Q = rng.standard_normal((n, n))
+        H = Q @ Q.T + n * np.eye(n)
+        C = rng.standard_normal((n, k))
+        b = rng.standard_normal(n)
+        d = np.diag(H).copy()
+        res = projected_pcg(lambda v: H @ v, b, SubspacePreconditioner(lambda r: r / d, C), 1e-13, 200)
+        assert res.status == "converged" and res.iterations <= n, (seed, res.iterations)  # CG: <= n - k steps + round-off
+        assert np.max(np.abs(C.T @ res.x)) <= 1e-12 * np.max(np.abs(C)) * np.max(np.abs(res.x)), seed
+
+
 def test_projected_pcg_matches_dense_reduced_solve(rng):
     n, k = 40, 3
     Q = rng.standard_normal((n, n))

@@ -92,10 +92,13 @@ class CosineGrid:
         CosineGrid.transform_seconds += time.perf_counter() - t0
         return out
 
-    def apply_symbol(self, v: np.ndarray, sym: np.ndarray) -> np.ndarray:
-        """C^{-1} diag(sym) C v (sym in the DCT layout: a real array of the grid's shape)."""
+    def apply_symbol(self, v: np.ndarray, sym: np.ndarray, constant: float = 0.0) -> np.ndarray:
+        """C^{-1} diag(sym) C v (sym in the DCT layout: a real array of the grid's shape), plus
+        ``constant`` at every node through the DC coefficient (sqrt(N) c for the orthonormal DCT)."""
         vh = self.fft(v)
         vh *= sym
+        if constant:
+            vh.flat[0] += constant * np.sqrt(self.size)
         return self.ifft(vh)
 
     def laplacian(self, v: np.ndarray) -> np.ndarray:
@@ -107,7 +110,7 @@ class CosineGrid:
         vh = self.fft(v)
         return float(np.sum(sym * vh * vh))
 
-    def derivatives(self, v: np.ndarray) -> list[np.ndarray]:
+    def derivatives(self, v: np.ndarray, scale: float = 1.0) -> list[np.ndarray]:
         """No translation modes: a shift of an even field is not even (module docstring)."""
         return []
 

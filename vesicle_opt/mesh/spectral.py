@@ -193,14 +193,17 @@ class FourierGrid:
         FourierGrid.transform_seconds += time.perf_counter() - t0
         return out
 
-    def apply_symbol(self, v: np.ndarray, sym: np.ndarray) -> np.ndarray:
-        """F^{-1} diag(sym) F v for a real, even symbol (rfft layout). The product is formed in
+    def apply_symbol(self, v: np.ndarray, sym: np.ndarray, constant: float = 0.0) -> np.ndarray:
+        """F^{-1} diag(sym) F v (+ ``constant``, added to every node through the k = 0 coefficient:
+        no pass over the field) for a real, even symbol (rfft layout). The product is formed in
         place: in the transform's own spectrum (scipy) or from FFTW's output buffer straight into
         its input buffer (pyFFTW), so the spectrum is neither copied out nor back; only the two
         transforms are timed (``transform_seconds``), as ``fft`` and ``ifft`` time them."""
         if _library[0] != "pyfftw":
             vh = self.fft(v)
             vh *= sym
+            if constant:
+                vh.flat[0] += constant * self.size  # the unnormalised DC of a constant field
             return self.ifft(vh)
         plans = _FFTWPlans.of(self.shape)
         t0 = time.perf_counter()
@@ -208,6 +211,8 @@ class FourierGrid:
         plans.forward()
         t1 = time.perf_counter()
         np.multiply(plans.spec_out, sym, out=plans.spec_in)
+        if constant:
+            plans.spec_in.flat[0] += constant * self.size
         t2 = time.perf_counter()
         plans.backward()  # normalised by 1/N, as scipy's irfftn
         out = plans.real_out.ravel().copy()
@@ -219,10 +224,11 @@ class FourierGrid:
         """Delta_h v (symmetric)."""
         return self.apply_symbol(v, self.symbol)
 
-    def derivatives(self, v: np.ndarray) -> list[np.ndarray]:
-        """Spectral partial derivatives d_i v (the translation modes of a field v)."""
+    def derivatives(self, v: np.ndarray, scale: float = 1.0) -> list[np.ndarray]:
+        """Spectral partial derivatives d_i v (the translation modes of a field v), times ``scale``
+        (folded into the wavenumbers: no pass over the fields)."""
         vh = self.fft(v)
-        return [self.ifft(ik * vh) for ik in self._ik]
+        return [self.ifft((scale * ik if scale != 1.0 else ik) * vh) for ik in self._ik]
 
     def nodes(self) -> np.ndarray:
         axes = [a + h * np.arange(k) for (a, _), h, k in zip(self.box, self.h, self.shape)]

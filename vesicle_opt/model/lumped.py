@@ -15,9 +15,10 @@ Euclidean gradients with respect to the nodal values, J = eps Delta_h + diag(g'(
 
 with g' = (1 - 3 phi^2)/eps - 2 C phi and g'' = -6 phi/eps - 2 C. On Fourier grids Delta_h costs
 one FFT pair, so an evaluation costs one pair and a Hessian-vector product two. This is the one
-hand-written matrix-free form of the derivatives (the pointwise g, g', g'', W', W'' come from
-``functionals``; tests compare it with ``functionals``' numpy gradients, CasADi's AD gradient and
-Hessian, and finite differences). The penalised energy (11) and the augmented Lagrangian are
+hand-written matrix-free form of the derivatives (the pointwise g, g', g'', W', W'' of
+``functionals``, formed here in place, with as few passes over the field as the formulas allow:
+the 64^3 fields do not stay in cache; tests compare it with ``functionals``' numpy gradients,
+CasADi's AD gradient and Hessian, and finite differences). The penalised energy (11) and the augmented Lagrangian are
 assembled from these pieces with ``penalty.penalised_energy`` in ``nk.newton_cg``.
 
 The bulk model (``bulk_symbol``, ``bulk_stiffness``): in the bulk phi = +-1 with c0 = 0,
@@ -34,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from vesicle_opt.blas import axpy
 from vesicle_opt.model import functionals as F
 
 BULK_C = 0.0  # the bulk model linearises at phi = +-1 with c0 = 0 (where g'(+-1) = -2/eps)
@@ -80,6 +82,24 @@ class LumpedOperators:
         return -self.m * lap_v
 
 
+def pointwise(phi: np.ndarray, lap: np.ndarray, epsilon: float, C: float):
+    """(r, g'(phi), 1 - phi^2): f_c = eps lap + g(phi) and g' of ``functionals`` (``curvature_residual``,
+    ``reaction_derivative``), formed in place from one phi^2 (six passes over the field instead of
+    sixteen; a test compares them with ``functionals`` to round-off); 1 - phi^2 gives the double well
+    W = (1 - phi^2)^2 / 4."""
+    one_minus_sq = np.multiply(phi, phi)
+    s = np.multiply(one_minus_sq, -3.0 / epsilon)  # g' = (1 - 3 phi^2)/eps - 2 C phi
+    s += 1.0 / epsilon
+    np.subtract(1.0, one_minus_sq, out=one_minus_sq)
+    r = np.multiply(phi, 1.0 / epsilon)  # g = (phi/eps + C)(1 - phi^2)
+    if C:
+        r += C
+        axpy(-2.0 * C, phi, s)
+    r *= one_minus_sq
+    axpy(epsilon, lap, r)
+    return r, s, one_minus_sq
+
+
 @dataclass
 class State:
     """Everything the derivatives at phi need, computed with one Laplacian application."""
@@ -104,31 +124,58 @@ class PhaseField:
         self.uniform_weight = float(self.m[0]) if self.m.size and np.all(self.m == self.m[0]) else None
 
     def state(self, phi: np.ndarray) -> State:
-        eps, C, m = self.eps, self.C, self.m
+        eps, m = self.eps, self.m
         lap = self.ops.lap(phi)
-        r = F.curvature_residual(phi, lap, eps, C)
-        s = F.reaction_derivative(phi, eps, C)
-        E = float(m @ (r * r)) / (2 * eps)
-        A = float(m @ phi)
-        # phi^T K phi = -m . (phi lap): B from the same Laplacian (functionals.area_functional uses K)
-        B = -eps / 2 * float(m @ (phi * lap)) + float(m @ F.double_well(phi)) / eps
+        r, s, one_minus_sq = pointwise(phi, lap, eps, self.C)
+        w = self.uniform_weight
+        # phi^T K phi = -m . (phi lap): B from the same Laplacian (functionals.area_functional uses K);
+        # the double well W = (1 - phi^2)^2 / 4
+        if w is None:
+            E = float(m @ (r * r)) / (2 * eps)
+            A = float(m @ phi)
+            B = -eps / 2 * float(m @ (phi * lap)) + float(m @ (one_minus_sq * one_minus_sq)) / (4 * eps)
+        else:  # one weight: the sums are dot products, no product array formed
+            E = w * float(r @ r) / (2 * eps)
+            A = w * float(phi.sum())
+            B = -eps / 2 * w * float(phi @ lap) + w * float(one_minus_sq @ one_minus_sq) / (4 * eps)
         return State(phi, lap, r, s, E, A, B)
 
     def gradients(self, st: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         eps, m, phi = self.eps, self.m, st.phi
-        mr = m * st.r
-        dE = (eps * self.ops.lapT(mr) + st.s * mr) / eps
-        dB = m * (-eps * st.lap + F.double_well_derivative(phi) / eps)
+        w = self.uniform_weight if self.uniform_weight is not None else m
+        mr = w * st.r
+        dE = self.ops.lapT(mr)  # (eps Delta_h^T (m r) + g' m r) / eps
+        mr *= st.s
+        axpy(1.0 / eps, mr, dE)
+        dB = np.multiply(phi, phi)  # dB = m (W'(phi)/eps - eps Delta_h phi), W' = (phi^2 - 1) phi
+        dB -= 1.0
+        dB *= phi
+        dB *= w / eps
+        if self.uniform_weight is not None:
+            axpy(-eps * w, st.lap, dB)
+        else:
+            dB -= (eps * m) * st.lap
         return dE, m.copy(), dB
 
     def hessian_parts(self, st: State) -> tuple[np.ndarray, np.ndarray]:
-        """Diagonal coefficients reused by every product: m r g''/eps and m W''/eps."""
-        eps, m, phi = self.eps, self.m, st.phi
-        return (m * st.r * F.reaction_second_derivative(phi, eps, self.C) / eps,
-                m * F.double_well_second_derivative(phi) / eps)
+        """Diagonal coefficients reused by every product: m r g''/eps and m W''/eps
+        (g'' = -6 phi/eps - 2C, W'' = 3 phi^2 - 1)."""
+        eps, phi = self.eps, st.phi
+        w = self.uniform_weight if self.uniform_weight is not None else self.m
+        dE_diag = np.multiply(phi, -6.0 / eps)
+        if self.C:
+            dE_diag -= 2 * self.C
+        dE_diag *= st.r
+        dE_diag *= w / eps
+        dB_diag = np.multiply(phi, phi)
+        dB_diag *= 3.0
+        dB_diag -= 1.0
+        dB_diag *= w / eps
+        return dE_diag, dB_diag
 
-    def hvp_operator(self, st: State, parts, cE: float, cB: float):
-        """v -> (cE H_E + cB H_B) v at one state, its diagonal coefficients formed once.
+    def hvp_operator(self, st: State, parts, cE: float, cB: float, rho_A: float = 0.0, fused: bool = True):
+        """v -> (cE H_E + cB H_B + rho_A dA dA^T) v at one state, its diagonal coefficients formed
+        once (dA = m: the penalty's rank-one term of the volume, ``nk.newton_cg``).
 
         With u = m J v = m (eps Delta_h v + g' v) and the identity m (Delta_h v) = Delta_h^T (m v)
         (Delta_h^T = M_L Delta_h M_L^{-1}, K symmetric), the two Laplacian terms are one:
@@ -136,13 +183,31 @@ class PhaseField:
             (cE H_E + cB H_B) v = Delta_h^T (cE u - cB eps m v) + (cE/eps) g' u + (cE m r g''/eps + cB m W''/eps) v,
 
         two Laplacian applications (one FFT pair each on Fourier grids) and ten elementwise passes
-        (the unfused form of ``hvp``'s docstring took eighteen)."""
+        (the unfused form of ``hvp``'s docstring took eighteen). On grids with one weight m
+        (Fourier and mirror grids; ``fused``) the scalars go into the two spectral multiplies,
+        L = Delta_{m eps sigma} v and cE Delta_h u, and Delta_h (cB eps m v) = cB L, so with
+        u = L + m g' v
+
+            (cE H_E + cB H_B) v = cE Delta_h u + ((cE/eps) g' - cB) L + ((cE/eps) m g'^2 + diag) v,
+
+        six elementwise passes (``_grid_apply``; equal to the general form to round-off, a test);
+        there rho_A (m . v) m = rho_A m^2 sum(v) is a constant, added through the second product's
+        k = 0 coefficient."""
         eps, s = self.eps, st.s
         m = self.uniform_weight if self.uniform_weight is not None else self.m  # a scalar: one array less to read
         dE_diag, dB_diag = parts
         m_eps = eps * m
         m_s = m * s
         s_over = (cE / eps) * s
+        fourier = self.ops.fourier
+        if fused and self.uniform_weight is not None and fourier is not None:
+            coef_v = s_over * m_s  # (cE/eps) m g'^2 + cE dE_diag + cB dB_diag
+            axpy(cE, dE_diag, coef_v)
+            if cB != 0.0:
+                axpy(cB, dB_diag, coef_v)
+            s_over -= cB  # coef_L
+            return self._grid_apply(fourier, m_eps * fourier.symbol, cE * fourier.symbol, m_s,
+                                    s_over, coef_v, rho_A * m * m)
         cB_m_eps = cB * m_eps
         diag = cE * dE_diag + cB * dB_diag if cB != 0.0 else cE * dE_diag
         lap, lapT = self.ops.lap, self.ops.lapT
@@ -157,6 +222,26 @@ class PhaseField:
             u *= s_over
             out += u
             out += diag * v
+            if rho_A:
+                out += (rho_A * float(self.m @ v)) * self.m
+            return out
+        return apply
+
+    @staticmethod
+    def _grid_apply(fourier, sym_L, sym_u, m_s, coef_L, coef_v, rank_one):
+        """The fused product of ``hvp_operator`` on a one-weight grid: sym_L = m eps sigma,
+        sym_u = cE sigma, coef_L = (cE/eps) g' - cB, coef_v = (cE/eps) m g'^2 + diag,
+        rank_one = rho_A m^2."""
+        def apply(v: np.ndarray) -> np.ndarray:
+            L = fourier.apply_symbol(v, sym_L)  # m eps Delta_h v
+            u = np.multiply(m_s, v)
+            u += L  # u = m J v
+            constant = rank_one * float(v.sum()) if rank_one else 0.0
+            out = fourier.apply_symbol(u, sym_u, constant)  # cE Delta_h u + rho_A m^2 sum(v)
+            L *= coef_L
+            out += L
+            np.multiply(coef_v, v, out=u)
+            out += u
             return out
         return apply
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vesicle_opt.blas import axpy
 from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.nk.krylov import SubspacePreconditioner, projected_pcg
 
@@ -93,7 +94,9 @@ class Objective:
         c = np.array([st.A, st.B]) - self.target
         dE, dA, dB = self.pf.gradients(st)
         mu = self.lam - self.rho * c
-        g = self.rig * dE - mu[0] * dA - mu[1] * dB
+        g = self.rig * dE
+        axpy(-mu[0], dA, g)
+        axpy(-mu[1], dB, g)
         dn = self.prec.dual_norm
         scale = self.rig * dn(dE) + abs(mu[0]) * dn(dA) + abs(mu[1]) * dn(dB)
         extra = self.extra_gradient(phi)
@@ -108,19 +111,17 @@ class Objective:
         return None
 
     def hvp(self, pt: Point):
-        product = self.pf.hvp_operator(pt.st, self.pf.hessian_parts(pt.st), self.rig, -pt.mu[1])
         rA, rB = self.rho
-        dA, dB = pt.dA, pt.dB
-        # dA = m: on grids one value, so rA (dA . v) dA is that scalar times it (the same bits)
-        dA_value = self.pf.uniform_weight
+        # the rank-one volume term rA dA dA^T (dA = m) is the product's own: on grids a constant
+        # through the spectrum (``model.lumped.PhaseField.hvp_operator``)
+        product = self.pf.hvp_operator(pt.st, self.pf.hessian_parts(pt.st), self.rig, -pt.mu[1], rA)
+        dB = pt.dB
 
         def H(v):
             t0 = time.perf_counter()
             out = product(v)
-            if rA:
-                out += (rA * float(dA @ v)) * (dA if dA_value is None else dA_value)
             if rB:
-                out += (rB * float(dB @ v)) * dB
+                axpy(rB * float(dB @ v), dB, out)
             self.cnt.hvp += 1
             self.cnt.deriv_time += time.perf_counter() - t0
             return out
@@ -128,8 +129,12 @@ class Objective:
 
     def preconditioner(self, pt: Point) -> SubspacePreconditioner:
         pinv = self.prec.inverse(self.rig, -pt.mu[1], self.rho[0])
-        T = self.translations(pt.phi)
-        C = None if T is None else self.pf.m[:, None] * T
+        w = self.pf.uniform_weight  # grids: one weight, folded into the spectral derivatives
+        if w is not None:
+            C = self.translations(pt.phi, w)
+        else:
+            T = self.translations(pt.phi)
+            C = None if T is None else self.pf.m[:, None] * T
         return SubspacePreconditioner(pinv, C)
 
 
@@ -156,14 +161,15 @@ def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, 
         t = min(1.0, STEP_CAP / max(float(np.max(np.abs(p))), np.finfo(float).tiny))
         accepted = None
         for _ls in range(40):
-            f_new, st_new = obj.value(pt.phi + t * p)
+            trial = pt.phi + t * p
+            f_new, st_new = obj.value(trial)
             if np.isfinite(f_new) and f_new <= pt.f + ARMIJO * t * slope:
-                accepted = obj.point(pt.phi + t * p, f_new, st_new)
+                accepted = obj.point(trial, f_new, st_new)
                 break
             if pt.rel < ROUNDOFF_REL and t == 1.0 and np.isfinite(f_new):
-                trial = obj.point(pt.phi + p, f_new, st_new)
-                if trial.rel < pt.rel:
-                    accepted = trial
+                full = obj.point(trial, f_new, st_new)  # t = 1: trial is phi + p
+                if full.rel < pt.rel:
+                    accepted = full
                     break
             t *= 0.5
         cnt.record(pt.f, pt.rel, cg, t if accepted is not None else 0.0)

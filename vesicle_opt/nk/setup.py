@@ -69,11 +69,12 @@ def prepare(scene, disc=None, tensor_fft: bool = True):
     # along d_i phi that a projection would freeze (measured: a stall at kkt_dual 3e-6)
     deriv = fourier
 
-    def translations(phi):
-        rows = None if deriv is None else deriv.derivatives(phi)
+    def translations(phi, scale: float = 1.0):
+        """scale * d_i phi as the columns of an (N, k) view of contiguous rows; None: none."""
+        rows = None if deriv is None else deriv.derivatives(phi, scale)
         if not rows:  # a mesh, or a mirror grid (``mesh.cosine``: no translation modes)
             return None
-        return np.column_stack(rows)
+        return np.stack(rows).T  # (N, k) view of contiguous rows (what the CG projection reads)
 
     return disc, pf, prec, translations
 

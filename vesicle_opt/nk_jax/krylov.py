@@ -2,7 +2,8 @@
 
 The same iteration, stopping rules and results (x, iterations, status, rel_residual) as the numpy
 path, with the constraint preconditioner z = P^{-1} r - U S^{-1} C^T P^{-1} r (U = P^{-1} C,
-S = C^T U, C = m d_i phi: the translations projected out) of ``nk.krylov.SubspacePreconditioner``.
+S = C^T U, C = m d_i phi: the translations projected out) of ``nk.krylov.SubspacePreconditioner``
+in its residual-update form (r replaced by r - C S^{-1} U^T r, z = P^{-1} of it).
 The whole loop is one compiled program: no host round trip per CG iteration (on a GPU a CG step
 is then a handful of kernels); the Newton loop above it reads back scalars only.
 
@@ -45,13 +46,18 @@ class DeviceKrylov:
         S = jnp.array([[self._dot(C[i], U[j]) for j in range(len(C))] for i in range(len(C))])
         return C, U, S
 
-    def _precondition(self, r, coef, sub):
-        z = self.ops._apply_inverse(r, *coef)
+    def _reduce(self, r, sub):
+        """The reduced residual r - C y, y = S^{-1} U^T r (the residual update of
+        ``nk.krylov.SubspacePreconditioner``: P^{-1} of it is the projected z)."""
         C, U, S = sub
-        y = jnp.linalg.solve(S, jnp.stack([self._dot(c, z) for c in C]))
-        for j, u in enumerate(U):
-            z = z - u * y[j]
-        return self.ops.layout.constrain(z)
+        y = jnp.linalg.solve(S, jnp.stack([self._dot(u, r) for u in U]))
+        for j, c in enumerate(C):
+            r = r - c * y[j]
+        return self.ops.layout.constrain(r)
+
+    def _precondition(self, r, coef, sub):
+        """z = P^{-1} (r - C y) (``_reduce``), the projected preconditioned residual."""
+        return self.ops.layout.constrain(self.ops._apply_inverse(self._reduce(r, sub), *coef))
 
     def _pcg_loop(self, b, hess, coef, sub, eta, max_iter):
         """hess = (s, dE_diag, dB_diag, dB, rig, cB, rho_A, rho_B); coef = (cE, cB, rho_A) of P."""
@@ -61,11 +67,12 @@ class DeviceKrylov:
             return ops._hvp(*hess[:4], v, *hess[4:])
 
         def M(r):
-            return self._precondition(r, coef, sub)
+            """(reduced r, z): the residual update, as ``nk.krylov.SubspacePreconditioner``."""
+            r = self._reduce(r, sub)
+            return r, self.ops.layout.constrain(self.ops._apply_inverse(r, *coef))
 
         x = jnp.zeros_like(b)
-        r = b
-        z = M(r)
+        r, z = M(b)
         rz = self._dot(r, z)
         code = jnp.where(rz <= 0.0, 1, 0)
         rz0 = jnp.where(rz <= 0.0, 1.0, rz)
@@ -89,8 +96,7 @@ class DeviceKrylov:
             def step(_):
                 a = rz / curv
                 x2 = x + a * p
-                r2 = r - a * Hp
-                z2 = M(r2)
+                r2, z2 = M(r - a * Hp)
                 rz_new = self._dot(r2, z2)
                 rel2 = jnp.sqrt(jnp.maximum(rz_new, 0.0) / rz0)
                 done = jnp.where(rel2 <= eta, 1, jnp.where(it >= max_iter, 2, 0))
