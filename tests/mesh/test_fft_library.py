@@ -65,17 +65,37 @@ def test_fft_key_is_checked(monkeypatch):
             pass
 
 
+def _misaligned(x, alignment):
+    """A copy of x whose data pointer is not a multiple of ``alignment`` bytes."""
+    buf = np.zeros(x.size + 8)
+    off = next(k for k in range(1, 8) if buf[k:].ctypes.data % alignment)
+    out = buf[off:off + x.size]
+    out[:] = x
+    return out
+
+
 @needs_pyfftw
 def test_pyfftw_results_are_the_callers_own(rng):
-    """Each pyFFTW transform writes into a new array (the plan's output is moved to it): a result
-    held by a caller is never overwritten by the next transform or Laplacian."""
+    """Each pyFFTW transform writes into a new array (the plan's output is moved to it), and an
+    aligned input, which the plan reads in place, is never written by a later transform (pyFFTW
+    copies a misaligned input into the plan's input buffer): a result or an input held by a
+    caller is never overwritten."""
+    import pyfftw
     f = fourier_grid(((-1.0, 1.0),) * 3, (8, 6, 10), "spectral").fourier
-    u, v = rng.standard_normal(f.size), rng.standard_normal(f.size)
+    u = _misaligned(rng.standard_normal(f.size), pyfftw.simd_alignment)
+    v = _misaligned(rng.standard_normal(f.size), pyfftw.simd_alignment)
+    aligned = pyfftw.empty_aligned(f.size)
+    aligned[:] = u
+    u0, v0 = u.copy(), v.copy()
     with fft_library("pyfftw"):
+        f.fft(aligned)
+        f.fft(v)
+        f.apply_symbol(aligned, f.symbol)
+        f.apply_symbol(v, f.symbol)
         uh = f.fft(u)
         uh_copy, back = uh.copy(), f.ifft(f.fft(u))
         back_copy = back.copy()
         f.apply_symbol(v, f.symbol)
-        f.fft(v)
         f.ifft(f.fft(v))
     assert np.array_equal(uh, uh_copy) and np.array_equal(back, back_copy)
+    assert np.array_equal(aligned, u0) and np.array_equal(u, u0) and np.array_equal(v, v0)

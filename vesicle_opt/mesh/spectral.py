@@ -119,12 +119,21 @@ class _FFTWPlans:
             plans = by_shape[shape] = cls(shape)
         return plans
 
+    def forward_into(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """The r2c transform of v (preserved: an out-of-place r2c keeps its input) into ``out``. v is
+        handed to the plan: pyFFTW reads an aligned v in place and copies a misaligned one into the
+        plan's input buffer (64^3 torus solve 1.19 s against 1.34 s with the copy into ``real_in``
+        done here first). An aligned v becomes the plan's input, so the input is reset to
+        ``real_in`` after such a call: the next misaligned input is then copied there, never into
+        a caller's array (a test holds this)."""
+        self.forward(input_array=v.reshape(self.real_in.shape), output_array=out)
+        if self.forward.input_array is not self.real_in:
+            self.forward.update_arrays(self.real_in, out)
+        return out
+
     def rfftn(self, v: np.ndarray) -> np.ndarray:
         """The r2c transform of v into a new aligned array the caller owns (as ``backward_from_buffer``)."""
-        self.real_in[...] = v
-        out = self._pyfftw.empty_aligned(self.spec_out.shape, dtype="complex128")
-        self.forward(output_array=out)
-        return out
+        return self.forward_into(v, self._pyfftw.empty_aligned(self.spec_out.shape, dtype="complex128"))
 
     def irfftn(self, vh: np.ndarray) -> np.ndarray:
         self.spec_in[...] = vh
@@ -216,8 +225,7 @@ class FourierGrid:
             return self.ifft(vh)
         plans = _FFTWPlans.of(self.shape)
         t0 = time.perf_counter()
-        plans.real_in[...] = v.reshape(self.shape)
-        plans.forward(output_array=plans.spec_out)  # (``rfftn`` moves the plan's output to its own arrays)
+        plans.forward_into(v, plans.spec_out)
         t1 = time.perf_counter()
         np.multiply(plans.spec_out, sym, out=plans.spec_in)
         if constant:
