@@ -10,7 +10,7 @@ floor). Rounding may differ from numpy's in the last bit (a kernel may fuse the 
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg.blas import daxpy, dgemv
+from scipy.linalg.blas import daxpy, dgemm, dgemv
 
 
 def _blas_vector(v: np.ndarray) -> bool:
@@ -34,3 +34,15 @@ def gemv(alpha: float, A: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarra
     else:
         y += alpha * (A @ x)
     return y
+
+
+def subtract_projection(U: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """U -= (U Q^T) Q in place (U: k x N rows, Q: q x N orthonormal rows): the rows of U minus their
+    components along the rows of Q, one BLAS dgemm on the transposes (N x k, Fortran order: no
+    copy) instead of a k x N product and a k x N difference; returns U."""
+    coef = U @ Q.T
+    if U.dtype == np.float64 and Q.dtype == np.float64 and U.flags.c_contiguous and Q.flags.c_contiguous:
+        dgemm(-1.0, Q.T, coef.T, beta=1.0, c=U.T, overwrite_c=True)
+    else:
+        U -= coef @ Q
+    return U

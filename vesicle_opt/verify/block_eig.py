@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vesicle_opt.blas import subtract_projection
+
 DROP = 1e-10  # search directions whose Gram eigenvalue is below DROP times the largest are dropped
 # (numerically dependent: the converged residuals of LOBPCG are such directions)
 
@@ -31,9 +33,12 @@ class BlockResult:
     history: list  # (theta_0, residual_0) per iteration
 
 
-def _project(U, Q):
-    """U (rows: vectors) minus its components along the rows of Q (orthonormal)."""
-    return U if Q is None else U - (U @ Q.T) @ Q
+def _project(U, Q, overwrite: bool = False):
+    """U (rows: vectors) minus its components along the rows of Q (orthonormal); in U itself where
+    ``overwrite`` (a block of the caller's own: one in-place BLAS pass, ``blas.subtract_projection``)."""
+    if Q is None:
+        return U
+    return subtract_projection(U if overwrite else U.copy(), Q)
 
 
 def _orthonormal(S, *against):
@@ -82,12 +87,12 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
     history = []
     it = 0
     for it in range(1, max_iter + 1):
-        R = _project(AX, Q) - theta[:, None] * X
+        R = _project(AX - theta[:, None] * X, Q, overwrite=True)  # X is in V: the same residual
         res = np.linalg.norm(R, axis=1)
         history.append((float(theta[0]), float(res[0])))
         if stop(theta, res):
             break
-        W = _project(apply_t(R), Q)
+        W = _project(apply_t(R), Q, overwrite=True)
         del R
         AW = apply_a(W)
         Z, AZ = [W, P] if P is not None else [W], [AW, AP] if P is not None else [AW]
@@ -128,7 +133,7 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
             P = AP = None
     # exact products for the reported residuals (the carried A X accumulates round-off)
     X, _ = _orthonormal(X)
-    AX = _project(apply_a(X), Q)
+    AX = _project(apply_a(X), Q, overwrite=True)
     theta, C = np.linalg.eigh(_sym(X @ AX.T))
     X, AX = C.T @ X, C.T @ AX
     res = np.linalg.norm(AX - theta[:, None] * X, axis=1)
@@ -138,6 +143,6 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
 def rayleigh_ritz(apply_a, X0: np.ndarray, Q: np.ndarray | None, k: int) -> np.ndarray:
     """The k lowest Ritz vectors (rows) of A on the span of X0's rows projected onto {Q u = 0}."""
     X, _ = _orthonormal(_project(X0, Q))
-    AX = _project(apply_a(X), Q)
+    AX = _project(apply_a(X), Q, overwrite=True)
     _, C = np.linalg.eigh((X @ AX.T + AX @ X.T) / 2)
     return C[:, :k].T @ X

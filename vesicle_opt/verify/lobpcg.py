@@ -157,8 +157,16 @@ def _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations) -> _Level
 
     product = pf.hvp_operator(st, parts, rig, cB)  # its coefficients formed once for every product
 
-    def h_u(u):  # M^{-1/2} H_L M^{-1/2} u / mu_ref
-        return product(u / s) / s / ref
+    if np.ndim(s) == 0:  # one weight: the scalings of the linear product folded into one pass
+        scale = 1.0 / (s * s * ref)
+
+        def h_u(u):  # M^{-1/2} H_L M^{-1/2} u / mu_ref
+            out = product(u)
+            out *= scale
+            return out
+    else:
+        def h_u(u):  # M^{-1/2} H_L M^{-1/2} u / mu_ref
+            return product(u / s) / s / ref
 
     def rows_of(f):  # blocks are rows (``block_eig``), filled in place
         def apply(U):
@@ -169,7 +177,8 @@ def _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations) -> _Level
         return apply
 
     a_u = rows_of(h_u)  # block_eig projects what it needs onto T
-    t_u = rows_of(lambda r: ref * s * pinv(s * r))
+    t_u = rows_of(lambda r: (ref * s * s) * pinv(r)) if np.ndim(s) == 0 else \
+        rows_of(lambda r: ref * s * pinv(s * r))
     return _Level(disc, a_u, t_u, s, Q, Qall, modes, excluded, h_u)
 
 
