@@ -3,7 +3,7 @@ for arrays BLAS cannot take without a copy."""
 
 import numpy as np
 
-from vesicle_opt.blas import axpy, gemv
+from vesicle_opt.blas import axpy, gemv, subtract_projection
 
 ROUNDOFF = 4 * np.finfo(float).eps  # one multiply-add per entry (fused or not): <= 1 ulp each
 
@@ -25,3 +25,12 @@ def test_gemv_updates_in_place(rng):
     want = y - rows.T @ a
     out = gemv(-1.0, rows.T, a, y)
     assert out is y and np.max(np.abs(y - want)) <= 8 * ROUNDOFF * np.max(np.abs(want))  # 3 terms
+
+
+def test_subtract_projection_removes_the_components_in_place(rng):
+    Q = np.linalg.qr(rng.standard_normal((300, 4)))[0].T.copy()  # 4 orthonormal rows
+    U = rng.standard_normal((3, 300))
+    want = U - (U @ Q.T) @ Q
+    out = subtract_projection(U, Q)
+    assert out is U and np.max(np.abs(U - want)) <= 16 * ROUNDOFF * np.max(np.abs(want))  # 4-term sums
+    assert np.max(np.abs(U @ Q.T)) <= 16 * ROUNDOFF * np.max(np.abs(U))  # orthogonal to Q to round-off
