@@ -14,13 +14,15 @@ from scipy.linalg.blas import daxpy, dgemm, dgemv
 
 
 def _blas_vector(v: np.ndarray) -> bool:
-    return v.dtype == np.float64 and v.ndim == 1 and v.flags.c_contiguous
+    return v.dtype == np.float64 and v.ndim == 1 and v.flags.c_contiguous and v.flags.writeable
 
 
 def axpy(a: float, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """y += a x in place (one pass with BLAS daxpy for contiguous float64 vectors); returns y."""
     if _blas_vector(x) and _blas_vector(y) and x.size == y.size:
-        daxpy(x, y, a=a)
+        out = daxpy(x, y, a=a)
+        if out is not y:  # f2py copied y (it never does for these arrays): keep the contract
+            y[...] = out
     else:
         y += a * x
     return y
@@ -30,7 +32,9 @@ def gemv(alpha: float, A: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarra
     """y += alpha A x in place (BLAS dgemv; A of shape (N, k), best in Fortran order, which gemv
     reads without a copy: the transpose of k contiguous rows); returns y."""
     if _blas_vector(y) and A.dtype == np.float64:
-        dgemv(alpha, A, np.asarray(x, np.float64), beta=1.0, y=y, overwrite_y=True)
+        out = dgemv(alpha, A, np.asarray(x, np.float64), beta=1.0, y=y, overwrite_y=True)
+        if out is not y:
+            y[...] = out
     else:
         y += alpha * (A @ x)
     return y
@@ -42,7 +46,9 @@ def subtract_projection(U: np.ndarray, Q: np.ndarray) -> np.ndarray:
     copy) instead of a k x N product and a k x N difference; returns U."""
     coef = U @ Q.T
     if U.dtype == np.float64 and Q.dtype == np.float64 and U.flags.c_contiguous and Q.flags.c_contiguous:
-        dgemm(-1.0, Q.T, coef.T, beta=1.0, c=U.T, overwrite_c=True)
+        out = dgemm(-1.0, Q.T, coef.T, beta=1.0, c=U.T, overwrite_c=True)
+        if not np.shares_memory(out, U):
+            U[...] = out.T
     else:
         U -= coef @ Q
     return U
