@@ -64,10 +64,13 @@ def prepare(scene, disc=None, tensor_fft: bool = True):
         prec = FourierPreconditioner(fourier, disc.weights[0], scene.model.epsilon)
     else:
         prec = SparsePreconditioner(disc.K, disc.weights, scene.model.epsilon, disc.dim)
-    # translations are null modes only where the discrete problem is translation invariant (grid
-    # shifts of Fourier grids); a tetrahedral mesh breaks the symmetry, so its gradient has parts
-    # along d_i phi that a projection would freeze (measured: a stall at kkt_dual 3e-6)
-    deriv = fourier
+    # translations are null modes only where the discrete problem is translation invariant: the
+    # spectral grid (trigonometric interpolation commutes with every shift, up to aliasing). A
+    # tetrahedral mesh breaks the symmetry, so its gradient has parts along d_i phi that a
+    # projection would freeze (measured: a stall at kkt_dual 3e-6), and so does the FD stencil,
+    # invariant under whole-cell shifts only (measured: the 24^2 ellipse from a 32^2 solution
+    # stalled at dual 2e-6 with the projection, converges to kkt 6e-12 without it)
+    deriv = fourier if getattr(fourier, "kind", None) != "fd" else None
 
     def translations(phi, scale: float = 1.0):
         """scale * d_i phi as the columns of an (N, k) view of contiguous rows; None: none."""

@@ -41,6 +41,8 @@ class DeviceKrylov:
     def _subspace(self, phi, cE, cB, rho_A):
         """(C, U, S): C_i = m d_i phi, U_i = P^{-1} C_i, S = C^T U (``SubspacePreconditioner``)."""
         ops = self.ops
+        if ops.kind == "fd":  # no translation modes on FD grids (``nk.setup.prepare``)
+            return (), (), jnp.zeros((0, 0))
         C = tuple(ops.m * t for t in ops._derivatives(phi))
         U = tuple(ops._apply_inverse(c, cE, cB, rho_A) for c in C)
         S = jnp.array([[self._dot(C[i], U[j]) for j in range(len(C))] for i in range(len(C))])
@@ -50,6 +52,8 @@ class DeviceKrylov:
         """The reduced residual r - C y, y = S^{-1} U^T r (the residual update of
         ``nk.krylov.SubspacePreconditioner``: P^{-1} of it is the projected z)."""
         C, U, S = sub
+        if not C:
+            return r
         y = jnp.linalg.solve(S, jnp.stack([self._dot(u, r) for u in U]))
         for j, c in enumerate(C):
             r = r - c * y[j]
