@@ -64,13 +64,13 @@ import numpy as np
 
 from vesicle_opt.api import solve
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
-from vesicle_opt.io.files import json_safe, load_npz, save_npz, write_json
+from vesicle_opt.io.files import json_safe, load_npz, save_npz
 from vesicle_opt.mesh import cosine
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric
 from vesicle_opt.studies._common import num, plt, savefig, select
-from vesicle_opt.studies.runner import run_cases
+from vesicle_opt.studies.runner import run_study
 from vesicle_opt.verify.metrics import observed_order
 
 log = logging.getLogger(__name__)
@@ -310,12 +310,8 @@ def figure(rows: list[dict], info: dict, path: Path) -> None:
 
 def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int:
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     case_list = [{**c, "out": str(out)} for c in cases(quick)]
-    rows = run_cases(NAME, case_list, run, out / f"{NAME}.csv", executor=executor, workers=workers,
-                     extra_columns=EXTRA)
-    info = summary(rows, case_list)
-    write_json(out / f"{NAME}.json", info)
+    rows, info = run_study(NAME, case_list, run, summary, out, executor, workers, EXTRA)
     if rows:
         figure(rows, info, out / f"{NAME}.png")
     for name, v in info.items():

@@ -47,12 +47,12 @@ import numpy as np
 
 from vesicle_opt.branch import COLUMNS, branch, diagram
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
-from vesicle_opt.io.files import json_safe, load_npz, write_json
+from vesicle_opt.io.files import load_npz
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric, elastica
 from vesicle_opt.studies._common import num, select
-from vesicle_opt.studies.runner import run_cases
+from vesicle_opt.studies.runner import run_study
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
@@ -238,12 +238,8 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
 
 def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int:
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     case_list = [{**c, "out": str(out)} for c in cases(quick)]
-    rows = run_cases(NAME, case_list, run, out / f"{NAME}.csv", executor=executor, workers=workers,
-                     extra_columns=EXTRA)
-    info = summary(rows, case_list)
-    write_json(out / f"{NAME}.json", json_safe(info))
+    rows, info = run_study(NAME, case_list, run, summary, out, executor, workers, EXTRA)
     series = []
     for c in case_list:
         b_dir = out / c["case"]

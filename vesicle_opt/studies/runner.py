@@ -34,6 +34,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 from vesicle_opt.io import progress
+from vesicle_opt.io.files import json_safe, write_json
 
 COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual", "area_residual",
            "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
@@ -171,6 +172,20 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
         if own:
             executor.shutdown(wait=True, cancel_futures=True)
     return log.rows()
+
+
+def run_study(name: str, case_list: list[dict], fn: Callable[[dict], list[dict]], summary: Callable,
+              out: Path, executor: Executor | None = None, workers: int = 1,
+              extra_columns: Iterable[str] = ()) -> tuple[list[dict], dict]:
+    """A branch study's run: ``run_cases`` into ``out/<name>.csv`` (resumable), then
+    ``summary(rows, case_list)`` written to ``out/<name>.json`` (non-finite floats as null);
+    returns (rows, summary)."""
+    out.mkdir(parents=True, exist_ok=True)
+    rows = run_cases(name, case_list, fn, out / f"{name}.csv", executor=executor, workers=workers,
+                     extra_columns=extra_columns)
+    info = summary(rows, case_list)
+    write_json(out / f"{name}.json", json_safe(info))
+    return rows, info
 
 
 def worker_logging(level: int) -> None:
