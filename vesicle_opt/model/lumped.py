@@ -122,6 +122,8 @@ class PhaseField:
         # the common value of equal weights (Fourier and FD grids): products by it are the same bits
         # as by the array, read from a register instead of memory; None on meshes
         self.uniform_weight = float(self.m[0]) if self.m.size and np.all(self.m == self.m[0]) else None
+        # the weights as the products use them: that scalar where there is one, else the array
+        self.weight = self.uniform_weight if self.uniform_weight is not None else self.m
 
     def state(self, phi: np.ndarray) -> State:
         eps, m = self.eps, self.m
@@ -142,7 +144,7 @@ class PhaseField:
 
     def gradients(self, st: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         eps, m, phi = self.eps, self.m, st.phi
-        w = self.uniform_weight if self.uniform_weight is not None else m
+        w = self.weight
         mr = w * st.r
         dE = self.ops.lapT(mr)  # (eps Delta_h^T (m r) + g' m r) / eps
         mr *= st.s
@@ -161,7 +163,7 @@ class PhaseField:
         """Diagonal coefficients reused by every product: m r g''/eps and m W''/eps
         (g'' = -6 phi/eps - 2C, W'' = 3 phi^2 - 1)."""
         eps, phi = self.eps, st.phi
-        w = self.uniform_weight if self.uniform_weight is not None else self.m
+        w = self.weight
         dE_diag = np.multiply(phi, -6.0 / eps)
         if self.C:
             dE_diag -= 2 * self.C
@@ -194,7 +196,7 @@ class PhaseField:
         there rho_A (m . v) m = rho_A m^2 sum(v) is a constant, added through the second product's
         k = 0 coefficient."""
         eps, s = self.eps, st.s
-        m = self.uniform_weight if self.uniform_weight is not None else self.m  # a scalar: one array less to read
+        m = self.weight  # a scalar on grids: one array less to read
         dE_diag, dB_diag = parts
         m_eps = eps * m
         m_s = m * s

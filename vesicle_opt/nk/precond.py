@@ -71,7 +71,14 @@ class FourierPreconditioner:
         self._q = bulk_symbol(fourier, self.eps)  # symbol of M_L^{-1} S
         self._p0 = self.m / self.eps * self._q**2
         self._p0_inv = 1.0 / self._p0
-        self._dual_weights = None  # the dual norm's Parseval weights (``dual_norm``), formed on first use
+        if not hasattr(fourier, "quadratic_form"):  # the rfft layout (mirror grids: ``dual_norm``)
+            # Parseval for rfft: interior half-spectrum columns count twice; one weight per real
+            # and imaginary part, so the dual norm is one pass over the spectrum's real view (einsum)
+            w = np.full(self._p0_inv.shape[-1], 2.0)
+            w[0] = 1.0
+            if fourier.shape[-1] % 2 == 0:
+                w[-1] = 1.0
+            self._dual_weights = np.repeat((w * self._p0_inv / fourier.size).ravel(), 2)
 
     def symbol(self, cE: float, cB: float = 0.0, rho_A: float = 0.0) -> np.ndarray:
         bend = cE * self._p0
@@ -88,16 +95,7 @@ class FourierPreconditioner:
     def dual_norm(self, v: np.ndarray) -> float:
         if hasattr(self.f, "quadratic_form"):  # mirror grids (mesh.cosine): orthonormal DCT, Parseval
             return float(np.sqrt(max(self.f.quadratic_form(v, self._p0_inv), 0.0)))
-        vh = self.f.fft(v)
-        if self._dual_weights is None:
-            # Parseval for rfft: interior half-spectrum columns count twice; one weight per real
-            # and imaginary part, so the sum is one pass over the spectrum's real view (einsum)
-            w = np.full(vh.shape[-1], 2.0)
-            w[0] = 1.0
-            if self.f.shape[-1] % 2 == 0:
-                w[-1] = 1.0
-            self._dual_weights = np.repeat((w * self._p0_inv / self.f.size).ravel(), 2)
-        re_im = vh.view(np.float64).ravel()
+        re_im = self.f.fft(v).view(np.float64).ravel()
         val = float(np.einsum("i,i,i->", re_im, re_im, self._dual_weights))
         return float(np.sqrt(max(val, 0.0)))
 

@@ -59,9 +59,15 @@ class DeviceKrylov:
             r = r - c * y[j]
         return self.ops.layout.constrain(r)
 
+    def _reduce_and_precondition(self, r, coef, sub):
+        """(r - C y, z = P^{-1} (r - C y)): the reduced residual (``_reduce``) and the projected
+        preconditioned residual, as ``nk.krylov.SubspacePreconditioner`` forms them."""
+        r = self._reduce(r, sub)
+        return r, self.ops.layout.constrain(self.ops._apply_inverse(r, *coef))
+
     def _precondition(self, r, coef, sub):
-        """z = P^{-1} (r - C y) (``_reduce``), the projected preconditioned residual."""
-        return self.ops.layout.constrain(self.ops._apply_inverse(self._reduce(r, sub), *coef))
+        """z alone (``_reduce_and_precondition``)."""
+        return self._reduce_and_precondition(r, coef, sub)[1]
 
     def _pcg_loop(self, b, hess, coef, sub, eta, max_iter):
         """hess = (s, dE_diag, dB_diag, dB, rig, cB, rho_A, rho_B); coef = (cE, cB, rho_A) of P."""
@@ -71,9 +77,7 @@ class DeviceKrylov:
             return ops._hvp(*hess[:4], v, *hess[4:])
 
         def M(r):
-            """(reduced r, z): the residual update, as ``nk.krylov.SubspacePreconditioner``."""
-            r = self._reduce(r, sub)
-            return r, self.ops.layout.constrain(self.ops._apply_inverse(r, *coef))
+            return self._reduce_and_precondition(r, coef, sub)
 
         x = jnp.zeros_like(b)
         r, z = M(b)
