@@ -5,6 +5,8 @@ where the module table says what an import pulled in."""
 import subprocess
 import sys
 
+import pytest
+
 HEAVY = ("casadi", "matplotlib", "PIL", "scipy.signal", "scipy.optimize")
 
 
@@ -31,3 +33,15 @@ def test_the_solve_verb_loads_no_flow_code():
             "print(vo.flow is flow, vo.FlowResult is FlowResult, 'flow' in vo.__all__)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "True", "True", "True"], out.stdout + out.stderr
+
+
+def test_a_pyfftw_solve_loads_no_scipy_fft():
+    """scipy.fft (and the scipy.special it imports) loads with its first use (``mesh.spectral``): a
+    spectral solve on pyFFTW never imports it, one on scipy's FFTs does, and both converge."""
+    pytest.importorskip("pyfftw")
+    code = ("import sys, vesicle_opt as vo; sc = vo.load_scene('torus-table1-3d', [\"mesh.kind='spectral'\", "
+            "'mesh.n=16', 'solver.second_order=false', \"solver.fft='{}'\"]); r = vo.solve(sc); "
+            "print(r.converged, 'scipy.fft' in sys.modules)")
+    for fft, loaded in (("pyfftw", "False"), ("scipy", "True")):
+        out = subprocess.run([sys.executable, "-c", code.format(fft)], capture_output=True, text=True, check=True)
+        assert out.stdout.split()[-2:] == ["True", loaded], (fft, out.stdout + out.stderr)

@@ -43,7 +43,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft as sfft
 
 from vesicle_opt.mesh.base import TransformDiscretization
 
@@ -78,6 +77,8 @@ class CosineGrid:
 
     def fft(self, v: np.ndarray) -> np.ndarray:
         """The orthonormal DCT-II of a grid field (the spectrum ``apply_symbol`` multiplies)."""
+        import scipy.fft as sfft  # with its first use (as in ``mesh.spectral``)
+
         t0 = time.perf_counter()
         out = sfft.dctn(np.reshape(v, self.shape), type=2, norm="ortho", workers=WORKERS)
         CosineGrid.transforms += 1
@@ -86,6 +87,8 @@ class CosineGrid:
 
     def ifft(self, vh: np.ndarray) -> np.ndarray:
         """The grid field of a DCT-II spectrum (its inverse, the DCT-III); vh may be overwritten."""
+        import scipy.fft as sfft
+
         t0 = time.perf_counter()
         out = sfft.idctn(vh, type=2, norm="ortho", workers=WORKERS, overwrite_x=True).ravel()
         CosineGrid.transforms += 1
@@ -137,6 +140,8 @@ def resample(phi: np.ndarray, shape_from, shape_to) -> np.ndarray:
     """The cosine-series interpolant of a grid field on another cell-centred grid of the same box:
     per axis the orthonormal DCT-II truncated or zero-padded, times sqrt(n_to / n_from) (the
     orthonormal basis' amplitude), then the inverse on n_to points."""
+    import scipy.fft as sfft  # with its first use
+
     v = np.asarray(phi, float).reshape(shape_from)
     for axis, num in enumerate(shape_to):
         n_x = v.shape[axis]
