@@ -3,7 +3,7 @@ for arrays BLAS cannot take without a copy."""
 
 import numpy as np
 
-from vesicle_opt.blas import axpy, gemv, subtract_projection
+from vesicle_opt.blas import axpy, gemm_rows, gemv, subtract_projection
 
 ROUNDOFF = 4 * np.finfo(float).eps  # one multiply-add per entry (fused or not): <= 1 ulp each
 
@@ -34,3 +34,14 @@ def test_subtract_projection_removes_the_components_in_place(rng):
     out = subtract_projection(U, Q)
     assert out is U and np.max(np.abs(U - want)) <= 16 * ROUNDOFF * np.max(np.abs(want))  # 4-term sums
     assert np.max(np.abs(U @ Q.T)) <= 16 * ROUNDOFF * np.max(np.abs(U))  # orthogonal to Q to round-off
+
+
+def test_gemm_rows_accumulates_in_place(rng):
+    B, C, out = rng.standard_normal((4, 300)), rng.standard_normal((3, 4)), rng.standard_normal((3, 300))
+    want = out + 0.5 * C @ B
+    res = gemm_rows(0.5, C, B, out)
+    assert res is out and np.max(np.abs(out - want)) <= 16 * ROUNDOFF * np.max(np.abs(want))  # 4-term sums
+    strided = rng.standard_normal((3, 600))[:, ::2]  # not contiguous: the numpy fallback, still in place
+    want = strided + C @ B
+    gemm_rows(1.0, C, B, strided)
+    assert np.max(np.abs(strided - want)) <= 16 * ROUNDOFF * np.max(np.abs(want))

@@ -40,15 +40,21 @@ def gemv(alpha: float, A: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarra
     return y
 
 
+def gemm_rows(alpha: float, C: np.ndarray, B: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """out += alpha C B in place (out: k x N rows, C: k x m, B: m x N rows), one BLAS dgemm on the
+    transposes (N x m and N x k, Fortran order: no copy of a block) instead of a k x N product and
+    a k x N sum; returns out."""
+    if (out.dtype == np.float64 and B.dtype == np.float64 and out.flags.c_contiguous and out.flags.writeable
+            and B.flags.c_contiguous):
+        res = dgemm(alpha, B.T, np.asarray(C, np.float64).T, beta=1.0, c=out.T, overwrite_c=True)
+        if not np.shares_memory(res, out):
+            out[...] = res.T
+    else:
+        out += alpha * (C @ B)
+    return out
+
+
 def subtract_projection(U: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """U -= (U Q^T) Q in place (U: k x N rows, Q: q x N orthonormal rows): the rows of U minus their
-    components along the rows of Q, one BLAS dgemm on the transposes (N x k, Fortran order: no
-    copy) instead of a k x N product and a k x N difference; returns U."""
-    coef = U @ Q.T
-    if U.dtype == np.float64 and Q.dtype == np.float64 and U.flags.c_contiguous and Q.flags.c_contiguous:
-        out = dgemm(-1.0, Q.T, coef.T, beta=1.0, c=U.T, overwrite_c=True)
-        if not np.shares_memory(out, U):
-            U[...] = out.T
-    else:
-        U -= coef @ Q
-    return U
+    components along the rows of Q (``gemm_rows``); returns U."""
+    return gemm_rows(-1.0, U @ Q.T, Q, U)

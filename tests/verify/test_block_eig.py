@@ -38,6 +38,9 @@ def test_rayleigh_ritz_start_is_the_lowest_ritz_pairs_of_the_block():
     A, Q, _ = _problem(n=200, m=2, seed=3)
     X0 = np.random.default_rng(4).standard_normal((8, 200))
     X = block_eig.rayleigh_ritz(lambda U: U @ A, X0, Q, 3)
+    given = X0.copy()  # overwrite: the same Ritz vectors (the same arithmetic, to round-off), in its rows
+    assert np.allclose(block_eig.rayleigh_ritz(lambda U: U @ A, given, Q, 3, overwrite=True), X, atol=1e-12)
+    assert np.abs(given[:3] @ Q.T).max() <= 1e-12  # its rows now hold the projected basis
     Pi = np.eye(200) - Q.T @ Q
     B = np.linalg.qr((X0 @ Pi).T)[0]  # orthonormal basis of the projected block
     ritz = np.linalg.eigvalsh(B.T @ A @ B)[:3]

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vesicle_opt.blas import subtract_projection
+from vesicle_opt.blas import gemm_rows, subtract_projection
 
 DROP = 1e-10  # search directions whose Gram eigenvalue is below DROP times the largest are dropped
 # (numerically dependent: the converged residuals of LOBPCG are such directions)
@@ -57,10 +57,10 @@ def _orthonormal(S, *against):
 
 
 def _combine(coefs, blocks):
-    """sum_i coefs[i]^T blocks[i] (rows), accumulated in place."""
+    """sum_i coefs[i]^T blocks[i] (rows), accumulated in place (no k-row temporary)."""
     out = coefs[0].T @ blocks[0]
     for c, B in zip(coefs[1:], blocks[1:]):
-        out += c.T @ B
+        gemm_rows(1.0, c.T, B, out)
     return out
 
 
@@ -68,7 +68,8 @@ def _sym(G):
     return (G + G.T) / 2
 
 
-def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int, stop) -> BlockResult:
+def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int, stop,
+           overwrite: bool = False) -> BlockResult:
     """LOBPCG for the smallest eigenpairs of A on {Q u = 0} from the block X0. Blocks are stored
     as rows (k x N, each vector contiguous: the FFTs and products read whole vectors).
 
@@ -77,9 +78,13 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
     Per iteration the search directions Z = [W; P] are orthogonalised against X explicitly (so P
     stays the part of the update outside X), and Rayleigh-Ritz on [X; Z] is done in the small space
     from the Gram matrices of Z (row-scaled, dependent directions dropped, SVQB): the orthonormal
-    basis of Z is never formed, only the k new X, A X, P, A P (about 20 k^2 N flops an iteration)."""
+    basis of Z is never formed, only the k new X, A X, P, A P (about 20 k^2 N flops an iteration).
+    ``overwrite``: X0 is the caller's to give away: it is projected in place and dropped once X is
+    formed, so that a start block passed as the call's only reference (``lobpcg(..., make_block(),
+    ..., overwrite=True)``) is not held through the iteration (k rows less at the peak)."""
     k = X0.shape[0]
-    X, _ = _orthonormal(_project(X0, Q))
+    X, _ = _orthonormal(_project(X0, Q, overwrite=overwrite))
+    del X0
     AX = apply_a(X)
     theta, C = np.linalg.eigh(_sym(X @ AX.T))
     X, AX = C.T @ X, C.T @ AX
@@ -99,8 +104,9 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
         del W, AW, P, AP
         for B, AB in zip(Z, AZ):  # one pass against X: SVQB below drops what cancels
             coef = B @ X.T
-            B -= coef @ X
-            AB -= coef @ AX
+            gemm_rows(-1.0, coef, X, B)
+            gemm_rows(-1.0, coef, AX, AB)
+        del B, AB  # else the loop names keep the old P and A P alive to the next iteration (2k rows)
         # Gram matrices of Z and A on [X; Z] (A X X^T = diag(theta): X is a Ritz basis)
         nz = [B.shape[0] for B in Z]
         G = np.block([[Z[i] @ Z[j].T for j in range(len(Z))] for i in range(len(Z))])
@@ -131,7 +137,9 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
         del X_new, AX_new
         if not np.all(np.isfinite(P)):
             P = AP = None
-    # exact products for the reported residuals (the carried A X accumulates round-off)
+    # exact products for the reported residuals (the carried A X accumulates round-off); the last
+    # residual and P, A P are not needed for them (3k rows less at this end's peak)
+    R = P = AP = None
     X, _ = _orthonormal(X)
     AX = _project(apply_a(X), Q, overwrite=True)
     theta, C = np.linalg.eigh(_sym(X @ AX.T))
@@ -140,9 +148,18 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
     return BlockResult(theta, X, AX, res, it, history)
 
 
-def rayleigh_ritz(apply_a, X0: np.ndarray, Q: np.ndarray | None, k: int) -> np.ndarray:
-    """The k lowest Ritz vectors (rows) of A on the span of X0's rows projected onto {Q u = 0}."""
-    X, _ = _orthonormal(_project(X0, Q))
-    AX = _project(apply_a(X), Q, overwrite=True)
-    _, C = np.linalg.eigh((X @ AX.T + AX @ X.T) / 2)
+def rayleigh_ritz(apply_a, X0: np.ndarray, Q: np.ndarray | None, k: int, overwrite: bool = False) -> np.ndarray:
+    """The k lowest Ritz vectors (rows) of A on the span of X0's rows projected onto {Q u = 0}.
+    Only the Gram matrix X A X^T is needed (X in V: A's projection onto V gives the same), so A is
+    applied one row at a time: the block and one vector, not the block twice. ``overwrite``: X0 is
+    the caller's to give away: the projection and the orthonormal basis are formed in its rows."""
+    S = _project(X0, Q, overwrite=overwrite)
+    X, _ = _orthonormal(S)
+    if overwrite:  # the basis into the block's own rows: the product block below is then all there is
+        S[:X.shape[0]] = X
+        X = S[:X.shape[0]]
+    G = np.empty((X.shape[0], X.shape[0]))
+    for j in range(X.shape[0]):
+        G[:, j] = X @ apply_a(X[j:j + 1])[0]
+    _, C = np.linalg.eigh((G + G.T) / 2)
     return C[:, :k].T @ X

@@ -225,21 +225,31 @@ def _interface_block(disc, phi, rotations_kept: bool = False) -> np.ndarray:
     excluded, also the rotation modes (x_i d_j - x_j d_i) phi: soft there (the least eigenvalue of
     the torus on the P1 box, 0.0039 mu_ref at 48^3), and no polynomial modulation is one."""
     x = np.asarray(disc.nodes, float)
-    w = np.clip(1.0 - phi * phi, 0.0, None)
-    c = (w @ x) / max(w.sum(), np.finfo(float).tiny)
-    y = (x - c) / max(float(np.sqrt((w @ ((x - c) ** 2).sum(axis=1)) / max(w.sum(), 1e-300))), 1e-300)
-    cols = [w]
     d = x.shape[1]
+    fourier = getattr(disc, "fourier", None)
+    rot = _symmetry_modes(disc, None, phi, True)[1][d:] if rotations_kept and fourier is not None else []
+    out = np.empty((1 + d + (d * (d + 1) // 2 if POLY_DEGREE >= 2 else 0) + len(rot), phi.size))
+    w = out[0]  # the rows are filled in place: no list of rows stacked into a copy
+    np.multiply(phi, phi, out=w)
+    np.subtract(1.0, w, out=w)
+    np.clip(w, 0.0, None, out=w)
+    c = (w @ x) / max(w.sum(), np.finfo(float).tiny)
+    y = x - c  # N x d (the one temporary beside the rows)
+    y /= max(float(np.sqrt(np.einsum("i,ij,ij->", w, y, y) / max(w.sum(), 1e-300))), 1e-300)
+    row = 1
     for i in range(d):
-        cols.append(y[:, i] * w)
+        np.multiply(y[:, i], w, out=out[row])
+        row += 1
     if POLY_DEGREE >= 2:
         for i in range(d):
             for j in range(i, d):
-                cols.append(y[:, i] * y[:, j] * w)
-    fourier = getattr(disc, "fourier", None)
-    if rotations_kept and fourier is not None:
-        cols += _symmetry_modes(disc, None, phi, True)[1][d:]
-    return np.stack(cols)
+                np.multiply(y[:, i], y[:, j], out=out[row])
+                out[row] *= w
+                row += 1
+    for r in rot:
+        out[row] = r
+        row += 1
+    return out
 
 
 def _settled(tol):
@@ -287,17 +297,25 @@ def _excluded_rayleigh(lev: _Level) -> tuple[float, ...]:
     return tuple(out)
 
 
-def _block(lev: _Level, X_nodal: np.ndarray, k: int, seed: int | None = None) -> np.ndarray:
+def _block(lev: _Level, X_nodal: np.ndarray, k: int, seed: int | None = None, owned: bool = False) -> np.ndarray:
     """The start block (rows) in u variables; a larger one reduced to its k lowest Ritz vectors, and with
     ``seed`` each column mixed with a random one of equal norm: a Rayleigh-Ritz selection keeps only
     the smooth modulations' symmetry classes, and a block without the least eigenvector's class
-    converges to a higher pair (measured: 1.326 instead of 1.277 on the FD 64^2 ellipse)."""
-    U = lev.s * X_nodal
+    converges to a higher pair (measured: 1.326 instead of 1.277 on the FD 64^2 ellipse). ``owned``:
+    X_nodal is the caller's to give away (a block built for this start), scaled in place."""
+    if owned:
+        X_nodal *= lev.s
+        U = X_nodal
+    else:
+        U = lev.s * X_nodal
+    del X_nodal  # U is this function's own block from here on: updated in place
     if U.shape[0] > k:
-        U = block_eig.rayleigh_ritz(lev.a_u, U, lev.Qall, k)
+        U = block_eig.rayleigh_ritz(lev.a_u, U, lev.Qall, k, overwrite=True)
     if seed is not None:
         R = np.random.default_rng(seed).standard_normal(U.shape)
-        U = U / np.linalg.norm(U, axis=1)[:, None] + R / np.linalg.norm(R, axis=1)[:, None]
+        U /= np.linalg.norm(U, axis=1)[:, None]
+        R /= np.linalg.norm(R, axis=1)[:, None]
+        U += R
     return U
 
 
@@ -324,11 +342,11 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         settled = _settled(COARSE_EIG_TOL)
         own = None if cX is not None or warm is None else warm.get(tuple(shape))
         if cX is not None:
-            U0 = _block(clev, cX, k)
+            U0 = _block(clev, cX, k, owned=True)  # the finer rows resampled here: its own
         elif own is not None and np.shape(own) == (k, cphi.size):
             U0 = _block(clev, own, k)
         else:
-            U0 = _block(clev, _interface_block(cdisc, cphi, not rotations), k, seed)
+            U0 = _block(clev, _interface_block(cdisc, cphi, not rotations), k, seed, owned=True)
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
                                lambda th, res: _coarse_stop(settled(th), res))
         counts.append((shape, out.iterations))
@@ -362,10 +380,11 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
         rows = None if X0 is None else np.asarray(X0, float).reshape(phi.size, -1).T
         if rows is None:
             rows = _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, coarse, max_iter, warm, levels)
-        if rows is None:
-            U0 = _block(lev, _interface_block(disc, phi, not rotations), k, seed)
-        else:
-            U0 = _block(lev, rows, k)
+        # the start block goes to lobpcg as the call's only reference (``start.pop()``, ``overwrite``):
+        # neither it nor the nodal rows it came from are held through the fine level's iteration
+        start = [_block(lev, _interface_block(disc, phi, not rotations), k, seed, owned=True) if rows is None
+                 else _block(lev, rows, k, owned=X0 is None)]  # _start's rows are its own, X0 the caller's
+        del rows
         settled = _settled(EIG_TOL)
         since = [0]  # iterations since the verdict was first decided
 
@@ -376,7 +395,7 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
             if decided and since[0] > DECIDED_EXTRA:
                 return True
             return (decided and n_settled >= SETTLED_RUN) or bool(np.all(res <= tol))
-        out = block_eig.lobpcg(lev.a_u, lev.t_u, U0, lev.Qall, max_iter, stop)
+        out = block_eig.lobpcg(lev.a_u, lev.t_u, start.pop(), lev.Qall, max_iter, stop, overwrite=True)
     return {"eigenvalues": out.values, "errors": out.residuals, "vectors": (out.vectors / lev.s).T,
             "excluded": lev.excluded, "excluded_rayleigh": rayleigh, "mu_ref": ref,
             "iterations": out.iterations, "coarse_iterations": tuple(coarse), "history": out.history,
