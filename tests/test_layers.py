@@ -4,8 +4,9 @@ Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
 
     0  errors, result,       the vocabulary every layer speaks
        geometry, sharp,      (geometry: volume, area, reduced volume <-> alpha, beta; sharp: the
-       blas                  sharp-interface references, which import nothing of the package;
-                             blas: in-place vector updates of the hot loops, numpy/scipy only)
+       blas, sums            sharp-interface references, which import nothing of the package;
+                             blas: in-place vector updates of the hot loops, numpy/scipy only;
+                             sums: compensated sums of fields, numpy only)
     1  scene                 TOML scenes, validated
     2  mesh                  discretisations
     3  model                 functionals, penalty, feasibility on a discretisation
@@ -33,7 +34,7 @@ from __future__ import annotations
 import _imports as I
 
 LAYERS = {
-    "errors": 0, "result": 0, "geometry": 0, "sharp": 0, "blas": 0,
+    "errors": 0, "result": 0, "geometry": 0, "sharp": 0, "blas": 0, "sums": 0,
     "scene": 1,
     "mesh": 2,
     "model": 3,

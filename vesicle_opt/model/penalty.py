@@ -16,11 +16,10 @@ the penalty cannot be pushed to M -> infinity).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from vesicle_opt.model import functionals as F
+from vesicle_opt.sums import total
 
 AL_REDUCTION = 0.25  # augmented Lagrangian: increase M when a residual did not drop by this factor
 
@@ -50,17 +49,18 @@ def penalty_terms(res, M1, M2, mu=None, scale=(1.0, 1.0)):
 
 
 def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) -> tuple[float, float]:
-    """(A - alpha, B - beta) evaluated with compensated sums (math.fsum).
+    """(A - alpha, B - beta) evaluated with compensated sums (``sums.total``).
 
     At M = 1e8 the residuals are ~1e-8 while A, B are O(10-100): a plain sum loses ~1e-14 to
-    cancellation, i.e. 1e-6 in M (A - alpha). fsum of the nodal terms brings this to ~1e-16.
+    cancellation, i.e. 1e-6 in M (A - alpha). The compensated sum of the nodal terms brings this to
+    ~1e-16 (as math.fsum did, at ~1/8 of its time).
     """
     q = disc.at_quad(phi)
     w = disc.quad_w if disc.gauss else disc.weights
-    A = math.fsum(np.concatenate([disc.weights * phi, [-alpha]]))
+    A = total(disc.weights * phi, -alpha)
     grad = epsilon / 2 * phi * (disc.K @ phi)
     well = w * F.double_well(q) / epsilon
-    B = math.fsum(np.concatenate([grad, well, [-beta]]))
+    B = total(grad, well, -beta)
     return A, B
 
 
