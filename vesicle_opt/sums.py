@@ -7,8 +7,8 @@ e = a + b - s exactly (Knuth's TwoSum: six vectorised passes, no FMA: numpy cont
 the errors of a level are summed plainly, and the final sum, the levels' error sums and the odd
 entries left over are added by ``math.fsum`` (a few dozen numbers). So the result is within
 u |sum| + u^2 log2(N)^2 sum |x| of the exact sum (u = 2^-53): the accuracy of ``math.fsum`` of the
-whole field for any field whose terms do not cancel by more than 1/u, at ~1/8 of its time (a
-Python loop over 2^18 floats: 15 ms at 64^3, 0.12 s at 128^3, for each of A and B).
+whole field for any field whose terms do not cancel by more than 1/u, in a fifth of its time
+(measured per sum: 64^3 nodes 13-15 ms with fsum, 2.5 ms here; 128^3 0.10 s and 22 ms).
 """
 
 from __future__ import annotations
