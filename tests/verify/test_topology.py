@@ -26,6 +26,9 @@ def _grid(box, n, f):
     (3, lambda x: 1 - np.linalg.norm(x, axis=1), (1, 1, ())),  # ball
     (3, lambda x: 0.4 - np.hypot(np.hypot(x[:, 0], x[:, 1]) - 1.2, x[:, 2]), (1, 0, ())),  # solid torus
     (3, lambda x: 0.5 - np.abs(x[:, 2]), (1, 0, (0, 1))),  # slab: wraps along x and y
+    # a ball across the periodic face x = -2 = 2: inside cells on both x faces, one ball, no wrap
+    (3, lambda x: 1 - np.minimum(np.linalg.norm(x - [-2, 0, 0], axis=1), np.linalg.norm(x - [2, 0, 0], axis=1)),
+     (1, 1, ())),
 ])
 def test_grid_topology(dim, field, expected):
     box = BOX2 if dim == 2 else BOX3

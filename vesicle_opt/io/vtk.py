@@ -125,7 +125,7 @@ def grid_cells(disc) -> tuple[np.ndarray, np.ndarray]:
     shape = tuple(k + 1 for k in disc.grid_shape)
     origin, spacing = grid_geometry(disc)
     axes = [origin[d] + spacing[d] * np.arange(k) for d, k in enumerate(shape)]
-    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, disc.dim)
+    points = np.stack(np.meshgrid(*axes, indexing="ij", copy=False), axis=-1).reshape(-1, disc.dim)  # written once
     if disc.dim == 2:
         points = np.column_stack([points, np.zeros(len(points))])
     # int32 connectivity where it fits: half the bytes to compress (VTK reads either)

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vesicle_opt.mesh.base import TransformDiscretization
+from vesicle_opt.mesh.base import TransformDiscretization, grid_points
 
 KIND = "cosine"  # Discretization.kind of these grids (the summary's mesh_kind); the scene says "spectral"
 WORKERS = 1  # DCT threads, as ``mesh.spectral.WORKERS``
@@ -119,7 +119,7 @@ class CosineGrid:
 
     def nodes(self) -> np.ndarray:
         axes = [a + h * (np.arange(k) + 0.5) for (a, _), h, k in zip(self.box, self.h, self.shape)]
-        return np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+        return grid_points(axes)
 
 
 @dataclass(frozen=True, eq=False)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from vesicle_opt.mesh.base import Discretization
+from vesicle_opt.mesh.base import Discretization, grid_points
 
 
 def second_difference(n: int, h: float) -> sp.csr_matrix:
@@ -27,7 +27,7 @@ def grid(box, n) -> Discretization:
     dim = len(box)
     hs = [(b - a) / k for (a, b), k in zip(box, n)]
     axes = [a + h * np.arange(k) for (a, _), h, k in zip(box, hs, n)]
-    nodes = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    nodes = grid_points(axes)
     lap = sp.csr_matrix((nodes.shape[0],) * 2)
     for d in range(dim):
         factors = [sp.identity(k, format="csr") for k in n]

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vesicle_opt.mesh import cosine
-from vesicle_opt.mesh.base import TransformDiscretization
+from vesicle_opt.mesh.base import TransformDiscretization, grid_points
 
 WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
 FFT_LIBRARIES = ("scipy", "pyfftw")  # solver.fft: scipy.fft or FFTW through pyFFTW ("auto": the latter
@@ -251,7 +251,7 @@ class FourierGrid:
 
     def nodes(self) -> np.ndarray:
         axes = [a + h * np.arange(k) for (a, _), h, k in zip(self.box, self.h, self.shape)]
-        return np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+        return grid_points(axes)
 
 
 @dataclass(frozen=True, eq=False)

@@ -112,8 +112,12 @@ def analyse(disc, phi: np.ndarray) -> Topology:
         if disc.kind == cosine.KIND:  # a mirror grid: count on the doubled periodic box it stands for
             X = cosine.unfold(X, disc.grid_shape)
         n = _label_periodic(X, periodic=True)
+        # a component can join its image along axis a only through inside cells on both faces
+        # across a; where either face is empty (a vesicle inside the box) the doubled box along a
+        # has 2n components and need not be labelled (12.8 of the 64^3 torus's 23 ms)
         wraps = tuple(a for a in range(X.ndim)
-                      if _label_periodic(np.concatenate([X, X], axis=a), periodic=True) < 2 * n)
+                      if np.take(X, 0, axis=a).any() and np.take(X, -1, axis=a).any()
+                      and _label_periodic(np.concatenate([X, X], axis=a), periodic=True) < 2 * n)
         cavities = max(_label_periodic(~X, periodic=True) - 1, 0)
         return Topology(n, euler_characteristic(X), wraps, cavities)
     t = disc.mesh.t
