@@ -12,7 +12,7 @@ from vesicle_opt import scene as S
 from vesicle_opt.api import solve
 from vesicle_opt.nk.setup import prepare
 from vesicle_opt.nlp import build_nlp
-from vesicle_opt.verify import lobpcg, second_order
+from vesicle_opt.verify import lobpcg, lobpcg_rules, second_order
 from vesicle_opt.verify.verdict import TOL_REL, classify
 
 # Kato-Temple: a Ritz value exceeds its eigenvalue by at most err^2 / gap; LOBPCG's error bound err
@@ -133,35 +133,35 @@ def test_one_verdict_rule():
 
 
 def test_coarse_levels_resolve_the_interface():
-    """The check's grids (lobpcg._coarse_shape): every coarse level resolves the interface (eps/h >= 1),
+    """The check's grids (lobpcg_rules.coarse_shape): every coarse level resolves the interface (eps/h >= 1),
     every level but the coarsest has eps/h >= ACCURATE, and each is at most COARSE_RATIO of the next."""
     from vesicle_opt.mesh.spectral import fourier_grid
     sc = S.load("torus-table1-3d", ["mesh.kind='spectral'"])
     eps, L = sc.model.epsilon, 2 * np.pi
     for n, expect in ((32, [32]), (64, [64, 40, 26]), (96, [96, 48, 26]), (128, [128, 64, 40, 26])):
         chain = [n]
-        while (c := lobpcg._coarse_shape(fourier_grid(sc.domain.box, (chain[-1],) * 3), eps)) is not None:
+        while (c := lobpcg_rules.coarse_shape(fourier_grid(sc.domain.box, (chain[-1],) * 3), eps)) is not None:
             chain.append(c[0])
         assert chain == expect
-        assert all(eps * k / L >= 1 for k in chain) and all(eps * k / L >= lobpcg.ACCURATE for k in chain[1:-1])
-        assert all(b <= lobpcg.COARSE_RATIO * a for a, b in zip(chain, chain[1:]))
+        assert all(eps * k / L >= 1 for k in chain) and all(eps * k / L >= lobpcg_rules.ACCURATE for k in chain[1:-1])
+        assert all(b <= lobpcg_rules.COARSE_RATIO * a for a, b in zip(chain, chain[1:]))
 
 
 def test_settled_waits_for_the_remaining_distance():
-    """_settled on theta_t = 1 + r^t (linear convergence, rate r): it holds once the estimated
+    """lobpcg_rules.settled on theta_t = 1 + r^t (linear convergence, rate r): it holds once the estimated
     remaining distance (last step times q / (1 - q), q read from the steps, capped at Q_MAX; exact
     here: r^t) is below tol max(1, theta), on SETTLED_RUN iterations in a row; a creeping sequence
     (steps not shrinking) settles only when its steps times Q_MAX / (1 - Q_MAX) are below tol."""
     tol = 1e-6
     for r in (0.3, 0.7):
-        settled = lobpcg._settled(tol)
+        settled = lobpcg_rules.settled(tol)
         for t in range(200):
             if settled(np.array([1 + r ** t, 2.0, 3.0])) >= lobpcg.SETTLED_RUN:
                 break
         # first held at t - 1 (r^(t-1) <= tol (1 + r^(t-1))), not at t - 2: the true remaining distance
         # r^t at the stop is within tol, and the stop came as soon as the rule allows
         assert r ** (t - 1) <= tol * (1 + r ** (t - 1)) and r ** (t - 2) > tol * (1 + r ** (t - 2)), (r, t)
-    settled = lobpcg._settled(tol)
+    settled = lobpcg_rules.settled(tol)
     runs = [settled(np.array([1 + 1e-6 * t, 2.0])) for t in range(10)]  # creeping 1e-6 per step
     assert max(runs) == 0  # 1e-6 * 9 > tol: never settled
 

@@ -13,7 +13,7 @@ run to 330 iterations on the 64^2 ellipse, its least eigenvalue fell from 1.45e-
 mode's 4.5e-6.)
 
 Start and stop (the cost): on Fourier grids the check first runs on coarser grids
-(``_coarse_shape``: n/2 while that keeps eps/h >= ``ACCURATE``, then the least 5-smooth size with
+(``lobpcg_rules.coarse_shape``: n/2 while that keeps eps/h >= ``ACCURATE``, then the least 5-smooth size with
 eps/h >= ``ACCURATE``, then the least that resolves the interface, eps/h >= 1; e.g. 64^3 -> 40^3 ->
 26^3, 96^3 -> 48^3 -> 26^3), on the Fourier-interpolated field, and each level starts from the
 interpolated eigenvectors of the one below; on the coarsest level (and on meshes) the start is the
@@ -21,7 +21,7 @@ Rayleigh-Ritz selection from interface modulations p(x) (1 - phi^2) (p of degree
 shape modes; plus the rotation modes where they are not excluded), each column mixed with a random
 one of equal norm (so that no symmetry class is missing: with a tenth of that norm the P1 48^3 box
 ended at 0.137 and missed its least pair 0.0039). Each level stops when its Ritz values but the
-guard have settled (``_settled``: to ``COARSE_EIG_TOL`` on coarse levels, to ``EIG_TOL`` on the fine
+guard have settled (``lobpcg_rules.settled``: to ``COARSE_EIG_TOL`` on coarse levels, to ``EIG_TOL`` on the fine
 one, which also needs a decided verdict and stops at the latest ``DECIDED_EXTRA`` iterations after
 it), when every error bound is below ``TOL``, or at ``MAX_ITER``. Warm start (``warm``, a branch's
 next point, ``branch.nk_corrector``): the coarsest level from the previous point's eigenvectors
@@ -55,10 +55,12 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from vesicle_opt.mesh.spectral import even_fft_size, fourier_grid, resample
+from vesicle_opt.mesh.spectral import fourier_grid, resample
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField, State
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.verify import block_eig
+from vesicle_opt.verify import lobpcg_rules as rules
+from vesicle_opt.verify.lobpcg_rules import COARSE_EIG_TOL, DECIDED_EXTRA, EIG_TOL, SETTLED_RUN, TOL
 from vesicle_opt.verify import verdict as V
 from vesicle_opt.verify.second_order import translation_modes
 from vesicle_opt.verify.verdict import SecondOrder
@@ -72,20 +74,6 @@ MAX_ITER = 300  # per level; a cap, not the usual end: the levels stop on EIG_TO
 # 1.8 s; at v = 0.75 300 -> 174, 2.4-2.8 s -> 2.6-2.7 s, 10 fine iterations against 6; at v = 0.655
 # 1.8-1.9 -> 2.0-2.1 s; 64^3 torus the same), and settling the least value only (2.1 -> 3.2 s: 28
 # fine iterations against 6; 2.5 -> 4.1 s at v = 0.75)
-TOL = 1e-4  # every pair's error bound (mu_ref units) below this also ends a level
-EIG_TOL = 1e-6  # the fine level stops once the verdict is decided and the Ritz values but the guard have
-# settled to EIG_TOL max(1, |mu|) (``_settled``): a tenth of the 1e-5 agreement with the assembled check
-COARSE_EIG_TOL = 1e-6  # a coarse level settles to 1e-6 too: its eigenvectors only start the next level
-Q_MAX = 0.9  # the step ratio assumed at most (remaining distance <= 9 x the last step)
-RATE_WINDOW = 3  # step ratios looked at
-SETTLED_RUN = 2  # iterations in a row the estimate must hold
-DECIDED_EXTRA = 60  # and at most this many iterations after the verdict is first decided: the rest
-# only sharpens the number (measured, 96^3 torus from its 48^3 start: decided early, then 234
-# iterations creeping 1e-8 per step to mu_min 0.1452083 with error bound 5.4e-3, 7.3x the solve)
-ACCURATE = 1.5  # a coarse level whose eigenvectors start the next one well has eps / h >= this
-# (_coarse_shape); eps / h >= 1 (resolving) is enough for the coarsest, whose start is the interface block
-COARSE_RATIO = 0.75  # a coarse level is worth its setup only when at most this fraction of n per side
-MIN_COARSE_N = 16  # no coarse level below 16 per side (nor any with h > eps: under-resolved interface)
 POLY_DEGREE = 2  # interface modulations of degree <= 2: translations, the ellipsoidal shape modes
 
 
@@ -192,33 +180,6 @@ def _setup_level(disc, pf, prec, translations, scene, phi, cB, ref, rotations):
     return _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations)
 
 
-def _even_at_least(x: float, smooth: bool) -> int:
-    """The least even integer >= x (with ``smooth``: whose prime factors are 2, 3, 5: fast FFTs)."""
-    return max(even_fft_size(x) if smooth else 2 * int(np.ceil(x / 2)), MIN_COARSE_N)
-
-
-def _coarse_shape(disc, epsilon: float):
-    """The next coarser Fourier grid (module docstring), or None. Per side, with eps / h the points
-    per interface width: n/2 where that is even and keeps eps / h >= ``ACCURATE``; else the least
-    even 5-smooth size with eps / h >= ``ACCURATE`` where it is <= ``COARSE_RATIO`` n; else the
-    least even size that still resolves the interface (eps / h >= 1) where it is <= ``COARSE_RATIO``
-    n; else none. Measured on the Table-1 torus (eps / h = 2.6 at 64^3): from 32^3 (eps / h = 1.3,
-    mu_min 0.14044 there against 0.14521) the 64^3 level needed 19 iterations, from 40^3 (fed by
-    26^3) 4; the 48^3 level from its random-mixed start 238-300, from 26^3 22."""
-    fourier = getattr(disc, "fourier", None)
-    if fourier is None:
-        return None
-    n = np.array(disc.grid_shape)
-    per_width = epsilon / fourier.lengths  # eps / h = per_width * n
-    if np.all(n % 2 == 0) and np.all(n // 2 >= MIN_COARSE_N) and np.all(per_width * (n // 2) >= ACCURATE):
-        return tuple(int(k) for k in n // 2)
-    for need, smooth in ((ACCURATE, True), (1.0, False)):
-        k = np.array([_even_at_least(need / w, smooth) for w in per_width])
-        if np.all(k <= COARSE_RATIO * n):
-            return tuple(int(v) for v in k)
-    return None
-
-
 def _interface_block(disc, phi, rotations_kept: bool = False) -> np.ndarray:
     """Nodal rows p(x) (1 - phi^2), p the monomials of degree <= POLY_DEGREE in coordinates
     centred on the interface (module docstring); on Fourier grids where the rotations are not
@@ -250,41 +211,6 @@ def _interface_block(disc, phi, rotations_kept: bool = False) -> np.ndarray:
         out[row] = r
         row += 1
     return out
-
-
-def _settled(tol):
-    """stop rule: the Ritz values but the last (the guard) are within ``tol`` max(1, |theta|) of their
-    limits, estimated from their last steps: d q / (1 - q) with d the last step and q the largest of
-    the last ``RATE_WINDOW`` step ratios, capped at ``Q_MAX`` (a linearly converging sequence's
-    remaining distance), on ``SETTLED_RUN`` iterations in a row (one lucky short step is not enough).
-    Returns how many iterations in a row it has held."""
-    steps, prev, run = [], [None], [0]
-
-    def settled(theta) -> int:
-        lead = slice(0, max(len(theta) - 1, 1))
-        old, prev[0] = prev[0], theta[lead].copy()
-        if old is None or len(old) != len(prev[0]):
-            steps.clear()
-            run[0] = 0
-            return 0
-        steps.append(np.abs(prev[0] - old))
-        del steps[:-RATE_WINDOW - 1]
-        if len(steps) < 2:
-            return 0
-        ratios = [s1 / np.maximum(s0, np.finfo(float).tiny) for s0, s1 in zip(steps[:-1], steps[1:])]
-        q = np.minimum(np.max(ratios, axis=0), Q_MAX)
-        remaining = steps[-1] * q / (1.0 - q)
-        ok = bool(np.all(remaining <= tol * np.maximum(1.0, np.abs(prev[0]))))
-        run[0] = run[0] + 1 if ok else 0
-        return run[0]
-    return settled
-
-
-def _coarse_stop(n_settled: int, res) -> bool:
-    """A coarse level ends when its Ritz values have settled to ``COARSE_EIG_TOL`` (``_settled``) or every
-    pair's error bound is below ``TOL``: its eigenvectors only start the next level, which corrects
-    what is left."""
-    return n_settled >= SETTLED_RUN or bool(np.all(res <= TOL))
 
 
 def _excluded_rayleigh(lev: _Level) -> tuple[float, ...]:
@@ -325,7 +251,7 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
     ``warm``: {coarse shape: nodal rows} of a nearby point's check (a branch's previous point): the
     coarsest level starts from its rows instead of the random-mixed interface block (module
     docstring, warm start); ``levels``: filled with {coarse shape: the nodal rows found there}."""
-    shape = _coarse_shape(disc, scene.model.epsilon)
+    shape = rules.coarse_shape(disc, scene.model.epsilon)
     if shape is not None:
         cdisc = fourier_grid(disc.box, shape, disc.kind)
         cpf = PhaseField(LumpedOperators(cdisc), scene.model.epsilon, scene.model.C)
@@ -339,7 +265,7 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         cphi = resample(phi, disc.grid_shape, shape, disc.kind)
         cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels)
         clev = _setup_level(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations)
-        settled = _settled(COARSE_EIG_TOL)
+        settled = rules.settled(COARSE_EIG_TOL)
         own = None if cX is not None or warm is None else warm.get(tuple(shape))
         if cX is not None:
             U0 = _block(clev, cX, k, owned=True)  # the finer rows resampled here: its own
@@ -348,7 +274,7 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         else:
             U0 = _block(clev, _interface_block(cdisc, cphi, not rotations), k, seed, owned=True)
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
-                               lambda th, res: _coarse_stop(settled(th), res))
+                               lambda th, res: rules.coarse_stop(settled(th), res))
         counts.append((shape, out.iterations))
         rows = out.vectors / clev.s
         if levels is not None:
@@ -385,7 +311,7 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
         start = [_block(lev, _interface_block(disc, phi, not rotations), k, seed, owned=True) if rows is None
                  else _block(lev, rows, k, owned=X0 is None)]  # _start's rows are its own, X0 the caller's
         del rows
-        settled = _settled(EIG_TOL)
+        settled = rules.settled(EIG_TOL)
         since = [0]  # iterations since the verdict was first decided
 
         def stop(theta, res):
