@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.errors import InputError
+from vesicle_opt.mesh.base import grid_points
 from vesicle_opt.mesh.spectral import resample as fourier_resample  # noqa: F401 (re-exported)
 
 
@@ -33,7 +34,7 @@ def grid_of(nodes: np.ndarray, box) -> tuple[int, ...] | None:
     if int(np.prod(shape)) != nodes.shape[0]:
         return None
     axes = [lo + (hi - lo) / n * np.arange(n) for (lo, hi), n in zip(box, shape)]
-    expected = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    expected = grid_points(axes)
     scale = max(hi - lo for lo, hi in box)
     if not np.allclose(nodes, expected, rtol=0, atol=1e-9 * scale):
         return None

@@ -66,6 +66,7 @@ from vesicle_opt.api import solve
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
 from vesicle_opt.io.files import json_safe, load_npz, save_npz
 from vesicle_opt.mesh import cosine
+from vesicle_opt.mesh.base import grid_points
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric
@@ -171,7 +172,7 @@ def unfolded_inside(snapshot: dict) -> tuple[np.ndarray, np.ndarray]:
     box = np.asarray(snapshot["box"], float)
     h = (box[:, 1] - box[:, 0]) / np.array(grid)
     axes = [lo + hh * (np.arange(-k, k) + 0.5) for (lo, _), hh, k in zip(box, h, grid)]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(grid))
+    pts = grid_points(axes)
     return pts, cosine.unfold(np.asarray(snapshot["phi"]), grid).ravel() > 0
 
 

@@ -48,6 +48,7 @@ import numpy as np
 from vesicle_opt.branch import COLUMNS, branch, diagram
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
 from vesicle_opt.io.files import load_npz
+from vesicle_opt.mesh.base import grid_points
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric, elastica
@@ -167,7 +168,7 @@ def form(snapshot: dict) -> tuple[str, float]:
     grid = tuple(int(k) for k in np.atleast_1d(snapshot["grid_shape"]))
     box = np.asarray(snapshot["box"], float)
     axes = [np.linspace(lo, hi, k, endpoint=False) for (lo, hi), k in zip(box, grid)]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(grid))
+    pts = grid_points(axes)
     inside = pts[np.asarray(snapshot["phi"]).ravel() > 0]
     ev = np.sort(np.linalg.eigvalsh(np.cov(inside.T)))
     ratio = float(np.sqrt(ev[-1] / ev[0]))
