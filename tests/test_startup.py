@@ -45,3 +45,14 @@ def test_a_pyfftw_solve_loads_no_scipy_fft():
     for fft, loaded in (("pyfftw", "False"), ("scipy", "True")):
         out = subprocess.run([sys.executable, "-c", code.format(fft)], capture_output=True, text=True, check=True)
         assert out.stdout.split()[-2:] == ["True", loaded], (fft, out.stdout + out.stderr)
+
+
+def test_nested_iteration_resamples_without_scipy_fft():
+    """The coarse-to-fine step of nested iteration (``mesh.spectral.resample``) uses numpy.fft, so a
+    nested solve on pyFFTW (64^3 from 32^3) does not load scipy.fft either (it did, inside the
+    solve's wall time: ~0.05 s)."""
+    code = ("import sys, numpy as np; from vesicle_opt.mesh.spectral import resample; "
+            "x = np.random.default_rng(0).random(8 * 8 * 8); y = resample(x, (8, 8, 8), (16, 16, 16)); "
+            "print(y.shape[0], 'scipy.fft' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["4096", "False"], out.stdout + out.stderr

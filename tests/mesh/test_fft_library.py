@@ -99,3 +99,45 @@ def test_pyfftw_results_are_the_callers_own(rng):
         f.ifft(f.fft(v))
     assert np.array_equal(uh, uh_copy) and np.array_equal(back, back_copy)
     assert np.array_equal(aligned, u0) and np.array_equal(u, u0) and np.array_equal(v, v0)
+
+
+LIBRARIES = ["scipy", pytest.param("pyfftw", marks=needs_pyfftw)]
+
+
+@pytest.mark.parametrize("library", LIBRARIES)
+@pytest.mark.parametrize("n", [(8, 10, 12), (9, 7, 6)])
+def test_a_paired_symbol_is_the_same_product(library, n, rng):
+    """``multiplier(sym)`` (each value twice: one float64 multiply over the spectrum's real view)
+    gives what the complex-by-real product of ``sym`` gives, constant term included, and the sum of
+    v read off the transform's k = 0 coefficient (``with_sum``) is the sum of v."""
+    import math
+    f = fourier_grid(BOX3, n, "spectral").fourier
+    v = rng.standard_normal(f.size) + 3.0  # a mean, so the k = 0 coefficient is not small
+    sym = -rng.random(f.symbol.shape) * 10.0
+    with fft_library(library):
+        ref = f.apply_symbol(v, sym, 0.25)
+        out, total = f.apply_symbol(v, f.multiplier(sym), 0.25, with_sum=True)
+        lap = f.laplacian(v)
+        lap_ref = f.apply_symbol(v, f.symbol)
+    scale = np.abs(sym).max() * np.abs(v).max()
+    # the same products and the same transforms: equal to a few units of round-off (measured 0)
+    assert np.abs(out - ref).max() <= 4 * np.finfo(float).eps * scale
+    assert np.abs(lap - lap_ref).max() <= 4 * np.finfo(float).eps * np.abs(f.symbol).max() * np.abs(v).max()
+    # the DC coefficient is the sum formed by the transform's additions: within log2(N) u sum|v|
+    bound = math.ceil(math.log2(f.size)) * np.finfo(float).eps * np.abs(v).sum()
+    assert abs(total - math.fsum(v)) <= bound, (total, math.fsum(v), bound)
+
+
+def test_the_mirror_grid_takes_the_same_calls(rng):
+    """The cosine grid (``mesh.cosine``) has the same ``multiplier`` (the symbol itself: its spectrum
+    is real) and ``with_sum`` (the DC coefficient of the orthonormal DCT is sum / sqrt(N))."""
+    import math
+    from vesicle_opt.mesh import cosine
+    f = cosine.grid(((0.0, 1.0), (0.0, 2.0), (0.0, 1.5)), (6, 8, 5)).fourier
+    v = rng.standard_normal(f.size) + 2.0
+    assert f.multiplier(f.symbol) is f.symbol and f.laplacian_multiplier is f.symbol
+    out, total = f.apply_symbol(v, f.symbol, 0.5, with_sum=True)
+    assert np.array_equal(out, f.apply_symbol(v, f.symbol, 0.5))
+    # an orthonormal DCT's DC coefficient times sqrt(N): within log2(N) u sum|v| plus the scaling's u
+    bound = (math.ceil(math.log2(f.size)) + 2) * np.finfo(float).eps * np.abs(v).sum()
+    assert abs(total - math.fsum(v)) <= bound

@@ -187,7 +187,7 @@ class FlowModel:
         q = bulk_symbol(fg, self.epsilon)
         bend = a * self.rigidity * q * q / (2 * self.epsilon)
         p = np.maximum(1 + bend - b * q / 2, 1 + MODEL_FLOOR * bend)
-        inv = 1.0 / p
+        inv = fg.multiplier(1.0 / p)
         return lambda r: fg.apply_symbol(r, inv)
 
     # --- one-argument gradients (lumped-L^2 gradients, i.e. variational derivatives) ---------

@@ -74,6 +74,7 @@ class CosineGrid:
         for k in self.k:
             sym = sym - k**2
         self.symbol = np.asarray(sym, float)  # Delta_h in the cosine basis (grid shape), <= 0
+        self.laplacian_multiplier = self.symbol  # as ``apply_symbol`` takes it (``multiplier``)
 
     def fft(self, v: np.ndarray) -> np.ndarray:
         """The orthonormal DCT-II of a grid field (the spectrum ``apply_symbol`` multiplies)."""
@@ -95,14 +96,22 @@ class CosineGrid:
         CosineGrid.transform_seconds += time.perf_counter() - t0
         return out
 
-    def apply_symbol(self, v: np.ndarray, sym: np.ndarray, constant: float = 0.0) -> np.ndarray:
+    def multiplier(self, sym: np.ndarray) -> np.ndarray:
+        """The symbol as ``apply_symbol`` multiplies it (a real spectrum: the symbol itself; the
+        Fourier grid's pairs its values, ``mesh.spectral.FourierGrid.multiplier``)."""
+        return sym
+
+    def apply_symbol(self, v: np.ndarray, sym: np.ndarray, constant: float = 0.0, with_sum: bool = False):
         """C^{-1} diag(sym) C v (sym in the DCT layout: a real array of the grid's shape), plus
-        ``constant`` at every node through the DC coefficient (sqrt(N) c for the orthonormal DCT)."""
+        ``constant`` at every node through the DC coefficient (sqrt(N) c for the orthonormal DCT).
+        ``with_sum``: returns (result, sum of v), the sum read off the DC coefficient (sum / sqrt(N))."""
         vh = self.fft(v)
+        total = float(vh.flat[0]) * np.sqrt(self.size)
         vh *= sym
         if constant:
             vh.flat[0] += constant * np.sqrt(self.size)
-        return self.ifft(vh)
+        out = self.ifft(vh)
+        return (out, total) if with_sum else out
 
     def laplacian(self, v: np.ndarray) -> np.ndarray:
         """Delta_h v (symmetric: C is orthogonal)."""

@@ -208,8 +208,8 @@ class PhaseField:
             if cB != 0.0:
                 axpy(cB, dB_diag, coef_v)
             s_over -= cB  # coef_L
-            return self._grid_apply(fourier, m_eps * fourier.symbol, cE * fourier.symbol, m_s,
-                                    s_over, coef_v, rho_A * m * m)
+            lap = fourier.laplacian_multiplier  # the symbol of Delta_h as apply_symbol multiplies it
+            return self._grid_apply(fourier, m_eps * lap, cE * lap, m_s, s_over, coef_v, rho_A * m * m)
         cB_m_eps = cB * m_eps
         diag = cE * dE_diag + cB * dB_diag if cB != 0.0 else cE * dE_diag
         lap, lapT = self.ops.lap, self.ops.lapT
@@ -233,13 +233,12 @@ class PhaseField:
     def _grid_apply(fourier, sym_L, sym_u, m_s, coef_L, coef_v, rank_one):
         """The fused product of ``hvp_operator`` on a one-weight grid: sym_L = m eps sigma,
         sym_u = cE sigma, coef_L = (cE/eps) g' - cB, coef_v = (cE/eps) m g'^2 + diag,
-        rank_one = rho_A m^2."""
+        rank_one = rho_A m^2 (the symbols as ``fourier.multiplier`` made them)."""
         def apply(v: np.ndarray) -> np.ndarray:
-            L = fourier.apply_symbol(v, sym_L)  # m eps Delta_h v
+            L, total = fourier.apply_symbol(v, sym_L, with_sum=True)  # m eps Delta_h v, and sum(v)
             u = np.multiply(m_s, v)
             u += L  # u = m J v
-            constant = rank_one * float(v.sum()) if rank_one else 0.0
-            out = fourier.apply_symbol(u, sym_u, constant)  # cE Delta_h u + rho_A m^2 sum(v)
+            out = fourier.apply_symbol(u, sym_u, rank_one * total)  # cE Delta_h u + rho_A m^2 sum(v)
             L *= coef_L
             out += L
             np.multiply(coef_v, v, out=u)

@@ -49,15 +49,18 @@ class SubspacePreconditioner:
         if self.C is not None:
             C_rows = np.ascontiguousarray(self.C.T)
             self.C = C_rows.T  # (N, k), Fortran order: what gemv reads without a copy
-            self.U_rows = np.empty_like(C_rows)
-            for i, c in enumerate(C_rows):
-                self.U_rows[i] = apply_pinv(c)
-            self.S = self.U_rows @ self.C  # U^T C = C^T P^{-1} C
+            self.U_rows = [apply_pinv(c) for c in C_rows]
+            # U^T C = C^T P^{-1} C, k x k (k <= 3), and its inverse: y is then a k x k product
+            # (np.linalg.solve costs ~70 us a call, a tenth of a 64^3 iteration's vector work)
+            self.S = np.array([[u @ c for c in C_rows] for u in self.U_rows])
+            self.S_inv = np.linalg.inv(self.S)
 
     def __call__(self, r: np.ndarray) -> np.ndarray:
-        """z = P^{-1} (r - C y), r replaced by r - C y (class docstring)."""
+        """z = P^{-1} (r - C y), r replaced by r - C y (class docstring). U^T r is k dot products:
+        a dgemv on k contiguous rows runs at a third of their speed (64^3, k = 3: 0.21 against
+        0.08 ms, measured; OpenBLAS's thin transposed kernel)."""
         if self.C is not None:
-            gemv(-1.0, self.C, np.linalg.solve(self.S, self.U_rows @ r), r)
+            gemv(-1.0, self.C, self.S_inv @ np.array([u @ r for u in self.U_rows]), r)
         return self.apply_pinv(r)
 
 

@@ -89,7 +89,7 @@ class FourierPreconditioner:
         return p
 
     def inverse(self, cE: float, cB: float = 0.0, rho_A: float = 0.0):
-        inv = 1.0 / self.symbol(cE, cB, rho_A)
+        inv = self.f.multiplier(1.0 / self.symbol(cE, cB, rho_A))
         return lambda r: self.f.apply_symbol(r, inv)
 
     def dual_norm(self, v: np.ndarray) -> float:

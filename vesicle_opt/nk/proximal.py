@@ -64,6 +64,6 @@ class ProximalObjective(Objective):
     def preconditioner(self, pt: Point) -> SubspacePreconditioner:
         prec = self.prec
         if hasattr(prec, "symbol"):  # Fourier model: add the shift c m to the symbol
-            inv = 1.0 / (prec.symbol(self.rig, -pt.mu[1], self.rho[0]) + self.c * prec.m)
+            inv = prec.f.multiplier(1.0 / (prec.symbol(self.rig, -pt.mu[1], self.rho[0]) + self.c * prec.m))
             return SubspacePreconditioner(lambda r: prec.f.apply_symbol(r, inv), None)
         return SubspacePreconditioner(prec.inverse(self.rig, -pt.mu[1], self.rho[0]), None)

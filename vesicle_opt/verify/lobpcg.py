@@ -173,7 +173,7 @@ def _level(disc, pf, pinv, translations, phi, rig, cB, ref, rotations) -> _Level
 def _setup_level(disc, pf, prec, translations, scene, phi, cB, ref, rotations):
     rig = scene.model.rigidity
     if getattr(disc, "fourier", None) is not None:
-        inv = 1.0 / prec.symbol(rig, cB)
+        inv = disc.fourier.multiplier(1.0 / prec.symbol(rig, cB))
         pinv = lambda r: disc.fourier.apply_symbol(r, inv)  # noqa: E731
     else:
         pinv = prec.inverse(rig)
