@@ -73,3 +73,28 @@ def test_scaled_derivatives_are_the_scaled_derivatives(rng):
     v = rng.standard_normal(f.size)
     for a, b in zip(f.derivatives(v, 0.125), f.derivatives(v)):
         assert _rel(a, 0.125 * b) < ROUNDOFF
+
+
+@pytest.mark.parametrize("name", ["spectral-2d", "fd-2d", "spectral-3d"])
+@pytest.mark.parametrize("library", LIBRARIES)
+def test_the_product_in_fourier_coordinates_is_the_nodal_one(name, library, rng):
+    """``hvp_coordinates`` y -> T H T^{-1} y (four transforms) against the general nodal product
+    conjugated by T (``mesh.coordinates``); y random in T's range, every term on (rho_A, cB)."""
+    disc = _grids()[name]
+    pf = PhaseField(LumpedOperators(disc), 0.4, 0.5)
+    T = disc.fourier.coordinates
+    x = disc.nodes
+    phi = np.tanh(1.2 - np.linalg.norm(x - x.mean(axis=0), axis=1)) + 0.05 * rng.standard_normal(disc.n_nodes)
+    v = rng.standard_normal(disc.n_nodes) + 0.3  # a mean: the rank-one volume term is not zero
+    m = pf.m
+    with fft_library(library):
+        st = pf.state(phi)
+        parts = pf.hessian_parts(st)
+        y = T.forward(v)
+        for cE, cB, rho_A in [(1.0, 0.0, 0.0), (2.0, -0.7, 0.0), (1.5, 0.3, 40.0)]:
+            product = pf.hvp_coordinates(st, parts, cE, cB, rho_A)
+            in_y = product(y)
+            again = product(y)  # the work fields are reused: a second product is the same
+            nodal = T.forward(pf.hvp_operator(st, parts, cE, cB, fused=False)(v) + rho_A * (m @ v) * m)
+            assert _rel(in_y, nodal) < ROUNDOFF, (cE, cB, rho_A)
+            assert np.array_equal(in_y, again)

@@ -25,6 +25,7 @@ matrix), so ``functionals.evaluate``/``gradients`` and ``kkt.kkt_residual`` work
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib.util
 import sys
 import threading
@@ -35,6 +36,7 @@ import numpy as np
 
 from vesicle_opt.mesh import cosine
 from vesicle_opt.mesh.base import TransformDiscretization, grid_points
+from vesicle_opt.mesh.coordinates import FourierCoordinates
 
 WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
 FFT_LIBRARIES = ("scipy", "pyfftw")  # solver.fft: scipy.fft or FFTW through pyFFTW ("auto": the latter
@@ -146,13 +148,19 @@ class _FFTWPlans:
         self.spec_in[...] = vh
         return self.backward_from_buffer()
 
-    def backward_from_buffer(self) -> np.ndarray:
+    def backward_from_buffer(self, out: np.ndarray | None = None) -> np.ndarray:
         """The c2r transform of ``spec_in`` (normalised by 1/N, as scipy's irfftn), written straight
         into a new aligned array that the caller owns (the plan's output is moved to it: no copy of
-        the result out of a buffer, the pass that cost the pyFFTW path ~0.2 ms a transform at 64^3)."""
-        out = self._pyfftw.empty_aligned(self.real_out.shape, dtype="float64")
-        self.backward(output_array=out)
+        the result out of a buffer, the pass that cost the pyFFTW path ~0.2 ms a transform at 64^3),
+        or into ``out`` where given and aligned (a caller's reused work array)."""
+        if out is None or out.size != self.real_out.size or \
+                not self._pyfftw.is_byte_aligned(out, self._pyfftw.simd_alignment):
+            out = self._pyfftw.empty_aligned(self.real_out.shape, dtype="float64")
+        self.backward(output_array=out.reshape(self.real_out.shape))
         return out
+
+
+_SCRATCH = threading.local()  # a spectrum per shape and thread for scipy's c2r input (``backward_times``)
 
 
 class FourierGrid:
@@ -181,11 +189,11 @@ class FourierGrid:
             else:
                 sym = sym - (4 / self.h[d] ** 2) * np.sin(k * self.h[d] / 2) ** 2
         self.symbol = np.asarray(sym, float)  # Delta_h in Fourier space (rfft layout), <= 0
-        self._half = (*self.shape[:-1], self.shape[-1] // 2 + 1)  # the rfft layout
-        self._pairs_shape = (*self._half[:-1], 2 * self._half[-1])  # a ``multiplier``'s shape
+        self.half_shape = (*self.shape[:-1], self.shape[-1] // 2 + 1)  # the rfft layout
+        self._pairs_shape = (*self.half_shape[:-1], 2 * self.half_shape[-1])  # a ``multiplier``'s shape
         self.laplacian_multiplier = self.multiplier(self.symbol)  # Delta_h's, as ``apply_symbol`` takes it
         # spectral first derivatives (Nyquist mode zeroed so they stay real and skew)
-        self._ik = []
+        self.ik = []  # i k_d per axis (rfft layout, broadcast shapes), the Nyquist mode zeroed
         for d, k in enumerate(self.k):
             kk = k.copy()
             nd = self.shape[d]
@@ -193,7 +201,7 @@ class FourierGrid:
                 kk[tuple(nd // 2 if i == d else 0 for i in range(self.dim))] = 0.0
             if nd % 2 == 0 and d == self.dim - 1:
                 kk[..., -1] = 0.0
-            self._ik.append(1j * kk)
+            self.ik.append(1j * kk)
 
     # --- transforms -----------------------------------------------------------------------
     transforms = 0  # real FFTs done by all grids in this process (benchmarks: the FFT count)
@@ -229,7 +237,7 @@ class FourierGrid:
         the product is a float64 multiply with no complex-by-real cast (64^3: 0.07 against 0.13
         ms a product, measured). For a symbol applied many times (a Newton step's products and
         preconditioner): formed once, one pass."""
-        return np.repeat(np.asarray(sym, float).reshape(self._half), 2, axis=-1)
+        return np.repeat(np.asarray(sym, float).reshape(self.half_shape), 2, axis=-1)
 
     def _paired(self, sym: np.ndarray) -> bool:
         return sym.shape == self._pairs_shape
@@ -272,6 +280,60 @@ class FourierGrid:
         FourierGrid.transform_seconds += (t1 - t0) + (time.perf_counter() - t2)
         return (out, total) if with_sum else out
 
+    def forward_times(self, v: np.ndarray, mult: np.ndarray) -> np.ndarray:
+        """mult * F v as a new float64 array of ``multiplier``'s shape (the spectrum's real view),
+        for a paired multiplier: one transform and one multiply out of the transform's output."""
+        re_im = self.fft(v).view(np.float64)  # pyFFTW: written straight into a new array (``fft``)
+        return np.multiply(re_im, mult, out=re_im)  # in place: the spectrum is still in cache
+
+    def forward_add(self, v: np.ndarray, mult: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """out += mult * F v (``forward_times``' layout, out flat or shaped): the product formed in
+        the transform's own output (pyFFTW: its buffer), so no new array is written."""
+        if _library[0] != "pyfftw":
+            re_im = self.fft(v).view(np.float64)
+        else:
+            plans = _FFTWPlans.of(self.shape)
+            t0 = time.perf_counter()
+            plans.forward_into(v, plans.spec_out)
+            FourierGrid.transforms += 1
+            FourierGrid.transform_seconds += time.perf_counter() - t0
+            re_im = plans.spec_out_pairs
+        re_im *= mult
+        out_pairs = out.reshape(self._pairs_shape)
+        out_pairs += re_im
+        return out
+
+    def backward_times(self, pairs: np.ndarray, mult: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """F^{-1} (mult * pairs) for a spectrum given as its real view (``multiplier``'s shape, read
+        only) and a paired multiplier: the multiply written straight into the transform's input.
+        ``out``: a work array (``empty_field``) the result is written into where the library can
+        (pyFFTW); the result is returned either way."""
+        pairs = pairs.reshape(self._pairs_shape)
+        if _library[0] != "pyfftw":  # into this thread's scratch spectrum (the c2r may overwrite it)
+            scratch = _SCRATCH.__dict__.setdefault(self.half_shape, None)
+            if scratch is None:
+                scratch = _SCRATCH.__dict__[self.half_shape] = np.empty(self.half_shape, np.complex128)
+            np.multiply(pairs, mult, out=scratch.view(np.float64))
+            return self.ifft(scratch)
+        plans = _FFTWPlans.of(self.shape)
+        np.multiply(pairs, mult, out=plans.spec_in_pairs)
+        t0 = time.perf_counter()
+        out = plans.backward_from_buffer(out).ravel()
+        FourierGrid.transforms += 1
+        FourierGrid.transform_seconds += time.perf_counter() - t0
+        return out
+
+    def empty_field(self) -> np.ndarray:
+        """An uninitialised field (N,) that a transform can write into (aligned as FFTW's plans want)."""
+        if fft_available("pyfftw"):
+            return _import_pyfftw().empty_aligned(self.size, dtype="float64")
+        return np.empty(self.size)
+
+    @functools.cached_property
+    def coordinates(self) -> FourierCoordinates:
+        """The orthonormal real coordinates of this grid's fields (``mesh.coordinates``)."""
+        return FourierCoordinates(self)
+
     def laplacian(self, v: np.ndarray) -> np.ndarray:
         """Delta_h v (symmetric)."""
         return self.apply_symbol(v, self.laplacian_multiplier)
@@ -280,7 +342,7 @@ class FourierGrid:
         """Spectral partial derivatives d_i v (the translation modes of a field v), times ``scale``
         (folded into the wavenumbers: no pass over the fields)."""
         vh = self.fft(v)
-        return [self.ifft((scale * ik if scale != 1.0 else ik) * vh) for ik in self._ik]
+        return [self.ifft((scale * ik if scale != 1.0 else ik) * vh) for ik in self.ik]
 
     def nodes(self) -> np.ndarray:
         axes = [a + h * np.arange(k) for (a, _), h, k in zip(self.box, self.h, self.shape)]

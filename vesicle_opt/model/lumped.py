@@ -199,17 +199,12 @@ class PhaseField:
         m = self.weight  # a scalar on grids: one array less to read
         dE_diag, dB_diag = parts
         m_eps = eps * m
-        m_s = m * s
-        s_over = (cE / eps) * s
         fourier = self.ops.fourier
         if fused and self.uniform_weight is not None and fourier is not None:
-            coef_v = s_over * m_s  # (cE/eps) m g'^2 + cE dE_diag + cB dB_diag
-            axpy(cE, dE_diag, coef_v)
-            if cB != 0.0:
-                axpy(cB, dB_diag, coef_v)
-            s_over -= cB  # coef_L
             lap = fourier.laplacian_multiplier  # the symbol of Delta_h as apply_symbol multiplies it
-            return self._grid_apply(fourier, m_eps * lap, cE * lap, m_s, s_over, coef_v, rho_A * m * m)
+            return self._grid_apply(fourier, m_eps * lap, cE * lap, *self._grid_coefficients(st, parts, cE, cB, rho_A))
+        m_s = m * s
+        s_over = (cE / eps) * s
         cB_m_eps = cB * m_eps
         diag = cE * dE_diag + cB * dB_diag if cB != 0.0 else cE * dE_diag
         lap, lapT = self.ops.lap, self.ops.lapT
@@ -226,6 +221,57 @@ class PhaseField:
             out += diag * v
             if rho_A:
                 out += (rho_A * float(self.m @ v)) * self.m
+            return out
+        return apply
+
+    def _grid_coefficients(self, st: State, parts, cE: float, cB: float, rho_A: float):
+        """(m_s, coef_L, coef_v, rank_one) of the fused grid product (``hvp_operator``): m g',
+        (cE/eps) g' - cB, (cE/eps) m g'^2 + cE dE_diag + cB dB_diag, rho_A m^2 (one weight m)."""
+        m, dE_diag, dB_diag = self.uniform_weight, *parts
+        m_s = m * st.s
+        coef_L = (cE / self.eps) * st.s
+        coef_v = coef_L * m_s
+        axpy(cE, dE_diag, coef_v)
+        if cB != 0.0:
+            axpy(cB, dB_diag, coef_v)
+        coef_L -= cB
+        return m_s, coef_L, coef_v, rho_A * m * m
+
+    def hvp_coordinates(self, st: State, parts, cE: float, cB: float, rho_A: float = 0.0):
+        """The fused grid product of ``hvp_operator`` in the orthonormal coordinates y = T v of a
+        Fourier grid (``mesh.coordinates``): y -> T (cE H_E + cB H_B + rho_A dA dA^T) T^{-1} y. With
+        v = T^{-1} y, L = T^{-1}(m eps sigma y) (the symbol applied on the way back) and
+        u = m g' v + L, t = coef_L L + coef_v v,
+
+            T H v = (cE sigma sqrt(W)) u^ + sqrt(W) t^ + N rho_A m^2 y_0 e_0,
+
+        four transforms (the nodal product takes four and its preconditioner two more, which here
+        is a diagonal) and ten elementwise passes, into three work fields reused by every product
+        (fresh 2 MB arrays cost a cold pass each at 64^3); the rank-one volume term is y_0's alone
+        (y_0 = sum(v) / sqrt(N), T of a constant c is sqrt(N) c e_0)."""
+        fourier = self.ops.fourier
+        coords = fourier.coordinates
+        m_s, coef_L, coef_v, rank_one = self._grid_coefficients(st, parts, cE, cB, rho_A)
+        lap = fourier.laplacian_multiplier
+        back_L = (self.eps * self.uniform_weight) * lap * coords.unscale
+        out_u = cE * lap * coords.scale
+        dc = rank_one * fourier.size
+        work = []  # v, L, u: three fields reused by every product of this Newton step
+
+        def apply(y: np.ndarray) -> np.ndarray:
+            if not work:
+                work.extend(fourier.empty_field() for _ in range(3))
+            v = coords.backward(y, out=work[0])
+            L = coords.backward(y, back_L, out=work[1])
+            u = np.multiply(m_s, v, out=work[2])
+            u += L
+            L *= coef_L
+            v *= coef_v
+            L += v  # t
+            out = coords.forward(u, out_u)
+            coords.forward_add(L, out)
+            if dc:
+                out[0] += dc * y[0]
             return out
         return apply
 

@@ -25,7 +25,8 @@ import numpy as np
 
 from vesicle_opt.blas import axpy
 from vesicle_opt.model.penalty import penalised_energy
-from vesicle_opt.nk.krylov import SubspacePreconditioner, projected_pcg
+from vesicle_opt.nk.krylov import SubspacePreconditioner
+from vesicle_opt.nk.system import FourierSystem, NodalSystem
 
 log = logging.getLogger(__name__)  # one DEBUG line per Newton step (the CLI's -v)
 ARMIJO = 1e-4  # sufficient-decrease constant (the usual textbook value)
@@ -75,11 +76,12 @@ class Point:
 
 class Objective:
     def __init__(self, pf, prec, translations, rig: float, alpha: float, beta: float,
-                 lam, rho, counters: Counters):
+                 lam, rho, counters: Counters, coordinates: bool = True):
         self.pf, self.prec, self.translations = pf, prec, translations
         self.rig, self.target = float(rig), np.array([alpha, beta], float)
         self.lam, self.rho = np.asarray(lam, float), np.asarray(rho, float)
         self.cnt = counters
+        self.coordinates = coordinates  # Fourier grids: CG in the orthonormal Fourier coordinates
 
     def value(self, phi) -> tuple[float, object]:
         st = self.pf.state(phi)
@@ -127,6 +129,31 @@ class Objective:
             return out
         return H
 
+    def newton_system(self, pt: Point):
+        """The Newton system at pt (``nk.system``): in the orthonormal Fourier coordinates on
+        periodic Fourier grids (``coordinates``, the default there), else on nodal values."""
+        fourier = self.pf.ops.fourier
+        if not (self.coordinates and self.pf.uniform_weight is not None and hasattr(fourier, "coordinates")):
+            return NodalSystem(self.hvp(pt), self.preconditioner(pt))
+        w = self.pf.uniform_weight
+        coords = fourier.coordinates
+        product = self.pf.hvp_coordinates(pt.st, self.pf.hessian_parts(pt.st), self.rig, -pt.mu[1], self.rho[0])
+        rank_one = (self.rho[1], coords.forward(pt.dB)) if self.rho[1] else None
+        return FourierSystem(coords, product, fourier.multiplier(1.0 / self.fourier_symbol(pt)),
+                             self.translation_coordinates(pt, w), rank_one, self.hessian_shift(), self.cnt)
+
+    def fourier_symbol(self, pt: Point) -> np.ndarray:
+        """p of the Fourier model of the Hessian at pt (``nk.precond.FourierPreconditioner.symbol``)."""
+        return self.prec.symbol(self.rig, -pt.mu[1], self.rho[0])
+
+    def translation_coordinates(self, pt: Point, w: float):
+        """T(w d_i phi) as rows (``mesh.coordinates``), or None where no mode is projected out."""
+        return self.translations(pt.phi, w, coordinates=True)
+
+    def hessian_shift(self) -> float:
+        """A multiple of the identity a subclass adds to the Hessian on one-weight grids (0 here)."""
+        return 0.0
+
     def preconditioner(self, pt: Point) -> SubspacePreconditioner:
         pinv = self.prec.inverse(self.rig, -pt.mu[1], self.rho[0])
         w = self.pf.uniform_weight  # grids: one weight, folded into the spectral derivatives
@@ -148,13 +175,13 @@ def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, 
         if pt.rel <= tol:
             return pt, "converged"
         eta = min(ETA_MAX, np.sqrt(pt.rel))
-        prec = obj.preconditioner(pt)
-        cg = projected_pcg(obj.hvp(pt), -pt.g, prec, eta, max_cg)
+        system = obj.newton_system(pt)
+        cg = system.solve(-pt.g, eta, max_cg)
         cnt.cg += cg.iterations
         p = cg.x
         slope = float(pt.g @ p)
         if not slope < 0:  # cannot happen in exact arithmetic; fall back to the model gradient
-            p = prec(-pt.g)
+            p = system.precondition(-pt.g)
             slope = float(pt.g @ p)
             if not slope < 0:
                 return pt, "no_descent_direction"
@@ -185,8 +212,10 @@ def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, 
     return pt, "converged" if pt.rel <= tol else "max_iter"
 
 
-def hessian_solve(obj: Objective, pt: Point, b: np.ndarray, eta: float, max_cg: int = 200):
-    """H^{-1} b on the translation-free subspace (for the multipliers' Newton update)."""
-    cg = projected_pcg(obj.hvp(pt), b, obj.preconditioner(pt), eta, max_cg)
-    obj.cnt.cg += cg.iterations
-    return cg
+def hessian_solves(obj: Objective, pt: Point, rhs, eta: float, max_cg: int = 200) -> list:
+    """H^{-1} b for each b of ``rhs`` on the translation-free subspace, one Newton system (for the
+    multipliers' Newton update)."""
+    system = obj.newton_system(pt)
+    out = [system.solve(b, eta, max_cg) for b in rhs]
+    obj.cnt.cg += sum(cg.iterations for cg in out)
+    return out

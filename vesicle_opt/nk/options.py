@@ -24,6 +24,9 @@ class NewtonKrylovOptions:
     w_tol: float = 1e-4  # CG tolerance of the two solves H^{-1} dA, H^{-1} dB of the dual Newton step: its
     # error only slows the (otherwise quadratic) multiplier convergence by ~1e-4 per outer iteration
     max_cg: int = 200  # CG iterations per Newton step
+    fourier_coordinates: bool = True  # periodic Fourier grids: each Newton system's CG runs in the
+    # orthonormal Fourier coordinates (``nk.system.FourierSystem``: four transforms a CG step, not six);
+    # False runs it on nodal values (``NodalSystem``), the same iteration in exact arithmetic
     tensor_fft: bool = True  # lumped P1 on a periodic tensor box runs on the FFT path it equals (the FD
     # stencil, ``nk.setup.fft_equivalent``); False keeps it on the sparse (Chebyshev) path of unstructured meshes
 

@@ -61,6 +61,16 @@ class ProximalObjective(Objective):
             return base(v) + cm * v
         return H
 
+    def fourier_symbol(self, pt: Point) -> np.ndarray:
+        """The Fourier model with the shift c m (exact for it)."""
+        return super().fourier_symbol(pt) + self.c * self.prec.m
+
+    def translation_coordinates(self, pt: Point, w: float):
+        return None  # no mode is projected out of a step (module docstring)
+
+    def hessian_shift(self) -> float:
+        return self.c * self.pf.uniform_weight
+
     def preconditioner(self, pt: Point) -> SubspacePreconditioner:
         prec = self.prec
         if hasattr(prec, "symbol"):  # Fourier model: add the shift c m to the symbol

@@ -72,8 +72,13 @@ def prepare(scene, disc=None, tensor_fft: bool = True):
     # stalled at dual 2e-6 with the projection, converges to kkt 6e-12 without it)
     deriv = fourier if getattr(fourier, "kind", None) != "fd" else None
 
-    def translations(phi, scale: float = 1.0):
-        """scale * d_i phi as the columns of an (N, k) view of contiguous rows; None: none."""
+    def translations(phi, scale: float = 1.0, coordinates: bool = False):
+        """scale * d_i phi as the columns of an (N, k) view of contiguous rows; None: none.
+        ``coordinates``: their orthonormal Fourier coordinates instead (``mesh.coordinates``), as
+        (k, size) rows (``nk.system.FourierSystem``)."""
+        if coordinates:
+            return None if deriv is None or not hasattr(deriv, "coordinates") else \
+                deriv.coordinates.derivatives(phi, scale)
         rows = None if deriv is None else deriv.derivatives(phi, scale)
         if not rows:  # a mesh, or a mirror grid (``mesh.cosine``: no translation modes)
             return None

@@ -52,7 +52,7 @@ from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.penalty import AL_REDUCTION, schedule
 from vesicle_opt.model.problem import constraint_data, initial_guess
-from vesicle_opt.nk.newton_cg import Counters, Objective, hessian_solve, newton_minimize
+from vesicle_opt.nk.newton_cg import Counters, Objective, hessian_solves, newton_minimize
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import coarse_levels, discretization_path, prepare, resample
 from vesicle_opt.result import Result, combine_stages
@@ -82,7 +82,7 @@ def _dual_kkt(prec, rig, dE, dA, dB, lam) -> float:
 
 def _dual_hessian(obj: Objective, pt, w_tol: float) -> np.ndarray | None:
     """W = G^T H_rho^{-1} G (2 x 2) by two CG solves; None when CG meets negative curvature."""
-    sols = [hessian_solve(obj, pt, g, w_tol) for g in (pt.dA, pt.dB)]
+    sols = hessian_solves(obj, pt, (pt.dA, pt.dB), w_tol)
     if not all(s.status == "converged" for s in sols):
         return None
     W = np.array([[pt.dA @ sols[j].x, pt.dB @ sols[j].x] for j in range(2)])
@@ -255,7 +255,8 @@ def _run_level(scene, disc, phi, cnt, log, tol, opts, W=None, setup=None, lam0=N
     disc, pf, prec, translations = setup or prepare(scene, disc)
     alpha, beta = constraint_data(scene, disc)
     method = scene.solver.method
-    obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt)
+    obj = Objective(pf, prec, translations, scene.model.rigidity, alpha, beta, np.zeros(2), np.zeros(2), cnt,
+                    coordinates=opts.fourier_coordinates)
     if method == "exact":
         (pt, status, lam, dual, W), n, wall, deriv = timed_stage(
             obj, lambda: _exact(obj, phi, tol, opts, disc.volume, beta, log, W, lam0, nearby))

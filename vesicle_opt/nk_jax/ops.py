@@ -44,7 +44,7 @@ class GridOps:
         self.m, self.eps, self.C = float(fourier.cell), float(epsilon), float(C)
         self.layout = layout
         self._k = [np.ravel(k) for k in fourier.k]  # 1D wavenumbers (rfft layout on the last axis)
-        self._ik = [np.ravel(ik.imag) for ik in fourier._ik]  # spectral d/dx_i, Nyquist zeroed
+        self._ik = [np.ravel(ik.imag) for ik in fourier.ik]  # spectral d/dx_i, Nyquist zeroed
         self.shift = bulk_shift(self.eps)
         last = self.shape[-1]
         w = np.full(last // 2 + 1, 2.0)  # Parseval for rfft: interior columns count twice
