@@ -47,7 +47,7 @@ import numpy as np
 from vesicle_opt.mesh.base import TransformDiscretization, grid_points
 
 KIND = "cosine"  # Discretization.kind of these grids (the summary's mesh_kind); the scene says "spectral"
-WORKERS = 1  # DCT threads, as ``mesh.spectral.WORKERS``
+WORKERS = 1  # DCT threads, as ``mesh.fftlib.WORKERS``
 
 
 class CosineGrid:

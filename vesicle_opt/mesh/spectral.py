@@ -8,10 +8,8 @@ The discrete Laplacian Delta_h = F^{-1} diag(sigma) F is applied by real FFTs, O
 * ``fd``: sigma(k) = -sum_i (4 / h_i^2) sin^2(k_i h_i / 2), the symbol of the (2d+1)-point stencil,
   so this equals ``fd.grid``'s sparse Laplacian to round-off (a test checks it).
 
-The real FFTs are scipy.fft's or, with ``solver.fft = "pyfftw"`` (optional extra ``fftw``; the
-default "auto" takes it where installed), FFTW's through pyFFTW, planned once per grid shape with FFTW_ESTIMATE (no planning time,
-and the same plan, hence the same bits, in every run) and reused (``FFT_LIBRARIES``,
-``fft_library``). Both compute the unnormalised forward and the 1/N-normalised inverse transform.
+The real FFTs are scipy.fft's or FFTW's through pyFFTW (``mesh.fftlib``: ``solver.fft``, plans
+reused, ``fft_library``). Both compute the unnormalised forward and the 1/N-normalised inverse transform.
 scipy.fft is imported where it is first used, so a run on pyFFTW never loads it (with the
 scipy.special it imports, ~0.07 s of every CLI start-up, measured); ``resample`` (nested
 iteration's coarse-to-fine step) uses numpy.fft, so a nested pyFFTW solve does not either.
@@ -24,11 +22,7 @@ matrix), so ``functionals.evaluate``/``gradients`` and ``kkt.kkt_residual`` work
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import importlib.util
-import sys
-import threading
 import time
 from dataclasses import dataclass
 
@@ -37,131 +31,8 @@ import numpy as np
 from vesicle_opt.mesh import cosine
 from vesicle_opt.mesh.base import TransformDiscretization, grid_points
 from vesicle_opt.mesh.coordinates import FourierCoordinates
-
-WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
-FFT_LIBRARIES = ("scipy", "pyfftw")  # solver.fft: scipy.fft or FFTW through pyFFTW ("auto": the latter
-# where installed; measured on the 64^3 torus solve, interleaved: pyFFTW / scipy 0.84)
-_library = ["scipy"]  # the one in use in this process (``fft_library``)
-
-
-def fft_available(name: str) -> bool:
-    """Whether the FFT library ``name`` can be used here (pyFFTW is an optional extra)."""
-    return name in ("scipy", "auto") or (name == "pyfftw" and importlib.util.find_spec("pyfftw") is not None)
-
-
-def resolve_fft(name: str) -> str:
-    """The library ``name`` stands for: "auto" is pyFFTW where installed, else scipy."""
-    if name == "auto":
-        return "pyfftw" if fft_available("pyfftw") else "scipy"
-    return name
-
-
-@contextlib.contextmanager
-def fft_library(name: str):
-    """Run the block with the real FFTs of ``name`` (one of ``FFT_LIBRARIES`` or "auto"), then restore."""
-    name = resolve_fft(name)
-    if name not in FFT_LIBRARIES:
-        raise ValueError(f"unknown FFT library {name!r}: one of {', '.join(FFT_LIBRARIES)} or auto")
-    old, _library[0] = _library[0], name
-    try:
-        yield
-    finally:
-        _library[0] = old
-
-
-PYFFTW_UNUSED = ("dask.array.fft", "scipy.fftpack")  # what pyfftw's interfaces wrap, never used here
-
-
-def _import_pyfftw():
-    """pyfftw (optional extra, third-party: only solver.fft = "pyfftw" needs it), imported without
-    the interfaces it builds over dask and scipy.fftpack: its package ``__init__`` imports them
-    when they are installed (0.35 s measured, inside the first solve's wall time), and only the
-    ``FFTW`` class is used here. A module not yet imported is hidden for that one import by
-    ``sys.modules[name] = None`` (an import of it then raises ImportError, which pyfftw catches)
-    and restored after; ``import pyfftw.interfaces.dask_fft`` later still works."""
-    if "pyfftw" in sys.modules:
-        return sys.modules["pyfftw"]
-    hidden = [name for name in PYFFTW_UNUSED if name not in sys.modules]
-    for name in hidden:
-        sys.modules[name] = None
-    try:
-        import pyfftw
-    finally:
-        for name in hidden:
-            if sys.modules.get(name, 0) is None:
-                del sys.modules[name]
-    return pyfftw
-
-
-class _FFTWPlans:
-    """FFTW plans of one grid shape (real to complex and back, one thread), with their aligned
-    buffers: a transform copies its input into the plan's buffer, executes, and returns a copy of
-    the output (so no caller ever holds a buffer the next transform overwrites). Plans are kept per
-    thread (a buffer is never shared by two threads)."""
-
-    _local = threading.local()
-
-    def __init__(self, shape):
-        pyfftw = self._pyfftw = _import_pyfftw()
-        half = (*shape[:-1], shape[-1] // 2 + 1)
-        axes = tuple(range(len(shape)))
-        self.real_in = pyfftw.empty_aligned(shape, dtype="float64")
-        self.spec_out = pyfftw.empty_aligned(half, dtype="complex128")
-        self.spec_in = pyfftw.empty_aligned(half, dtype="complex128")
-        # the float64 views of the two spectrum buffers (what a paired symbol multiplies)
-        self.spec_out_pairs, self.spec_in_pairs = self.spec_out.view(np.float64), self.spec_in.view(np.float64)
-        self.real_out = pyfftw.empty_aligned(shape, dtype="float64")
-        self.forward = pyfftw.FFTW(self.real_in, self.spec_out, axes=axes, direction="FFTW_FORWARD",
-                                   flags=("FFTW_ESTIMATE",), threads=WORKERS)
-        # a multi-dimensional complex-to-real transform always overwrites its input (FFTW)
-        self.backward = pyfftw.FFTW(self.spec_in, self.real_out, axes=axes, direction="FFTW_BACKWARD",
-                                    flags=("FFTW_ESTIMATE", "FFTW_DESTROY_INPUT"), threads=WORKERS)
-
-    @classmethod
-    def of(cls, shape) -> "_FFTWPlans":
-        """This thread's plans of ``shape`` (made with the first call)."""
-        by_shape = getattr(cls._local, "by_shape", None)
-        if by_shape is None:
-            by_shape = cls._local.by_shape = {}
-        plans = by_shape.get(shape)
-        if plans is None:
-            plans = by_shape[shape] = cls(shape)
-        return plans
-
-    def forward_into(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """The r2c transform of v (preserved: an out-of-place r2c keeps its input) into ``out``. v is
-        handed to the plan: pyFFTW reads an aligned v in place and copies a misaligned one into the
-        plan's input buffer (64^3 torus solve 1.19 s against 1.34 s with the copy into ``real_in``
-        done here first). An aligned v becomes the plan's input, so the input is reset to
-        ``real_in`` after such a call: the next misaligned input is then copied there, never into
-        a caller's array (a test holds this)."""
-        self.forward(input_array=v.reshape(self.real_in.shape), output_array=out)
-        if self.forward.input_array is not self.real_in:
-            self.forward.update_arrays(self.real_in, out)
-        return out
-
-    def rfftn(self, v: np.ndarray) -> np.ndarray:
-        """The r2c transform of v into a new aligned array the caller owns (as ``backward_from_buffer``)."""
-        return self.forward_into(v, self._pyfftw.empty_aligned(self.spec_out.shape, dtype="complex128"))
-
-    def irfftn(self, vh: np.ndarray) -> np.ndarray:
-        self.spec_in[...] = vh
-        return self.backward_from_buffer()
-
-    def backward_from_buffer(self, out: np.ndarray | None = None) -> np.ndarray:
-        """The c2r transform of ``spec_in`` (normalised by 1/N, as scipy's irfftn), written straight
-        into a new aligned array that the caller owns (the plan's output is moved to it: no copy of
-        the result out of a buffer, the pass that cost the pyFFTW path ~0.2 ms a transform at 64^3),
-        or into ``out`` where given and aligned (a caller's reused work array)."""
-        if out is None or out.size != self.real_out.size or \
-                not self._pyfftw.is_byte_aligned(out, self._pyfftw.simd_alignment):
-            out = self._pyfftw.empty_aligned(self.real_out.shape, dtype="float64")
-        self.backward(output_array=out.reshape(self.real_out.shape))
-        return out
-
-
-_SCRATCH = threading.local()  # a spectrum per shape and thread for scipy's c2r input (``backward_times``)
-
+from vesicle_opt.mesh.fftlib import (FFT_LIBRARIES, WORKERS, FFTWPlans, fft_available, fft_library,  # noqa: F401
+                                     import_pyfftw, in_use, resolve_fft, scratch_spectrum)
 
 class FourierGrid:
     """FFT machinery of one periodic grid: Laplacian symbol, spectral derivatives."""
@@ -209,8 +80,8 @@ class FourierGrid:
 
     def fft(self, v: np.ndarray) -> np.ndarray:
         t0 = time.perf_counter()
-        if _library[0] == "pyfftw":
-            out = _FFTWPlans.of(self.shape).rfftn(v.reshape(self.shape))
+        if in_use() == "pyfftw":
+            out = FFTWPlans.of(self.shape).rfftn(v.reshape(self.shape))
         else:
             import scipy.fft as sfft  # with its first use (module docstring)
             out = sfft.rfftn(v.reshape(self.shape), workers=WORKERS)
@@ -222,8 +93,8 @@ class FourierGrid:
         """The real field of the half spectrum vh; vh may be overwritten (every caller passes a
         spectrum of its own: scipy's c2r transform then needs no copy of it)."""
         t0 = time.perf_counter()
-        if _library[0] == "pyfftw":
-            out = _FFTWPlans.of(self.shape).irfftn(vh).ravel()
+        if in_use() == "pyfftw":
+            out = FFTWPlans.of(self.shape).irfftn(vh).ravel()
         else:
             import scipy.fft as sfft
             out = sfft.irfftn(vh, s=self.shape, workers=WORKERS, overwrite_x=True).ravel()
@@ -251,7 +122,7 @@ class FourierGrid:
         and ``ifft`` time them. ``with_sum``: returns (result, sum of v), the sum read off the
         transform's k = 0 coefficient (no pass over v)."""
         paired = self._paired(sym)
-        if _library[0] != "pyfftw":
+        if in_use() != "pyfftw":
             vh = self.fft(v)
             total = float(vh.flat[0].real)
             if paired:
@@ -263,7 +134,7 @@ class FourierGrid:
                 vh.flat[0] += constant * self.size  # the unnormalised DC of a constant field
             out = self.ifft(vh)
             return (out, total) if with_sum else out
-        plans = _FFTWPlans.of(self.shape)
+        plans = FFTWPlans.of(self.shape)
         t0 = time.perf_counter()
         plans.forward_into(v, plans.spec_out)
         t1 = time.perf_counter()
@@ -289,10 +160,10 @@ class FourierGrid:
     def forward_add(self, v: np.ndarray, mult: np.ndarray, out: np.ndarray) -> np.ndarray:
         """out += mult * F v (``forward_times``' layout, out flat or shaped): the product formed in
         the transform's own output (pyFFTW: its buffer), so no new array is written."""
-        if _library[0] != "pyfftw":
+        if in_use() != "pyfftw":
             re_im = self.fft(v).view(np.float64)
         else:
-            plans = _FFTWPlans.of(self.shape)
+            plans = FFTWPlans.of(self.shape)
             t0 = time.perf_counter()
             plans.forward_into(v, plans.spec_out)
             FourierGrid.transforms += 1
@@ -309,13 +180,11 @@ class FourierGrid:
         ``out``: a work array (``empty_field``) the result is written into where the library can
         (pyFFTW); the result is returned either way."""
         pairs = pairs.reshape(self._pairs_shape)
-        if _library[0] != "pyfftw":  # into this thread's scratch spectrum (the c2r may overwrite it)
-            scratch = _SCRATCH.__dict__.setdefault(self.half_shape, None)
-            if scratch is None:
-                scratch = _SCRATCH.__dict__[self.half_shape] = np.empty(self.half_shape, np.complex128)
+        if in_use() != "pyfftw":  # into this thread's scratch spectrum (the c2r may overwrite it)
+            scratch = scratch_spectrum(self.half_shape)
             np.multiply(pairs, mult, out=scratch.view(np.float64))
             return self.ifft(scratch)
-        plans = _FFTWPlans.of(self.shape)
+        plans = FFTWPlans.of(self.shape)
         np.multiply(pairs, mult, out=plans.spec_in_pairs)
         t0 = time.perf_counter()
         out = plans.backward_from_buffer(out).ravel()
@@ -326,7 +195,7 @@ class FourierGrid:
     def empty_field(self) -> np.ndarray:
         """An uninitialised field (N,) that a transform can write into (aligned as FFTW's plans want)."""
         if fft_available("pyfftw"):
-            return _import_pyfftw().empty_aligned(self.size, dtype="float64")
+            return import_pyfftw().empty_aligned(self.size, dtype="float64")
         return np.empty(self.size)
 
     @functools.cached_property

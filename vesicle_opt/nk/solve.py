@@ -47,7 +47,6 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from vesicle_opt.io import progress
-from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.penalty import AL_REDUCTION, schedule
@@ -320,7 +319,7 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
     products, where a second OpenBLAS thread only spin-waits on a busy machine (measured, 48^3
     torus, fresh processes interleaved, load average ~25 on 2 cores: 98.6 s median with the
     default two threads against 27.0 s with one; the issue's quiet-machine figure: <= 4% slower).
-    The FFTs are scipy's, one worker (``mesh.spectral.WORKERS``)."""
+    The FFTs are scipy's, one worker (``mesh.fftlib.WORKERS``)."""
     with threadpool_limits(limits=1, user_api="blas"):
         return _solve(scene, disc, x0=x0, options=options, check=check, setup=setup, warm=warm)
 
