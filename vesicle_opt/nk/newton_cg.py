@@ -11,7 +11,8 @@ mu = lam - rho c, grad f = rig dE - mu_A dA - mu_B dB and
 
 Steps come from ``krylov.projected_pcg`` with the Fourier/sparse model of ``precond`` (cE = rig,
 cB = -mu_B, rho_A), forcing term eta = min(ETA_MAX, sqrt(rel)) (Eisenstat-Walker, superlinear), and
-translation modes projected out on periodic boxes. Stationarity is measured in the dual norm of the
+translation modes projected out on periodic boxes; on Fourier grids in the orthonormal Fourier
+coordinates (``Objective.newton_system``, ``nk.system``), elsewhere on nodal values. Stationarity is measured in the dual norm of the
 fixed model P0 (``precond.dual_norm``), relative to rig |dE|_* + |mu_A| |dA|_* + |mu_B| |dB|_*.
 """
 
