@@ -32,7 +32,7 @@ def test_coordinates_are_orthonormal_and_invertible(library, n, rng):
         back = T.backward(Tv)
         Tv_copy = Tv.copy()
         T.backward(Tv, out=f.empty_field())  # y is read, never written
-    assert Tu.size == T.size == T.scale.size
+    assert Tu.size == T.size == 2 * np.prod(f.half_shape)
     assert abs(Tu @ Tv - u @ v) <= ROUND * np.linalg.norm(u) * np.linalg.norm(v)  # Parseval
     assert abs(Tv @ Tv - v @ v) <= ROUND * (v @ v)
     assert np.abs(back - v).max() <= ROUND * np.abs(v).max()
@@ -75,3 +75,22 @@ def test_translation_rows_are_the_coordinates_of_the_spectral_derivatives(librar
     kmax = max(np.abs(k).max() for k in f.k)
     for row, r in zip(rows, ref):
         assert np.linalg.norm(row - r) <= ROUND * kmax * np.linalg.norm(v)
+
+
+@pytest.mark.parametrize("n", [*SHAPES, (6,)])
+def test_project_is_the_orthogonal_projector_onto_the_range(n, rng):
+    """``project``: T v is left alone, a random y lands in the range (T T^{-1} P y = P y), P is
+    idempotent and y - P y is orthogonal to every T v; and the range has dimension N (the random
+    coordinates outside it are what T^{-1} ignores)."""
+    f = _grid(n)
+    T = f.coordinates
+    v, y = rng.standard_normal(f.size), rng.standard_normal(T.size)
+    Tv = T.forward(v)
+    py = T.project(y.copy())
+    assert np.abs(T.project(Tv.copy()) - Tv).max() <= ROUND * np.abs(Tv).max()
+    assert np.abs(T.forward(T.backward(py)) - py).max() <= ROUND * np.abs(py).max()
+    assert np.array_equal(T.project(py.copy()), py)
+    assert abs((y - py) @ Tv) <= ROUND * np.linalg.norm(y) * np.linalg.norm(Tv)
+    assert np.linalg.norm(y - py) > 0.01 * np.linalg.norm(y) or T.size == f.size  # y had a part outside
+    basis = np.array([T.project(e) for e in np.eye(T.size)])  # P itself, column by column
+    assert np.linalg.matrix_rank(basis, tol=1e-10) == f.size

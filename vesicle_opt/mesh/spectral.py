@@ -62,6 +62,9 @@ class FourierGrid:
         self.symbol = np.asarray(sym, float)  # Delta_h in Fourier space (rfft layout), <= 0
         self.half_shape = (*self.shape[:-1], self.shape[-1] // 2 + 1)  # the rfft layout
         self._pairs_shape = (*self.half_shape[:-1], 2 * self.half_shape[-1])  # a ``multiplier``'s shape
+        # the last axis's self-paired columns (k = 0 and, n even, Nyquist): each coefficient there is
+        # its own term of the full spectrum, each other column's stands for two (Parseval)
+        self.edge_columns = (0, self.shape[-1] // 2) if self.shape[-1] % 2 == 0 else (0,)
         self.laplacian_multiplier = self.multiplier(self.symbol)  # Delta_h's, as ``apply_symbol`` takes it
         # spectral first derivatives (Nyquist mode zeroed so they stay real and skew)
         self.ik = []  # i k_d per axis (rfft layout, broadcast shapes), the Nyquist mode zeroed
@@ -151,15 +154,24 @@ class FourierGrid:
         FourierGrid.transform_seconds += (t1 - t0) + (time.perf_counter() - t2)
         return (out, total) if with_sum else out
 
-    def forward_times(self, v: np.ndarray, mult: np.ndarray) -> np.ndarray:
-        """mult * F v as a new float64 array of ``multiplier``'s shape (the spectrum's real view),
-        for a paired multiplier: one transform and one multiply out of the transform's output."""
-        re_im = self.fft(v).view(np.float64)  # pyFFTW: written straight into a new array (``fft``)
-        return np.multiply(re_im, mult, out=re_im)  # in place: the spectrum is still in cache
+    def edges(self, re_im: np.ndarray, edge: float) -> None:
+        """The last axis's k = 0 and (n even) Nyquist columns of a spectrum's real view times edge."""
+        if edge != 1.0:
+            for c in self.edge_columns:
+                re_im[..., 2 * c:2 * c + 2] *= edge
 
-    def forward_add(self, v: np.ndarray, mult: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """out += mult * F v (``forward_times``' layout, out flat or shaped): the product formed in
-        the transform's own output (pyFFTW: its buffer), so no new array is written."""
+    def forward_times(self, v: np.ndarray, mult, edge: float = 1.0) -> np.ndarray:
+        """mult * F v as a new float64 array of ``multiplier``'s shape (the spectrum's real view);
+        mult a paired multiplier or a scalar, ``edge`` a further factor on the k_last = 0 and
+        Nyquist columns (``edge_columns``): one transform and one multiply out of its output."""
+        re_im = self.fft(v).view(np.float64)  # pyFFTW: written straight into a new array (``fft``)
+        np.multiply(re_im, mult, out=re_im)  # in place: the spectrum is still in cache
+        self.edges(re_im, edge)
+        return re_im
+
+    def forward_add(self, v: np.ndarray, mult, out: np.ndarray, edge: float = 1.0) -> np.ndarray:
+        """out += mult * F v (``forward_times``' layout and factors; out flat or shaped): the product
+        formed in the transform's own output (pyFFTW: its buffer), so no new array is written."""
         if in_use() != "pyfftw":
             re_im = self.fft(v).view(np.float64)
         else:
@@ -170,33 +182,38 @@ class FourierGrid:
             FourierGrid.transform_seconds += time.perf_counter() - t0
             re_im = plans.spec_out_pairs
         re_im *= mult
+        self.edges(re_im, edge)
         out_pairs = out.reshape(self._pairs_shape)
         out_pairs += re_im
         return out
 
-    def backward_times(self, pairs: np.ndarray, mult: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    def backward_times(self, pairs: np.ndarray, mult, out: np.ndarray | None = None, edge: float = 1.0) -> np.ndarray:
         """F^{-1} (mult * pairs) for a spectrum given as its real view (``multiplier``'s shape, read
-        only) and a paired multiplier: the multiply written straight into the transform's input.
-        ``out``: a work array (``empty_field``) the result is written into where the library can
-        (pyFFTW); the result is returned either way."""
+        only), mult a paired multiplier or a scalar and ``edge`` as in ``forward_times``: the
+        multiply written straight into the transform's input. ``out``: a work array
+        (``empty_field``) the result is written into where the library can (pyFFTW); the result is
+        returned either way."""
         pairs = pairs.reshape(self._pairs_shape)
         if in_use() != "pyfftw":  # into this thread's scratch spectrum (the c2r may overwrite it)
-            scratch = scratch_spectrum(self.half_shape)
-            np.multiply(pairs, mult, out=scratch.view(np.float64))
-            return self.ifft(scratch)
+            scratch = scratch_spectrum(self.half_shape).view(np.float64)
+            np.multiply(pairs, mult, out=scratch)
+            self.edges(scratch, edge)
+            return self.ifft(scratch.view(np.complex128))
         plans = FFTWPlans.of(self.shape)
         np.multiply(pairs, mult, out=plans.spec_in_pairs)
+        self.edges(plans.spec_in_pairs, edge)
         t0 = time.perf_counter()
         out = plans.backward_from_buffer(out).ravel()
         FourierGrid.transforms += 1
         FourierGrid.transform_seconds += time.perf_counter() - t0
         return out
 
-    def empty_field(self) -> np.ndarray:
-        """An uninitialised field (N,) that a transform can write into (aligned as FFTW's plans want)."""
-        if fft_available("pyfftw"):
+    def empty_field(self) -> np.ndarray | None:
+        """An uninitialised field (N,) for ``backward_times`` to write into where the library in use
+        can (pyFFTW: aligned as its plans want); None where it cannot (scipy's c2r returns its own)."""
+        if in_use() == "pyfftw":
             return import_pyfftw().empty_aligned(self.size, dtype="float64")
-        return np.empty(self.size)
+        return None
 
     @functools.cached_property
     def coordinates(self) -> FourierCoordinates:

@@ -252,24 +252,29 @@ class PhaseField:
         fourier = self.ops.fourier
         coords = fourier.coordinates
         m_s, coef_L, coef_v, rank_one = self._grid_coefficients(st, parts, cE, cB, rho_A)
-        lap = fourier.laplacian_multiplier
-        back_L = (self.eps * self.uniform_weight) * lap * coords.unscale
-        out_u = cE * lap * coords.scale
+        lap = fourier.laplacian_multiplier  # the grid's own: no symbol array is formed here
+        # the scalars of the two symbols go into the coefficients: with L1 = T^{-1}(sigma y) (the
+        # symbol alone, ``unscale`` left out) L = a L1, a = eps m / sqrt(W); u is formed times
+        # b = cE sqrt(W), so that T(cE Delta_h u) = sigma (b u)^ (``forward`` with sigma alone)
+        a, b = self.eps * self.uniform_weight * coords.unscale, cE * coords.scale
+        m_s *= b
+        coef_L *= a
         dc = rank_one * fourier.size
-        work = []  # v, L, u: three fields reused by every product of this Newton step
+        work = []  # v, L1 (where the FFT library writes into them), u: reused by every product
 
         def apply(y: np.ndarray) -> np.ndarray:
             if not work:
-                work.extend(fourier.empty_field() for _ in range(3))
+                work.extend([fourier.empty_field(), fourier.empty_field(), np.empty(fourier.size)])
             v = coords.backward(y, out=work[0])
-            L = coords.backward(y, back_L, out=work[1])
-            u = np.multiply(m_s, v, out=work[2])
-            u += L
-            L *= coef_L
+            L1 = coords.backward(y, lap, out=work[1])
+            u = np.multiply(m_s, v, out=work[2])  # b m g' v
+            axpy(a * b, L1, u)  # b u
+            L1 *= coef_L
             v *= coef_v
-            L += v  # t
-            out = coords.forward(u, out_u)
-            coords.forward_add(L, out)
+            L1 += v  # t
+            del v  # (scipy: its own array, not needed beside the transforms' outputs)
+            out = coords.forward(u, lap)
+            coords.forward_add(L1, out)
             if dc:
                 out[0] += dc * y[0]
             return out

@@ -53,7 +53,9 @@ class FourierSystem:
         self.precond = SubspacePreconditioner(self._pinv, None if rows is None else rows.T, writes_into=True)
 
     def _pinv(self, r: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        return np.multiply(self.inv, r, out=out)
+        """diag(1/p) r, projected onto T's range (``FourierCoordinates.project``: the directions stay
+        in it whatever round-off r carries outside it)."""
+        return self.coords.project(np.multiply(self.inv, r, out=out))
 
     def hvp(self, y: np.ndarray) -> np.ndarray:
         t0 = time.perf_counter()
