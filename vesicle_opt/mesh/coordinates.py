@@ -41,7 +41,10 @@ class FourierCoordinates:
         self.size = 2 * int(np.prod(grid.half_shape))  # the number of coordinates
         self.dc = float(np.sqrt(1.0 / grid.size))  # sqrt(W) of the k = 0 coefficient: y[0] = sum(v) / sqrt(N)
         self._pairs = (*grid.half_shape, 2)
-        self._axes = tuple(range(grid.dim - 1))
+        # the index of -k (each axis i -> -i mod n) over the leading axes, C order: ``project``
+        lead = np.arange(int(np.prod(grid.half_shape[:-1]))).reshape(grid.half_shape[:-1])
+        axes = tuple(range(grid.dim - 1))
+        self._mirror = np.roll(np.flip(lead, axes), 1, axes).ravel() if axes else lead.ravel()
 
     def forward(self, v: np.ndarray, mult=None) -> np.ndarray:
         """T v (``mult``: a paired symbol times ``scale``: T of the symbol's operator applied to v)."""
@@ -64,13 +67,13 @@ class FourierCoordinates:
         transform. T v is in the range up to round-off; a random start block or a preconditioned
         residual is kept there with this (outside it the products vanish: T^{-1} ignores those
         entries). Returns y."""
-        view = y.reshape(self._pairs)
+        view = self.grid.edge_view(y)
         for c in self.grid.edge_columns:
-            plane = view[..., c, :]  # (n_1, ..., n_{d-1}, 2): real and imaginary parts
-            mirrored = np.roll(np.flip(plane, self._axes), 1, self._axes) if self._axes else plane.copy()
-            plane[..., 0] += mirrored[..., 0]
-            plane[..., 1] -= mirrored[..., 1]
-            plane *= 0.5
+            column = view[:, c]  # the coefficients (k_1, ..., k_{d-1}, c), C order
+            mirrored = column[self._mirror]  # c_{-k}
+            np.conjugate(mirrored, out=mirrored)
+            column += mirrored
+            column *= 0.5
         return y
 
     def derivatives(self, v: np.ndarray, factor: float = 1.0) -> np.ndarray:

@@ -154,11 +154,18 @@ class FourierGrid:
         FourierGrid.transform_seconds += (t1 - t0) + (time.perf_counter() - t2)
         return (out, total) if with_sum else out
 
+    def edge_view(self, re_im: np.ndarray) -> np.ndarray:
+        """A spectrum's real view (``multiplier``'s layout, any shape of it) as complex rows, one a
+        column of the last axis: ``[:, c]`` is column c as one strided vector (one ufunc loop;
+        slicing the real view's two numbers per row looped 4096 times over pairs at 64^3, 10x slower)."""
+        return re_im.reshape(-1, self._pairs_shape[-1]).view(np.complex128)
+
     def edges(self, re_im: np.ndarray, edge: float) -> None:
         """The last axis's k = 0 and (n even) Nyquist columns of a spectrum's real view times edge."""
         if edge != 1.0:
+            view = self.edge_view(re_im)
             for c in self.edge_columns:
-                re_im[..., 2 * c:2 * c + 2] *= edge
+                view[:, c] *= edge
 
     def forward_times(self, v: np.ndarray, mult, edge: float = 1.0) -> np.ndarray:
         """mult * F v as a new float64 array of ``multiplier``'s shape (the spectrum's real view);
