@@ -186,6 +186,7 @@ def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, 
             slope = float(pt.g @ p)
             if not slope < 0:
                 return pt, "no_descent_direction"
+        del system  # its operators and work fields are not held through the line search
         t = min(1.0, STEP_CAP / max(float(np.max(np.abs(p))), np.finfo(float).tiny))
         accepted = None
         for _ls in range(40):
