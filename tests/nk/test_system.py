@@ -108,3 +108,24 @@ def test_cg_writing_into_its_spent_direction_is_the_same_iteration(rng):
     reused = projected_pcg(lambda v: H @ v, b, SubspacePreconditioner(into, C, writes_into=True), 1e-12, 200)
     assert np.array_equal(plain.x, reused.x) and plain.iterations == reused.iterations
     assert any(calls)  # the spent direction was written into
+
+
+@pytest.mark.parametrize("coordinates", [True, False])
+def test_a_spent_system_is_freed_at_once(coordinates, rng):
+    """No reference cycle keeps a Newton system (a dozen fields) alive after its step: with the
+    cyclic collector off, dropping the last reference frees it (a system that held its own bound
+    method piled up: peak RSS 184 -> 346 MB at 64^3)."""
+    import gc
+    import weakref
+    args, phi = _pieces("spectral", rng)
+    obj = Objective(*args, Counters(), coordinates=coordinates)
+    pt = obj.point(phi)
+    gc.disable()
+    try:
+        system = obj.newton_system(pt)
+        system.solve(-pt.g, 1e-3, 20)
+        gone = weakref.ref(system)
+        del system
+        assert gone() is None
+    finally:
+        gc.enable()
