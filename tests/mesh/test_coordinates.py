@@ -93,4 +93,5 @@ def test_project_is_the_orthogonal_projector_onto_the_range(n, rng):
     assert abs((y - py) @ Tv) <= ROUND * np.linalg.norm(y) * np.linalg.norm(Tv)
     assert np.linalg.norm(y - py) > 0.01 * np.linalg.norm(y) or T.size == f.size  # y had a part outside
     basis = np.array([T.project(e) for e in np.eye(T.size)])  # P itself, column by column
+    # P is an orthogonal projector: its singular values are 0 or 1, so any cut between them counts the rank
     assert np.linalg.matrix_rank(basis, tol=1e-10) == f.size
