@@ -21,10 +21,10 @@ POLY_DEGREE = 2  # interface modulations of degree <= 2: translations, the ellip
 
 @dataclass
 class Level:
-    """The check's operators on one grid, in the variables u = M^{1/2} v (module docstring); on
-    periodic Fourier grids in their orthonormal Fourier coordinates T u (``mesh.coordinates``: T is
-    orthogonal, so the iteration is the same; the preconditioner is a diagonal there and a product
-    takes four transforms, not six with the preconditioner's)."""
+    """The check's operators on one grid, in the variables u = M^{1/2} v (``verify.lobpcg``'s
+    docstring); on periodic Fourier grids in their orthonormal Fourier coordinates T u
+    (``mesh.coordinates``: T is orthogonal, so the iteration is the same; the preconditioner is a
+    diagonal there and a product takes four transforms, not six with the preconditioner's)."""
 
     disc: object
     a_u: object  # u -> Pi M^{-1/2} H_L M^{-1/2} Pi u / mu_ref (blocks of columns)
@@ -61,7 +61,7 @@ class Level:
 
 
 def symmetry_modes(disc, translations, phi, rotations: bool):
-    """(label, rows) of the excluded modes (module docstring)."""
+    """(label, rows) of the excluded modes (``verify.lobpcg``'s docstring: "Excluded modes")."""
     fourier = getattr(disc, "fourier", None)
     if fourier is None:
         modes = translation_modes(disc, phi)
@@ -177,9 +177,9 @@ def setup(disc, pf, prec, translations, scene, phi, cB, ref, rotations) -> Level
 
 def interface_block(lev: Level, phi, rotations_kept: bool = False) -> np.ndarray:
     """Rows p(x) (1 - phi^2), p the monomials of degree <= POLY_DEGREE in coordinates centred on
-    the interface (module docstring); on Fourier grids where the rotations are not excluded, also
-    the rotation modes (x_i d_j - x_j d_i) phi: soft there (the least eigenvalue of the torus on
-    the P1 box, 0.0039 mu_ref at 48^3), and no polynomial modulation is one. In the level's u
+    the interface (``verify.lobpcg``'s docstring); on Fourier grids where the rotations are not
+    excluded, also the rotation modes (x_i d_j - x_j d_i) phi: soft there (the least eigenvalue of
+    the torus on the P1 box, 0.0039 mu_ref at 48^3), and no polynomial modulation is one. In the level's u
     variables: each row formed in place (nodal variables) or in one nodal temporary and taken to
     Fourier coordinates at once, so no nodal block is held beside the u block."""
     disc = lev.disc
