@@ -123,6 +123,9 @@ def _second_order(result: Result, so, seconds: float = 0.0) -> Result:
     extra["second_order_error_bound"] = so.errors[0] if so.errors else so.residual
     if so.iterations is not None:
         extra["second_order_iterations"] = so.iterations
+    rot = [q for q in so.rotation_rayleigh if np.isfinite(q)]
+    if rot:  # the rotations stay in the check; their least Rayleigh quotient on T beside it (mu_ref)
+        extra["rotation_rayleigh"] = float(min(rot))
     result = _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue,
                             second_order_excluded=so.excluded, **extra)
     if so.lowest_mode is None:

@@ -46,3 +46,58 @@ def test_rayleigh_ritz_start_is_the_lowest_ritz_pairs_of_the_block():
     ritz = np.linalg.eigvalsh(B.T @ A @ B)[:3]
     # the same Ritz values from a dense reference (round-off of 200 x 200 products)
     assert np.allclose(np.sort(np.einsum("ij,jk,ik->i", X, A, X)), ritz, atol=1e-10)
+
+
+def test_running_past_convergence_stays_in_the_subspace_and_above_the_spectrum():
+    """No stop rule at all: the iteration must end at its own attainable floor (``FLOOR`` eps ||A||
+    sqrt(N)), long before the cap, with orthonormal vectors in {Q u = 0} and every Ritz value of the
+    history at or above the least eigenvalue (exact Rayleigh-Ritz cannot go below it; the old
+    iteration, under OpenBLAS's Haswell kernel, reached -5.9e3 against -2)."""
+    A, Q, ref = _problem()
+    diag = np.diag(A).copy()
+    X0 = np.random.default_rng(2).standard_normal((3, A.shape[0]))
+    out = block_eig.lobpcg(lambda U: U @ A, lambda R: R / np.maximum(np.abs(diag), 1.0), X0, Q, 2000,
+                           lambda th, res: False)
+    assert out.iterations < 400, out.iterations  # measured 170-181 under five kernels: the floor ends it
+    assert out.reason == ""
+    assert np.all(out.residuals <= 2 * out.floor)  # ended at the floor (measured 1.9e-12 <= 2.1e-12)
+    theta0 = np.array([h[0] for h in out.history])
+    assert theta0.min() >= ref[0] - 1e-12  # round-off of the 400 x 400 Rayleigh quotients (~1e-14 measured)
+    assert np.abs(out.vectors @ Q.T).max() <= 1e-12
+    assert np.allclose(out.vectors @ out.vectors.T, np.eye(3), atol=1e-12)
+    # the error bounds hold against the dense reference (and are not vacuous: at most the floor)
+    assert np.all(np.abs(out.values - ref[:3]) <= out.errors), (out.values - ref[:3], out.errors)
+    assert np.all(out.errors <= out.floor)
+
+
+def test_error_bounds_kato_temple_where_separated_residual_otherwise():
+    """``error_bounds`` against the closed forms: r^2 / gap for a separated value, (r_1^2 + r_2^2) /
+    gap for a cluster of overlapping intervals, r where the quadratic bound is larger or there is
+    no gap, r for the cluster at the top of the block (no neighbour above)."""
+    theta, res = np.array([0.0, 1.0, 1.001, 3.0]), np.array([1e-3, 1e-2, 1e-2, 1e-1])
+    err = block_eig.error_bounds(theta, res)
+    assert np.isclose(err[0], 1e-6 / (1.0 - 1e-2))  # gap to the next interval's lower end 0.99
+    # the cluster {1, 1.001}: gaps 1 - (0 + 1e-3) below, 3 - 0.1 - 1.001 above
+    assert np.allclose(err[1:3], 2e-4 / 0.999)
+    assert err[3] == 1e-1
+    err = block_eig.error_bounds(np.array([0.0, 0.5, 3.0]), np.array([0.3, 0.3, 0.1]))
+    assert np.allclose(err, [0.075, 0.075, 0.1])  # one cluster below the top one: 0.18 / 2.4 < 0.3 ...
+    err = block_eig.error_bounds(np.array([0.0, 0.5, 1.0]), np.array([0.3, 0.3, 0.1]))
+    assert np.allclose(err, [0.3, 0.3, 0.1])  # ... but here 0.18 / 0.4 > 0.3: r stays
+
+
+def test_kato_temple_bound_holds_on_a_diagonal_operator():
+    """A perturbed eigenvector of diag(0, 1, 2, ...): the Ritz value's true error is below the
+    Kato-Temple bound and far below the residual (its square over the gap)."""
+    n = 50
+    lam = np.arange(n, dtype=float)
+    rng = np.random.default_rng(5)
+    X = np.eye(n)[:2] + 1e-5 * rng.standard_normal((2, n))
+    X = np.linalg.qr(X.T)[0].T
+    AX = X * lam
+    theta, C = np.linalg.eigh(X @ AX.T)
+    X, AX = C.T @ X, C.T @ AX
+    res = np.linalg.norm(AX - theta[:, None] * X, axis=1)
+    err = block_eig.error_bounds(theta, res)
+    assert np.all(np.abs(theta - lam[:2]) <= err)
+    assert err[0] < 1e-2 * res[0]  # r^2 / gap with r ~ 2e-3 (lam up to 49), gap ~ 1: far below r

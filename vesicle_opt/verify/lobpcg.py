@@ -130,6 +130,7 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
     with threadpool_limits(limits=1, user_api="blas"):
         lev = level.setup(disc, pf, prec, translations, scene, phi, cB, ref, rotations)
         rayleigh = level.excluded_rayleigh(lev)
+        rotation = level.rotation_rayleigh(lev, phi) if not rotations else rayleigh[disc.dim:]
         lev.modes = None  # in Qall now; N x 6 less at the peak
         coarse, levels = [], {}
         rows = None if X0 is None else np.asarray(X0, float).reshape(phi.size, -1).T
@@ -144,17 +145,20 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
         since = [0]  # iterations since the verdict was first decided
 
         def stop(theta, res):
-            decided = V.classify(float(theta[0]), float(res[0]), rayleigh)[0] != "not checked"
+            err = block_eig.error_bounds(theta, res)
+            verdict = V.classify(float(theta[0]), float(err[0]), rayleigh)[0]
+            decided = verdict in ("minimum", "saddle")
             n_settled = settled(theta)
             since[0] += bool(decided or since[0])
             if decided and since[0] > DECIDED_EXTRA:
                 return True
-            return (decided and n_settled >= SETTLED_RUN) or bool(np.all(res <= tol))
+            # "marginal" does not end the level early: more iterations may still decide the sign
+            return (decided and n_settled >= SETTLED_RUN) or bool(np.all(err <= tol))
         out = block_eig.lobpcg(lev.a_u, lev.t_u, start.pop(), lev.Qall, max_iter, stop, overwrite=True)
-    return {"eigenvalues": out.values, "errors": out.residuals, "vectors": lev.rows_to_nodal(out.vectors).T,
+    return {"eigenvalues": out.values, "errors": out.errors, "vectors": lev.rows_to_nodal(out.vectors).T,
             "excluded": lev.excluded, "excluded_rayleigh": rayleigh, "mu_ref": ref,
             "iterations": out.iterations, "coarse_iterations": tuple(coarse), "history": out.history,
-            "levels": levels}
+            "levels": levels, "residuals": out.residuals, "failure": out.reason, "rotation_rayleigh": rotation}
 
 
 def reduced_hessian_eigenvalues(scene, result, setup, k: int = K, rotations: bool = False,
@@ -169,14 +173,15 @@ def reduced_hessian_eigenvalues(scene, result, setup, k: int = K, rotations: boo
     return sp["eigenvalues"], sp["errors"]
 
 
-def check(scene, result, setup, rotations: bool = True, **kw) -> SecondOrder:
-    """The verdict of ``verify.verdict.classify`` on the matrix-free spectrum; on Fourier grids the
-    rotations are excluded by default (the translations always), as the front door does.
+def check(scene, result, setup, rotations: bool = False, **kw) -> SecondOrder:
+    """The verdict of ``verify.verdict.classify`` on the matrix-free spectrum; the translations are
+    excluded on periodic grids, the rotations only where ``rotations`` asks (the front door never:
+    ``verdict.excludes_rotations``; studies compare both).
     ``lowest_mode`` holds the critical (least) eigenvector, M-normalised, for continuation."""
     return check_levels(scene, result, setup, rotations, **kw)[0]
 
 
-def check_levels(scene, result, setup, rotations: bool = True, **kw) -> tuple[SecondOrder, dict]:
+def check_levels(scene, result, setup, rotations: bool = False, **kw) -> tuple[SecondOrder, dict]:
     """``check`` and the coarse levels' eigenvectors (``spectrum``'s ``levels``; {} where the
     check broke down): pass them as ``warm`` to the check of a nearby point (a branch's next)."""
     try:
@@ -185,9 +190,9 @@ def check_levels(scene, result, setup, rotations: bool = True, **kw) -> tuple[Se
         nan = float("nan")
         return SecondOrder("not checked", nan, nan, (nan,), (), nan, f"lobpcg: {e}", errors=(nan,)), {}
     mu, err = float(sp["eigenvalues"][0]), float(sp["errors"][0])
-    verdict, reason = V.classify(mu, err, sp["excluded_rayleigh"])
+    verdict, reason = V.classify(mu, err, sp["excluded_rayleigh"], sp["failure"])
     so = SecondOrder(verdict, mu * sp["mu_ref"], mu, tuple(float(x) for x in sp["eigenvalues"]),
                      sp["excluded_rayleigh"], float(max(sp["errors"])), reason,
                      sp["vectors"][:, 0], excluded=sp["excluded"], errors=tuple(float(e) for e in sp["errors"]),
-                     iterations=sp["iterations"])
+                     iterations=sp["iterations"], rotation_rayleigh=tuple(sp["rotation_rayleigh"]))
     return so, sp["levels"]

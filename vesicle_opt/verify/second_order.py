@@ -8,12 +8,14 @@ H v = mu M v on T, over mu_ref) by shift-invert Lanczos on a bordered sparse sys
 mass: the Hessian reduced to phi with w = Delta_h phi through the NLP's own linear rows), and
 decides with ``verdict.classify``, the rule the matrix-free check (``verify.lobpcg``) uses too.
 
-Excluded modes (``SecondOrder.excluded``): on periodic grids the spectral translations d_i phi
-("translations"; near-null: exact in the continuum, soft on the grid), M-orthogonally
-projected out of T, their Rayleigh quotients on T reported and checked; nothing on other meshes.
-Rotations are not excluded here: the rotation mode is one of the reported eigenvalues (measured
-4.1e-3 mu_ref on the 64^2 ellipse, below the first shape mode 1.28), which the matrix-free check on
-Fourier grids removes (its least eigenvalue is then this check's second).
+Excluded modes (``SecondOrder.excluded``, ``verdict``'s docstring): on periodic grids the spectral
+translations d_i phi ("translations": the grid's whole-cell shifts are exact symmetries, d_i phi the
+tangent of the interpolant's shifts through them), M-orthogonally projected out of T, their Rayleigh
+quotients on T reported and checked; nothing on other meshes. Rotations are not excluded, here or
+in the matrix-free check: the rotation mode is one of the eigenvalues (measured 4.1e-3 mu_ref on the
+64^2 ellipse, below the first shape mode 1.28); the rotation generators' own quotients on T are
+reported (``rotation_rayleigh``). Error bounds: the residual norm on T, or Kato-Temple where the
+next eigenvalue is separated (``block_eig.error_bounds``).
 The Hessian comes from the NLP's CasADi graph (the same one IPOPT used); the KKT residual it
 relies on is checked independently in ``verify.kkt``.
 """
@@ -27,9 +29,11 @@ import scipy.sparse.linalg as spla
 from vesicle_opt.mesh.spectral import FourierGrid
 from vesicle_opt.model import functionals as F
 from vesicle_opt.verify import verdict as V
+from vesicle_opt.verify.block_eig import EPS, error_bounds
 from vesicle_opt.verify.verdict import SecondOrder
 
 N_EIG = 6
+POWER_STEPS = 20  # power steps for the norm in the round-off floor (``_floor``)
 MAX_SHIFTS = 4  # shift-invert passes: one at a minimum, two at the saddles seen here (p1 32^2: -8.7, then -9.9)
 
 
@@ -73,6 +77,21 @@ def _tangent_projector(C, solve_mass):
     def coef(y):
         return np.linalg.solve(G.T, np.linalg.solve(G, y))
     return (lambda v: v - MC @ coef(C.T @ v)), (lambda r: r - C @ coef(MC.T @ r))
+
+
+def _floor(reduced, Mphi, solve_mass, n: int, steps: int = POWER_STEPS) -> float:
+    """The round-off floor of a Rayleigh quotient of the reduced Hessian in the mass metric, eps
+    ||M^{-1} H|| (a backward-stable product's relative error), the norm by a few power steps (a
+    lower estimate of the largest |eigenvalue|, within a small factor after ``POWER_STEPS``): no
+    error bound is reported below it (Kato-Temple's r^2 / gap can be)."""
+    v = np.random.default_rng(0).standard_normal(n)
+    lam = 0.0
+    for _ in range(steps):
+        v /= np.sqrt(v @ (Mphi @ v))
+        w = solve_mass(reduced(v))
+        lam = float(np.sqrt(w @ (Mphi @ w)))
+        v = w
+    return EPS * lam
 
 
 def check(nlp, result, n_eig: int = N_EIG) -> SecondOrder:
@@ -124,18 +143,27 @@ def check(nlp, result, n_eig: int = N_EIG) -> SecondOrder:
     def m_norm_inv(r):  # sqrt(r^T M^{-1} r)
         return float(np.sqrt(max(r @ disc.solve_mass(r), 0.0)))
 
-    errors = []
+    res = []
     for i in range(len(mu)):  # residual of each pair on T in the M^{-1} norm: its eigenvalue error bound
         v = Vec[:, i]
         r = on_t(reduced(v) - mu[i] * (Mphi @ v))
-        errors.append(m_norm_inv(r) / (np.sqrt(v @ (Mphi @ v)) * mu_ref))
+        res.append(m_norm_inv(r) / (np.sqrt(v @ (Mphi @ v)) * mu_ref))
+    floor = _floor(reduced, Mphi, disc.solve_mass, n) / mu_ref
+    errors = list(np.maximum(error_bounds(mu / mu_ref, np.maximum(res, floor)), floor))
     onto_ab, _ = _tangent_projector(C_ab, disc.solve_mass)
-    rayleigh = []
-    for t in trans:  # each excluded mode, M-orthogonally onto {dA.v = dB.v = 0}
+
+    def rayleigh_of(t):  # a direction M-orthogonally onto {dA.v = dB.v = 0}; nan where it vanishes there
         u = onto_ab(t)
-        rayleigh.append(float((u @ reduced(u)) / (u @ (Mphi @ u)) / mu_ref))
+        if not np.linalg.norm(u) > 1e-8 * np.abs(t).max() * np.sqrt(t.size):
+            return float("nan")
+        return float((u @ reduced(u)) / (u @ (Mphi @ u)) / mu_ref)
+    rayleigh = [rayleigh_of(t) for t in trans]  # each excluded mode
+    x = np.asarray(disc.nodes, float)
+    pairs = (((1, 2), (2, 0), (0, 1)) if disc.dim == 3 else ((0, 1),)) if trans else ()
+    rotation = tuple(rayleigh_of(x[:, i] * trans[j] - x[:, j] * trans[i]) for i, j in pairs)
     rel = float(mu[0] / mu_ref)
     verdict, reason = V.classify(rel, errors[0], rayleigh)
     return SecondOrder(verdict, float(mu[0]), rel, tuple(float(m / mu_ref) for m in mu), tuple(rayleigh),
                        float(max(errors)), reason, Vec[:, 0] / np.sqrt(Vec[:, 0] @ (Mphi @ Vec[:, 0])),
-                       excluded=V.TRANSLATIONS if trans else V.NONE, errors=tuple(float(e) for e in errors))
+                       excluded=V.TRANSLATIONS if trans else V.NONE, errors=tuple(float(e) for e in errors),
+                       rotation_rayleigh=rotation)

@@ -2,8 +2,7 @@
 
 The quantity: the smallest eigenvalue mu_min of the Hessian of the Lagrangian H on the tangent space
 T = {v : dA.v = 0, dB.v = 0} in the L2 (mass) metric, H v = mu M v on T, with the excluded symmetry
-modes (``SecondOrder.excluded``: none, translations, or translations and rotations) M-orthogonally
-removed from T as well, reported as mu_min / mu_ref with
+modes (``SecondOrder.excluded``) M-orthogonally removed from T as well, reported as mu_min / mu_ref with
 
     mu_ref = rigidity * E_ref / (eps |Gamma|)   (``mu_ref``),
 
@@ -11,19 +10,34 @@ the Hessian's scale on an interface mode (E_ref: the sharp circle/sphere energy 
 |Gamma| = 3 sqrt2 beta / 4). ``verify.second_order`` (assembled, shift-invert Lanczos) and
 ``verify.lobpcg`` (matrix-free LOBPCG) compute this same number.
 
+Excluded modes (``excluded_modes``): only the discrete problem's null modes. On periodic grids the
+translations d_i phi ("translations"): the discrete energy is exactly invariant under shifts by
+whole cells, and d_i phi is the tangent of the trigonometric interpolant's shifts through them
+(their Rayleigh quotients on T are reported and still enter the rule). Rotations are never excluded:
+no grid in a periodic box is invariant under them, so the rotation generator is a soft mode at
+best, and projecting it out can remove a real descent direction (the FD 48^2 ellipse: -0.0195 mu_ref
+with it kept, +1.09 without). Their quotients are reported beside the verdict (``rotation_rayleigh``).
+Mirror grids keep their class (``MIRROR_CLASS``).
+
 The rule (``classify``), with mu = mu_min / mu_ref the least Rayleigh quotient found on T (a Ritz
-value) and err a bound on its distance to an eigenvalue, in the same unit (the M^{-1}-norm of the
-pair's residual on T for an M-normalised vector; Bauer-Fike for symmetric pencils):
+value, computed from exact products) and err a bound on its distance to an eigenvalue, in the same
+unit (``block_eig.error_bounds``: the M^{-1}-norm of the pair's residual on T, Kato-Temple's
+r^2 / gap where the next Ritz value is separated), so that the least eigenvalue lies in
+[mu - err, mu] when the solver found the least pair (Ritz values lie above the eigenvalues):
 
-    "saddle"       mu < -TOL_REL, or an excluded mode's Rayleigh quotient on T is < -TOL_REL: a
-                   tangent direction of negative curvature, so the least eigenvalue is below
-                   -TOL_REL (Courant-Fischer; no error bound needed);
-    "minimum"      mu - err >= -TOL_REL: the least eigenvalue lies in [mu - err, mu] when mu
-                   approximates it (Ritz values lie above the eigenvalues they approximate);
-    "not checked"  otherwise (-TOL_REL <= mu < err - TOL_REL: undecided), or no check ran.
+    "saddle"       mu < -TOL_REL, or an excluded mode's Rayleigh quotient on T is < -TOL_REL: an
+                   explicit tangent direction of negative curvature (Courant-Fischer), the least
+                   eigenvalue in [mu - err, mu] (the reason says so);
+    "minimum"      mu - err >= TOL_REL: the least eigenvalue is positive beyond its error bound;
+    "marginal"     -TOL_REL <= mu and mu - err < TOL_REL with err <= MARGINAL_ERR: the least
+                   eigenvalue is zero within its error bound (a flat direction: a nearly free
+                   rotation in a periodic box, a bifurcation): neither a strict minimum nor a saddle
+                   that the check can show;
+    "not checked"  otherwise (undecided: err too large to tell), the eigensolver's own check failed
+                   (``failure``), or no check ran; the reason says which.
 
-"saddle" is backed by an explicit direction, "minimum" is a numerical verdict: it trusts the
-eigensolver to have found the least eigenvalue (a few eigenvalues, shift-invert or LOBPCG).
+"saddle" is backed by an explicit direction, "minimum" and "marginal" are numerical verdicts: they
+trust the eigensolver to have found the least eigenvalue (a few eigenvalues, shift-invert or LOBPCG).
 """
 
 from __future__ import annotations
@@ -39,6 +53,9 @@ TOL_REL = 1e-6  # least eigenvalues measured: saddles -3.2 (FD 64^2), -9.9 (P1 3
 # test_penalty); minima +0.17 (P1 41^2), +0.14 (torus 32^3) and the soft rotation mode where kept,
 # +4.1e-3 (FD 64^2), +3.4e-4 (torus 32^3): negative means below -1e-6, far from all of them and far
 # above the assembled check's error bounds (~1e-11)
+MARGINAL_ERR = 1e-3  # "marginal" needs an error bound below this (mu_ref units): a thousandth of the
+# Hessian's scale on an interface mode, below every soft mode measured but the grid's rotations
+# (shape modes >= 0.14, FD rotation 4.1e-3); wider bounds say nothing about the sign: undecided
 NONE, TRANSLATIONS, TRANSLATIONS_ROTATIONS = "none", "translations", "translations, rotations"
 # mirror grids (``mesh.cosine``, spectral with natural boundaries): the check sees only perturbations
 # symmetric in every coordinate plane, so its "minimum" is a minimum within that class, no more
@@ -49,7 +66,7 @@ MIRROR_CLASS = "all but mirror-symmetric perturbations (mirror grid: minimum wit
 class SecondOrder:
     """What either check found (eigenvalues in mu_ref units unless said otherwise)."""
 
-    verdict: str  # "minimum" | "saddle" | "not checked" (``classify``)
+    verdict: str  # "minimum" | "saddle" | "marginal" | "not checked" (``classify``)
     min_eigenvalue: float  # smallest mu on T minus the excluded modes, physical units
     relative_min_eigenvalue: float  # mu_min / mu_ref: extra["second_order_min_eigenvalue"]
     eigenvalues: tuple[float, ...]  # the smallest few, ascending
@@ -60,6 +77,8 @@ class SecondOrder:
     excluded: str = NONE  # extra["second_order_excluded"]: which symmetry modes were removed from T
     errors: tuple[float, ...] = ()  # error bound of each eigenvalue (residual on T, M^{-1} norm)
     iterations: int | None = None  # the eigensolver's iterations (LOBPCG)
+    rotation_rayleigh: tuple[float, ...] = ()  # the rotation generators' Rayleigh quotients on T (mu_ref
+    # units; a report only: rotations stay in the check), extra["rotation_rayleigh"] holds the least
 
 
 def mu_ref(rigidity: float, epsilon: float, beta: float, dim: int) -> float:
@@ -68,18 +87,26 @@ def mu_ref(rigidity: float, epsilon: float, beta: float, dim: int) -> float:
 
 
 def excludes_rotations(scene) -> bool:
-    """Whether the check of ``scene`` removes the rotations with the translations: on grids (FD,
-    Fourier, cosine) they are the continuum's symmetries; a P1 scene keeps the P1 report,
-    translations only, also where its tensor box runs on FFT (``second_order_excluded`` says which)."""
-    return scene.mesh.kind != "fem-p1"
+    """Whether the check of ``scene`` removes the rotations with the translations: nowhere (module
+    docstring, excluded modes). Kept as the one place that says so; the callers pass it on."""
+    return False
 
 
-def classify(mu: float, err: float, excluded_rayleigh=()) -> tuple[str, str]:
-    """(verdict, reason) for mu = mu_min / mu_ref with error bound err (module docstring)."""
+def classify(mu: float, err: float, excluded_rayleigh=(), failure: str = "") -> tuple[str, str]:
+    """(verdict, reason) for mu = mu_min / mu_ref with error bound err (module docstring);
+    ``failure``: why the eigensolver's result cannot be trusted ('' where it can)."""
+    if failure:
+        return "not checked", f"undecided: {failure}"
     if not (math.isfinite(mu) and math.isfinite(err)):
-        return "not checked", "no finite eigenvalue"
-    if mu < -TOL_REL or any(q < -TOL_REL for q in excluded_rayleigh):
-        return "saddle", ""
-    if mu - err >= -TOL_REL:
+        return "not checked", "undecided: no finite eigenvalue or error bound"
+    bound = f"mu_min/mu_ref = {mu:.3g} with error bound {err:.2g}"
+    if mu < -TOL_REL:
+        return "saddle", f"least eigenvalue in [{mu - err:.3g}, {mu:.3g}] mu_ref"
+    bad = [q for q in excluded_rayleigh if q < -TOL_REL]
+    if bad:
+        return "saddle", f"an excluded mode's Rayleigh quotient {min(bad):.3g} mu_ref < 0"
+    if mu - err >= TOL_REL:
         return "minimum", ""
-    return "not checked", f"undecided: mu_min/mu_ref = {mu:.3g} with error bound {err:.2g}"
+    if err <= MARGINAL_ERR:
+        return "marginal", f"least eigenvalue zero within its error bound: {bound}"
+    return "not checked", f"undecided: {bound}"
