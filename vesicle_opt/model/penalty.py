@@ -16,6 +16,8 @@ the penalty cannot be pushed to M -> infinity).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from vesicle_opt.model import functionals as F
@@ -65,25 +67,34 @@ def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) 
 
 
 def roundoff_floor(disc, phi, epsilon: float, C: float, rigidity: float, lam: tuple[float, float],
-                   M: tuple[float, float], grads=None) -> float:
+                   M: tuple[float, float], grads=None, norm=None) -> float:
     """Least relative stationarity residual (verify.kkt) that double precision permits at penalty M.
-    ``grads``: (dE, dA, dB) of ``functionals.gradients`` at phi, when the caller has them.
+    ``grads``: (dE, dA, dB) of ``functionals.gradients`` at phi, when the caller has them; ``norm``:
+    the norm of the residual (default the L2 one, ``disc.dual_norm``; the certificate's is the natural
+    norm of ``model.metric``, in which the same law holds with that norm's |dA|, |dB|).
 
     The estimates lambda = mu - M (A - alpha) inherit the evaluation error of A and B inside the
     NLP (CasADi sums N nodal terms in order: error ~ sqrt(N) u_mach sum|terms|), multiplied by M:
-    the floor is sqrt(N) M u (S_A |dA|_* + S_B |dB|_*) / (|rig dE|_* + |lambda_A dA|_* + |lambda_B dB|_*),
+    the floor is sqrt(N) M u (S_A |dA| + S_B |dB|) / (|rig dE| + |lambda_A dA| + |lambda_B dB|),
     S_A = sum |m_i phi_i|, S_B = B. (Measured on ellipse-2d 32^2 - 128^2, M = 1e4 ... 1e10: the
-    residuals sit at 0.05 - 2x of it.) It is why the penalty cannot be pushed to M -> inf: a stage
-    whose floor reaches tol cannot be certified and is reported as not converged, with this reason.
+    L2 residuals sit at 0.05 - 2x of it.) It is why the penalty cannot be pushed to M -> inf: a stage
+    whose floor reaches tol cannot be certified and is reported as not converged, with this reason;
+    it is linear in M, so ``certifiable_M`` is the largest M a stage can be certified at.
     """
     dE, dA, dB = F.gradients(disc, phi, epsilon, C) if grads is None else grads
+    norm = disc.dual_norm if norm is None else norm
     u = np.finfo(float).eps
     S_A = float(np.sum(np.abs(disc.weights * phi)))
     S_B = float(F.area_functional(F.NumpyOps(disc), phi, epsilon))
-    scale = (disc.dual_norm(rigidity * dE) + abs(lam[0]) * disc.dual_norm(dA)
-             + abs(lam[1]) * disc.dual_norm(dB))
-    num = np.sqrt(phi.size) * u * (M[0] * S_A * disc.dual_norm(dA) + M[1] * S_B * disc.dual_norm(dB))
+    scale = rigidity * norm(dE) + abs(lam[0]) * norm(dA) + abs(lam[1]) * norm(dB)
+    num = np.sqrt(phi.size) * u * (M[0] * S_A * norm(dA) + M[1] * S_B * norm(dB))
     return float(num / max(scale, np.finfo(float).tiny))
+
+
+def certifiable_M(floor: float, M: float, tol: float, margin: float = 2.0) -> float:
+    """The M at which a penalty floor ``floor`` measured at ``M`` reaches tol / margin: the floor is
+    linear in M (``roundoff_floor``), so M tol / (margin floor) (inf for a zero floor)."""
+    return math.inf if not floor > 0 else M * tol / (margin * floor)
 
 
 def schedule(M0: float, factor: float, M_max: float) -> list[float]:

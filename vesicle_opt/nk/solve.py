@@ -394,7 +394,7 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
             exact_constraints=method in ("exact", "augmented"), floor=floor,
             iterations=iterations, wall_time_s=wall_s, derivative_time_s=deriv_s, history=history,
             extra={"backend": "newton-krylov", "mesh_kind": disc.kind, "discretization_path": path,
-                   "kkt_dual": float(st.dual),
+                   "kkt_dual_solver": float(st.dual),  # its own stopping test; build_result recomputes kkt_dual
                    "kkt_l2_floor": floor, **(extra or {})})
 
     cnt.history["dual_model"] = W  # (W, rho, rho of W) of the last dual Newton step ('exact'; None: none)
