@@ -101,6 +101,18 @@ def certify(*, solver_status: str, solver_success: bool, finite: bool, tol: floa
     return Certificate(True, Status.CONVERGED, None)
 
 
+def dual_floor_of(disc, phi, epsilon: float, C: float, rigidity: float, lam, M=None, grads=None) -> float:
+    """The floor ``build_result`` certifies against (``kkt_dual_floor``): the round-off of phi in
+    the natural norm, and at a penalty M the larger multiplier floor ``model.penalty.roundoff_floor``
+    in that norm. Solvers call it to plan stages (``model.penalty.next_stage``)."""
+    grads = F.gradients(disc, phi, epsilon, C) if grads is None else grads
+    floor = kkt_dual(disc, phi, epsilon, C, rigidity, lam[0], lam[1], grads=grads)[1]
+    if M is not None:
+        floor = max(floor, roundoff_floor(disc, phi, epsilon, C, rigidity, lam, M, grads=grads,
+                                          norm=natural_metric(disc, epsilon).dual_norm))
+    return floor
+
+
 def _physical(disc, A: float, B: float, energy: float, rigidity: float) -> dict[str, float]:
     """volume, area, reduced_volume and reduced_energy of the field (geometry: sphere/circle = 1)."""
     out = geometry.physical(A, B, disc.dim, disc.volume)
@@ -137,11 +149,10 @@ def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol
     if finite:
         grads = F.gradients(disc, phi, eps, C)  # once, for the residuals and the penalty's floors
         kkt = kkt_residual(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)
-        dual, dual_floor = kkt_dual(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)
+        dual = kkt_dual(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)[0]
+        dual_floor = dual_floor_of(disc, phi, eps, C, rig, (lam_A, lam_B), M, grads)
         if M is not None:
             floor = max(floor, roundoff_floor(disc, phi, eps, C, rig, (lam_A, lam_B), M, grads=grads))
-            dual_floor = max(dual_floor, roundoff_floor(disc, phi, eps, C, rig, (lam_A, lam_B), M, grads=grads,
-                                                        norm=natural_metric(disc, eps).dual_norm))
     else:
         kkt, floor, dual, dual_floor = np.nan, np.inf, np.nan, np.inf
     exact_constraints = (M is None) if exact_constraints is None else exact_constraints
