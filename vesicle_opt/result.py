@@ -123,6 +123,15 @@ def stage_record(r: Result) -> dict:
             "status": r.status, "converged": r.converged}
 
 
+def polish_keys(r: Result) -> dict:
+    """The ``polish_*`` summary keys of a continuation's augmented polish stage."""
+    return {"polish": "augmented", "polish_converged": bool(r.converged), "polish_outcome": str(r.outcome),
+            "polish_energy": r.energy, "polish_lambda_volume": r.lambda_volume, "polish_lambda_area": r.lambda_area,
+            "polish_volume_residual": r.volume_residual, "polish_area_residual": r.area_residual,
+            "polish_kkt_dual": r.extra.get("kkt_dual"), "polish_iterations": r.iterations,
+            "polish_wall_time_s": r.wall_time_s}
+
+
 def combine_stages(last: Result, stages: list[Result], method: str, t_wall: float,
                    extra: dict | None = None, iterations: int | None = None,
                    derivative_time_s: float | None = None) -> Result:

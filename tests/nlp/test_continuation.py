@@ -33,7 +33,9 @@ def runs():
     nlp = _nlp("solver.M_max=1e6", n=N_REF)
     exact = solve(nlp.exact)
     assert exact.converged and exact.extra["second_order"] == "minimum"
-    cont = continuation(nlp)
+    # the law is studied past the certifiable M on purpose: the scene's own schedule stops where the
+    # next stage's floor would reach tol (test_default_schedule_stops_at_the_floor...)
+    cont = continuation(nlp, Ms=schedule(10, 10, 1e6))
     return nlp, exact, cont
 
 
@@ -86,6 +88,25 @@ def test_energy_is_bending_only_and_penalised_energy_consistent(runs):
     assert r.extra["kkt_floor"] >= 1e-8 and not r.converged and r.outcome == Status.ROUNDOFF_FLOOR
     st = {s["M"]: s for s in cont.history["stages"]}
     assert st[1e2]["converged"] and st[1e3]["converged"]
+
+
+def test_default_schedule_stops_at_the_floor_and_extrapolates_to_exact(runs):
+    """Issue 25: without explicit M the schedule stops raising M where the next stage's floor (linear
+    in M) would reach tol, so the last stage is certified; Richardson's extrapolation in 1/M of the
+    stages and the augmented polish land on the exact solve."""
+    nlp, exact, _ = runs
+    r = continuation(nlp)
+    Ms = [st["M"] for st in r.history["stages"]]
+    assert r.converged, r.reason
+    # next_stage aims the last stage at floor = tol / 2 by the linear law; the law holds to the change
+    # of lambda between the stages (measured 5.0007e-9 at the aim 5e-9)
+    assert r.extra["kkt_dual_floor"] == pytest.approx(1e-8 / 2, rel=0.01)
+    assert Ms[-1] < 1e6 and Ms == sorted(Ms)  # stopped before M_max
+    # O(1/M^3) after eliminating a/M and b/M^2 (measured 6e-10 relative on 128^2, 64^2 here)
+    assert r.extra["energy_extrapolated"] == pytest.approx(exact.energy, rel=1e-8)
+    assert r.extra["lambda_volume_extrapolated"] == pytest.approx(exact.lambda_volume, rel=1e-5)  # O(1/M^3)
+    # the polish holds the constraints exactly: the exact solve's energy to both tolerances (1e-8)
+    assert r.extra["polish_converged"] and r.extra["polish_energy"] == pytest.approx(exact.energy, rel=1e-8)
 
 
 def test_warm_starts_save_iterations():

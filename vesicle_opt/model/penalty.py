@@ -16,6 +16,8 @@ the penalty cannot be pushed to M -> infinity).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from vesicle_opt.model import functionals as F
@@ -65,25 +67,34 @@ def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) 
 
 
 def roundoff_floor(disc, phi, epsilon: float, C: float, rigidity: float, lam: tuple[float, float],
-                   M: tuple[float, float], grads=None) -> float:
+                   M: tuple[float, float], grads=None, norm=None) -> float:
     """Least relative stationarity residual (verify.kkt) that double precision permits at penalty M.
-    ``grads``: (dE, dA, dB) of ``functionals.gradients`` at phi, when the caller has them.
+    ``grads``: (dE, dA, dB) of ``functionals.gradients`` at phi, when the caller has them; ``norm``:
+    the norm of the residual (default the L2 one, ``disc.dual_norm``; the certificate's is the natural
+    norm of ``model.metric``, in which the same law holds with that norm's |dA|, |dB|).
 
     The estimates lambda = mu - M (A - alpha) inherit the evaluation error of A and B inside the
     NLP (CasADi sums N nodal terms in order: error ~ sqrt(N) u_mach sum|terms|), multiplied by M:
-    the floor is sqrt(N) M u (S_A |dA|_* + S_B |dB|_*) / (|rig dE|_* + |lambda_A dA|_* + |lambda_B dB|_*),
+    the floor is sqrt(N) M u (S_A |dA| + S_B |dB|) / (|rig dE| + |lambda_A dA| + |lambda_B dB|),
     S_A = sum |m_i phi_i|, S_B = B. (Measured on ellipse-2d 32^2 - 128^2, M = 1e4 ... 1e10: the
-    residuals sit at 0.05 - 2x of it.) It is why the penalty cannot be pushed to M -> inf: a stage
-    whose floor reaches tol cannot be certified and is reported as not converged, with this reason.
+    L2 residuals sit at 0.05 - 2x of it.) It is why the penalty cannot be pushed to M -> inf: a stage
+    whose floor reaches tol cannot be certified and is reported as not converged, with this reason;
+    it is linear in M, so ``certifiable_M`` is the largest M a stage can be certified at.
     """
     dE, dA, dB = F.gradients(disc, phi, epsilon, C) if grads is None else grads
+    norm = disc.dual_norm if norm is None else norm
     u = np.finfo(float).eps
     S_A = float(np.sum(np.abs(disc.weights * phi)))
     S_B = float(F.area_functional(F.NumpyOps(disc), phi, epsilon))
-    scale = (disc.dual_norm(rigidity * dE) + abs(lam[0]) * disc.dual_norm(dA)
-             + abs(lam[1]) * disc.dual_norm(dB))
-    num = np.sqrt(phi.size) * u * (M[0] * S_A * disc.dual_norm(dA) + M[1] * S_B * disc.dual_norm(dB))
+    scale = rigidity * norm(dE) + abs(lam[0]) * norm(dA) + abs(lam[1]) * norm(dB)
+    num = np.sqrt(phi.size) * u * (M[0] * S_A * norm(dA) + M[1] * S_B * norm(dB))
     return float(num / max(scale, np.finfo(float).tiny))
+
+
+def certifiable_M(floor: float, M: float, tol: float, margin: float = 2.0) -> float:
+    """The M at which a penalty floor ``floor`` measured at ``M`` reaches tol / margin: the floor is
+    linear in M (``roundoff_floor``), so M tol / (margin floor) (inf for a zero floor)."""
+    return math.inf if not floor > 0 else M * tol / (margin * floor)
 
 
 def schedule(M0: float, factor: float, M_max: float) -> list[float]:
@@ -94,3 +105,91 @@ def schedule(M0: float, factor: float, M_max: float) -> list[float]:
     if Ms[-1] < M_max:
         Ms.append(float(M_max))
     return Ms
+
+
+def next_stage(Ms: list[float], k: int, floor: float, tol: float, margin: float = 2.0) -> float | None:
+    """The M of the stage after stage k of the schedule ``Ms`` (its floor ``floor`` at Ms[k]), or None
+    to stop: the schedule stops raising M where the next stage's floor, linear in M
+    (``roundoff_floor``), would reach tol / margin. Where the next M of the schedule is beyond that
+    but the certifiable M (``certifiable_M``) is at least 1.5 Ms[k], a last stage runs there."""
+    if k + 1 >= len(Ms):
+        return None
+    cap = certifiable_M(floor, Ms[k], tol, margin)
+    if Ms[k + 1] <= cap:
+        return Ms[k + 1]
+    return float(cap) if cap >= 1.5 * Ms[k] else None
+
+
+def richardson(Ms, values, order: int) -> float:
+    """The value at 1/M = 0 of the polynomial of degree ``order`` in 1/M through the last
+    order + 1 points (M_i, v_i): Richardson's extrapolation of Theorem 3.2's expansion
+    v(M) = v* + a/M + b/M^2 + ... (order 1: (M2 v2 - M1 v1) / (M2 - M1))."""
+    x = 1.0 / np.asarray(Ms[-(order + 1):], float)
+    v = np.asarray(values[-(order + 1):], float)
+    total = 0.0
+    for i in range(order + 1):
+        w = np.prod([x[j] / (x[j] - x[i]) for j in range(order + 1) if j != i])
+        total += w * v[i]
+    return float(total)
+
+
+def extrapolation(stages: list[dict]) -> dict:
+    """Theorem 3.2's O(1/M) law from the certified stages of a continuation (``history['stages']``
+    records, M increasing): energy and multipliers extrapolated to M = inf by ``richardson`` of the
+    highest order the stages allow (at most 2, from the last three), and the change from one order
+    less as an error estimate (``energy_extrapolation_error``). Empty with fewer than two stages."""
+    good = [s for s in stages if s.get("converged") and s.get("M")]
+    if len(good) < 2:
+        return {}
+    order = min(2, len(good) - 1)
+    Ms = [s["M"] for s in good]
+    out = {"extrapolation_order": order, "extrapolation_M": " ".join(f"{M:.6g}" for M in Ms[-(order + 1):])}
+    for key in ("energy", "lambda_volume", "lambda_area"):
+        vals = [s[key] for s in good]
+        out[f"{key}_extrapolated"] = richardson(Ms, vals, order)
+        if key == "energy":
+            out["energy_extrapolation_error"] = abs(out["energy_extrapolated"] - richardson(Ms, vals, order - 1)) \
+                if order > 1 else float("nan")
+    return out
+
+
+class DualSecant:
+    """The augmented Lagrangian's multiplier update: Broyden's secant method on c(mu) = 0, where
+    c = (A - alpha, B - beta) at the minimiser of E_{M,h} - mu . c. Its Jacobian starts as I / M,
+    which makes the first step the classical first-order update mu <- mu - M c = lambda (linear
+    convergence, rate ~ 1 / (1 + M w), w the dual curvature); each later stage corrects it with the
+    secant pair (delta mu, delta c), so on this 2 x 2 system the steps become Newton's on the dual
+    (``nk.solve``'s exact loop takes that step with an assembled W = G^T H^-1 G; here nothing but the
+    stages' own (mu, c) is needed). A new M restarts it at I / M (c(mu) changes with M)."""
+
+    def __init__(self):
+        self.J = None
+        self.last = None  # (mu, c, M) of the previous stage
+
+    def step(self, mu, c, M: float) -> np.ndarray:
+        mu, c = np.asarray(mu, float), np.asarray(c, float)
+        if self.last is not None and self.last[2] == M and self.J is not None:
+            dmu, dc = mu - self.last[0], c - self.last[1]
+            if float(dmu @ dmu) > 0:
+                self.J = self.J + np.outer(dc - self.J @ dmu, dmu) / float(dmu @ dmu)
+        else:
+            self.J = np.eye(2) / M
+        self.last = (mu, c, M)
+        try:
+            new = mu - np.linalg.solve(self.J, c)
+        except np.linalg.LinAlgError:
+            new = np.array([np.nan])
+        if not np.all(np.isfinite(new)):  # a singular secant: the first-order step, and start over
+            self.J = np.eye(2) / M
+            new = mu - M * c
+        return new
+
+
+def raise_M(M: float, res, prev, floor: float, tol: float, factor: float, M_max: float) -> float:
+    """The augmented Lagrangian's penalty for the next stage: x ``factor`` (to M_max) when a relative
+    residual did not drop by ``AL_REDUCTION``, but never where the floor (linear in M) would reach
+    tol / 2; lowered to that certifiable M when the stage's own floor is already there."""
+    cap = certifiable_M(floor, M, tol)
+    if any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
+        M = min(M * factor, M_max)
+    return float(min(M, cap))

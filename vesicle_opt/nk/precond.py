@@ -40,45 +40,29 @@ In the bulk phi = +-1, so g'(phi) = -2/eps (c0 = 0) and J = eps Delta_h + g' ~ e
 ``dual_norm(v)`` = sqrt(v^T P0^{-1} v) with the fixed bending-only model P0 (cE = 1, cB = 0) is the
 mesh-independent stopping norm of the solver (the L2 norm of a gradient has a round-off floor of
 about eps_mach k_max^4; this one does not). With an approximate S^{-1} it is the norm of that fixed
-linear operator (Chebyshev), or of S^{-1} to ``AMG_TOL`` (pyamg).
+linear operator (Chebyshev), or of S^{-1} to ``AMG_TOL`` (pyamg). P0, S^{-1} and this norm are
+``model.metric``'s (the natural metric the certificate measures stationarity in, on every backend);
+the preconditioners here add the cB and rho_A terms.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-from vesicle_opt.model.lumped import bulk_shift, bulk_stiffness, bulk_symbol
+from vesicle_opt.model.metric import (AMG_MAXITER, AMG_TOL, CHEB_MAX_STEPS, CHEB_TOL, LU_MAX_NODES,  # noqa: F401
+                                      FourierMetric, SparseMetric, amg_solver, chebyshev_bounds,
+                                      chebyshev_inverse, chebyshev_steps)
 
 FLOOR = 0.1  # the model never drops below 10% of its (positive) bending part
-LU_MAX_NODES = {2: 100_000, 3: 0}  # exact S^{-1} by LU up to here; in 3D the LU fills in (24^3: 6 s
-# and 23 ms a solve against 5 ms for Chebyshev; 32^3: 91 s, 200 ms, 2.4 GB), so it never wins there
-CHEB_TOL = 1e-3  # spec(B S) within 1e-3 of 1: the same Newton / CG counts as 1e-6 (32^3: 17 / 392 vs
-# 17 / 389; 48^3 18 / 346 vs 18 / 345) and LU (16^3, 1e-6: 17 / 424 vs 17 / 426), 22% less time
-CHEB_MAX_STEPS = 150  # one pyamg-CG S^{-1} to AMG_TOL costs ~190 Chebyshev steps (measured at 32^3 and
-# 48^3: 66 vs 0.35 ms, 289 vs 1.25 ms), so the polynomial is used up to 150 steps (kappa ~ 430)
-AMG_TOL = 1e-10  # pyamg-CG on S to this relative residual: symmetric and mesh-symmetric to ~1e-10
-# (measured 3e-12, 7e-11 on a 32^2 mesh; three plain V-cycles, 3e-5, left the symmetric KKT point)
-AMG_MAXITER = 100  # ~6 CG iterations are needed at 32^3-48^3 (V-cycle contraction 0.01-0.05)
 
 
 class FourierPreconditioner:
     def __init__(self, fourier, m: float, epsilon: float):
-        self.f = fourier
-        self.m = float(m)
-        self.eps = float(epsilon)
-        self._q = bulk_symbol(fourier, self.eps)  # symbol of M_L^{-1} S
-        self._p0 = self.m / self.eps * self._q**2
-        self._p0_inv = 1.0 / self._p0
-        if not hasattr(fourier, "quadratic_form"):  # the rfft layout (mirror grids: ``dual_norm``)
-            # Parseval for rfft: interior half-spectrum columns count twice; one weight per real
-            # and imaginary part, so the dual norm is one pass over the spectrum's real view (einsum)
-            w = np.full(self._p0_inv.shape[-1], 2.0)
-            w[0] = 1.0
-            if fourier.shape[-1] % 2 == 0:
-                w[-1] = 1.0
-            self._dual_weights = np.repeat((w * self._p0_inv / fourier.size).ravel(), 2)
+        self.metric = FourierMetric(fourier, m, epsilon)
+        self.f, self.m, self.eps = fourier, self.metric.m, self.metric.eps
+        self._q = self.metric.q  # symbol of M_L^{-1} S
+        self._p0 = self.metric.p0
+        self._p0_inv = self.metric.p0_inv
 
     def symbol(self, cE: float, cB: float = 0.0, rho_A: float = 0.0) -> np.ndarray:
         bend = cE * self._p0
@@ -93,97 +77,21 @@ class FourierPreconditioner:
         return lambda r: self.f.apply_symbol(r, inv)
 
     def dual_norm(self, v: np.ndarray) -> float:
-        if hasattr(self.f, "quadratic_form"):  # mirror grids (mesh.cosine): orthonormal DCT, Parseval
-            return float(np.sqrt(max(self.f.quadratic_form(v, self._p0_inv), 0.0)))
-        re_im = self.f.fft(v).view(np.float64).ravel()
-        val = float(np.einsum("i,i,i->", re_im, re_im, self._dual_weights))
-        return float(np.sqrt(max(val, 0.0)))
-
-
-def chebyshev_bounds(K: sp.spmatrix, m: np.ndarray, epsilon: float) -> tuple[float, float]:
-    """[lo, hi] containing spec(M^{-1} S), S = eps K + (2/eps) M, M = diag(m): K >= 0 gives lo = 2/eps,
-    Gershgorin's discs of M^{-1} K give hi."""
-    lo = bulk_shift(epsilon)
-    row = np.asarray(abs(sp.csr_matrix(K)).sum(axis=1)).ravel()
-    return lo, lo + epsilon * float(np.max(row / m))
-
-
-def chebyshev_steps(lo: float, hi: float, tol: float) -> int:
-    """Steps after which |1 - lambda p(lambda)| <= 2 q^k <= tol on [lo, hi], q = (sqrt k - 1)/(sqrt k + 1)."""
-    kappa = hi / lo
-    if kappa <= 1 + 1e-12:
-        return 0
-    q = (np.sqrt(kappa) - 1) / (np.sqrt(kappa) + 1)
-    return int(np.ceil(np.log(tol / 2) / np.log(q)))
-
-
-def chebyshev_inverse(S: sp.csr_matrix, m: np.ndarray, lo: float, hi: float, steps: int):
-    """b -> p(M^{-1} S) M^{-1} b: ``steps`` Chebyshev iterations for S x = b from x = 0 with the
-    diagonal preconditioner M = diag(m), spec(M^{-1} S) in [lo, hi] (Saad, Iterative Methods,
-    Alg. 12.1). A fixed polynomial: linear, and symmetric as M^{-1} (S M^{-1})^j is."""
-    theta, delta = (hi + lo) / 2, (hi - lo) / 2
-    minv = 1.0 / np.asarray(m, float)
-
-    def apply(b: np.ndarray) -> np.ndarray:
-        r = np.array(b, float)
-        d = minv * r / theta
-        x = d.copy()
-        if steps == 0:
-            return x
-        sigma = theta / delta
-        rho = 1 / sigma
-        for _ in range(steps):
-            r -= S @ d
-            rho_new = 1 / (2 * sigma - rho)
-            d *= rho_new * rho
-            d += (2 * rho_new / delta) * (minv * r)
-            x += d
-            rho = rho_new
-        return x
-    return apply
-
-
-def _amg_solver(S: sp.csr_matrix):
-    """pyamg's smoothed aggregation; its setup estimates spectral radii from a random start
-    (np.random), seeded here (the global state restored) so that runs are reproducible: at saddles
-    of coarse meshes differences of 1e-10 in S^{-1} decide which KKT point the iterates reach."""
-    import pyamg
-    state = np.random.get_state()
-    np.random.seed(0)
-    try:
-        return pyamg.smoothed_aggregation_solver(S, symmetry="symmetric")
-    finally:
-        np.random.set_state(state)
+        return self.metric.dual_norm(v)
 
 
 class SparsePreconditioner:
     """The model above for P1 lumped meshes; ``kind`` (lu, chebyshev, pyamg) picks S^{-1}, by
-    default LU up to ``LU_MAX_NODES``, else Chebyshev up to ``CHEB_MAX_STEPS``, else pyamg-CG."""
+    default LU up to ``LU_MAX_NODES``, else Chebyshev up to ``CHEB_MAX_STEPS``, else pyamg-CG
+    (``model.metric.SparseMetric``)."""
 
-    def __init__(self, K: sp.spmatrix, m: np.ndarray, epsilon: float, dim: int = 2,
-                 kind: str | None = None):
-        self.m = np.asarray(m, float)
-        self.eps = float(epsilon)
-        S = bulk_stiffness(K, self.m, self.eps)
-        self.S = S
-        lo, hi = chebyshev_bounds(K, self.m, self.eps)
-        self.steps = chebyshev_steps(lo, hi, CHEB_TOL)
-        if kind is None:
-            kind = "lu" if S.shape[0] <= LU_MAX_NODES[dim] else \
-                "chebyshev" if self.steps <= CHEB_MAX_STEPS else "pyamg"
-        self.kind = kind
-        if kind == "lu":
-            self._S_inv = spla.splu(sp.csc_matrix(S)).solve
-        elif kind == "chebyshev":
-            self._S_inv = chebyshev_inverse(S, self.m, lo, hi, self.steps)
-        elif kind == "pyamg":
-            ml = _amg_solver(S)
-            self._S_inv = lambda r: ml.solve(r, tol=AMG_TOL, maxiter=AMG_MAXITER, accel="cg")
-        else:
-            raise ValueError(f"unknown S^-1 kind {kind!r}")
+    def __init__(self, K, m: np.ndarray, epsilon: float, dim: int = 2, kind: str | None = None):
+        self.metric = SparseMetric(K, m, epsilon, dim, kind)
+        self.m, self.eps, self.S = self.metric.m, self.metric.eps, self.metric.S
+        self.steps, self.kind, self._S_inv = self.metric.steps, self.metric.kind, self.metric.S_inv
 
     def _p0_inv(self, r: np.ndarray) -> np.ndarray:
-        return self.eps * self._S_inv(self.m * self._S_inv(r))
+        return self.metric.p0_inv(r)
 
     def inverse(self, cE: float, cB: float = 0.0, rho_A: float = 0.0):
         return lambda r: self._p0_inv(r) / cE
@@ -193,4 +101,4 @@ class SparsePreconditioner:
         return lambda v: cE / self.eps * (self.S @ ((self.S @ v) / self.m))
 
     def dual_norm(self, v: np.ndarray) -> float:
-        return float(np.sqrt(max(float(v @ self._p0_inv(v)), 0.0)))
+        return self.metric.dual_norm(v)

@@ -49,14 +49,14 @@ from threadpoolctl import threadpool_limits
 from vesicle_opt.io import progress
 from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.model.feasibility import check_feasible
-from vesicle_opt.model.penalty import AL_REDUCTION, schedule
+from vesicle_opt.model.penalty import AL_REDUCTION, DualSecant, extrapolation, next_stage, raise_M, schedule
 from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters, Objective, hessian_solves, newton_minimize
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import coarse_levels, discretization_path, prepare, resample
-from vesicle_opt.result import Result, combine_stages
+from vesicle_opt.result import Result, combine_stages, polish_keys, stage_record
 from vesicle_opt.scene.shapes import phase_field
-from vesicle_opt.verify.certify import build_result
+from vesicle_opt.verify.certify import build_result, dual_floor_of
 
 
 ROUNDOFF_STALL = "roundoff_stall"  # 'exact': the constraints held, the inner solves stalled at round-off
@@ -208,6 +208,7 @@ class Stage:
     newton: int
     wall_s: float
     deriv_s: float
+    polish: bool = False  # continuation's augmented polish (``penalty_stages``): certified with exact constraints
 
 
 def timed_stage(obj: Objective, solve_inner) -> tuple:
@@ -218,35 +219,62 @@ def timed_stage(obj: Objective, solve_inner) -> tuple:
 
 
 def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
-                   minimize=newton_minimize) -> list[Stage]:
+                   minimize=newton_minimize, floor=None) -> list[Stage]:
     """penalty (one M), continuation (the schedule M0 ... M_max, every stage warm-started from the
     last, as on IPOPT) or augmented (mu updates; stops at the first stage that converged and holds
     the constraints to tol, at most solver.max_outer stages). ``minimize``: the inner Newton-CG,
-    ``newton_cg.newton_minimize`` or ``nk_jax.newton.newton_minimize`` (the same loop on devices)."""
+    ``newton_cg.newton_minimize`` or ``nk_jax.newton.newton_minimize`` (the same loop on devices).
+
+    ``floor(pt, M)``: the certificate's floor of a stage (``verify.certify.dual_floor_of``). Given,
+    continuation stops raising M where the next stage's floor would reach tol
+    (``model.penalty.next_stage``) and ends on the augmented polish (a last Stage with ``polish``:
+    the multipliers extrapolated in 1/M as shifts, ``model.penalty.extrapolation``), and augmented
+    keeps M where its floor stays below tol (``model.penalty.raise_M``); as on IPOPT."""
     stages: list[Stage] = []
-    if method == "augmented":
-        M, mu, prev = float(s.M), np.zeros(2), (math.inf, math.inf)
-        plan = range(s.max_outer)
-    else:
-        plan = [s.M] if method == "penalty" else schedule(s.M0, s.M_factor, s.M_max)
-    for item in plan:
-        if method != "augmented":
-            M, mu = float(item), np.zeros(2)
-        obj.lam, obj.rho = mu.copy(), np.array([M, M], float)
+
+    def run(M, mu, polish=False):
+        obj.lam, obj.rho = np.asarray(mu, float).copy(), np.array([M, M], float)
         (pt, status), n, wall, deriv = timed_stage(
             obj, lambda: minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg))
-        stages.append(Stage(pt, status, (M, M), tuple(mu), None, pt.rel, n, wall, deriv))
-        if not np.all(np.isfinite(pt.phi)):
-            break
-        phi = pt.phi
-        if method == "augmented":
+        stages.append(Stage(pt, status, (M, M), tuple(mu), None, pt.rel, n, wall, deriv, polish))
+        return pt, status
+
+    if method == "augmented":
+        M, mu, prev, secant = float(s.M), np.zeros(2), (math.inf, math.inf), DualSecant()
+        for _ in range(s.max_outer):
+            pt, status = run(M, mu)
+            if not np.all(np.isfinite(pt.phi)):
+                break
+            phi = pt.phi
             res = (abs(pt.c[0]) / volume, abs(pt.c[1]) / abs(beta))
             if status == "converged" and res[0] <= tol and res[1] <= tol:
                 break
-            mu = mu - M * pt.c  # the first-order multiplier update
-            if any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
+            mu = secant.step(mu, pt.c, M)  # first step: lambda = mu - M c, then Broyden
+            M = M if floor is None else raise_M(M, res, prev, floor(pt, M), tol, s.M_factor, s.M_max)
+            if floor is None and any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
                 M = min(M * s.M_factor, s.M_max)
             prev = res
+        return stages
+    sched = [float(s.M)] if method == "penalty" else schedule(s.M0, s.M_factor, s.M_max)
+    i, M = 0, sched[0]
+    while M is not None:
+        pt, status = run(M, np.zeros(2))
+        if not np.all(np.isfinite(pt.phi)):
+            break
+        phi = pt.phi
+        nxt = (sched[i + 1] if i + 1 < len(sched) else None) if floor is None else \
+            next_stage(sched, i, floor(pt, M), tol)
+        if nxt is not None and i + 1 < len(sched) and nxt == sched[i + 1]:
+            i += 1
+        elif nxt is not None:
+            sched, i = [M, nxt], 0  # the last stage, at the certifiable M
+        M = nxt
+    if method == "continuation" and floor is not None and stages[-1].status == "converged":
+        ext = extrapolation([{"M": st.M[0], "energy": obj.rig * st.pt.st.E, "lambda_volume": st.pt.mu[0],
+                              "lambda_area": st.pt.mu[1], "converged": st.status == "converged"}
+                             for st in stages])
+        if ext:
+            run(stages[-1].M[0], (ext["lambda_volume_extrapolated"], ext["lambda_area_extrapolated"]), polish=True)
     return stages
 
 
@@ -261,7 +289,11 @@ def _run_level(scene, disc, phi, cnt, log, tol, opts, W=None, setup=None, lam0=N
             obj, lambda: _exact(obj, phi, tol, opts, disc.volume, beta, log, W, lam0, nearby))
         stages = [Stage(pt, status, None, (0.0, 0.0), lam, dual, n, wall, deriv)]
     else:
-        stages = penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta)
+        eps, C, rig = scene.model.epsilon, scene.model.C, scene.model.rigidity
+
+        def floor(pt, M):
+            return dual_floor_of(disc, pt.phi, eps, C, rig, tuple(pt.mu), (M, M), (pt.dE, pt.dA, pt.dB))
+        stages = penalty_stages(obj, phi, tol, opts, method, scene.solver, disc.volume, beta, floor=floor)
     return disc, stages, alpha, beta, W
 
 
@@ -305,11 +337,18 @@ def pack_run(pack, stages: list[Stage], method: str, cnt, log: list, level_log: 
               "fine_newton_iterations": level_log[-1]["newton"]}
     if method not in ("continuation", "augmented"):  # one stage: the run's totals are its counts
         return pack(stages[-1], cnt.newton, wall, cnt.deriv_time, hist, totals)
+    polish = [st for st in stages if st.polish]
+    stages = [st for st in stages if not st.polish]
     records = [pack(st, st.newton, st.wall_s, st.deriv_s) for st in stages[:-1]]
     st = stages[-1]
     records.append(pack(st, st.newton, st.wall_s, st.deriv_s, hist, totals))
     failed = sum(not r.success for r in records)
-    return combine_stages(records[-1], records, method, wall, {"failed_stages": failed},
+    info = {"failed_stages": failed}
+    if method == "continuation":
+        info.update(extrapolation([stage_record(r) for r in records]))
+    if polish:
+        info.update(polish_keys(pack(polish[0], polish[0].newton, polish[0].wall_s, polish[0].deriv_s)))
+    return combine_stages(records[-1], records, method, wall, info,
                           iterations=cnt.newton, derivative_time_s=cnt.deriv_time)
 
 
@@ -391,10 +430,10 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
             scene=scene, disc=disc, alpha=alpha, beta=beta, phi=st.pt.phi, tol=tol,
             solver_status=st.status, solver_success=st.status in ("converged", ROUNDOFF_STALL), method=method,
             lam=None if penalty else tuple(st.lam), M=st.M, mu=st.mu,
-            exact_constraints=method in ("exact", "augmented"), floor=floor,
+            exact_constraints=method in ("exact", "augmented") or st.polish, floor=floor,
             iterations=iterations, wall_time_s=wall_s, derivative_time_s=deriv_s, history=history,
             extra={"backend": "newton-krylov", "mesh_kind": disc.kind, "discretization_path": path,
-                   "kkt_dual": float(st.dual),
+                   "kkt_dual_solver": float(st.dual),  # its own stopping test; build_result recomputes kkt_dual
                    "kkt_l2_floor": floor, **(extra or {})})
 
     cnt.history["dual_model"] = W  # (W, rho, rho of W) of the last dual Newton step ('exact'; None: none)

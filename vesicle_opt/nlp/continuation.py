@@ -23,11 +23,11 @@ import time
 
 import numpy as np
 
-from vesicle_opt.model.penalty import AL_REDUCTION, schedule
+from vesicle_opt.model.penalty import DualSecant, extrapolation, next_stage, raise_M, schedule
 from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
 from vesicle_opt.nlp.lifted import PenaltyNLP
 from vesicle_opt.nlp.solve import solve_stage
-from vesicle_opt.result import Result, combine_stages
+from vesicle_opt.result import Result, combine_stages, polish_keys, stage_record
 
 WARM_OPTIONS = (("ipopt.warm_start_init_point", "yes"), ("ipopt.warm_start_bound_push", 1e-9),
                 ("ipopt.warm_start_mult_bound_push", 1e-9), ("ipopt.mu_init", 1e-6))
@@ -52,19 +52,25 @@ def penalty_options(nlp: PenaltyNLP, options: IpoptOptions | None = None, warm: 
 
 def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: IpoptOptions | None = None,
                  warm: bool = True, x0=None, lam_x0=None, lam_g0=None, solver=None,
-                 stage_callback=None) -> Result:
+                 stage_callback=None, polish: bool = True) -> Result:
     """Penalty stages at increasing M on one solver; the result is the last stage's (see module doc).
 
+    Without ``Ms`` the scene's schedule runs while the next stage's floor stays below tol
+    (``model.penalty.next_stage``), so the last stage is certifiable; given ``Ms`` run as they are
+    (studies of the law beyond that). The Richardson extrapolation of the stages
+    (``model.penalty.extrapolation``) and the augmented polish (``polish_stage``) go into ``extra``.
     warm=False restarts every stage from the initial guess (for measuring what warm starts buy).
     """
     s = nlp.scene.solver
-    Ms = Ms or schedule(s.M0, s.M_factor, s.M_max)
+    given = Ms is not None
+    sched = list(Ms) if given else schedule(s.M0, s.M_factor, s.M_max)
     options = penalty_options(nlp, options, warm)
     solver = solver or make_solver(nlp, options)
     x, lam_x, lam_g = (nlp.x0 if x0 is None else x0), lam_x0, lam_g0
     stages: list[Result] = []
     t0 = time.perf_counter()
-    for k, M in enumerate(Ms):
+    i, M = 0, sched[0]
+    while M is not None:
         p = nlp.parameters(M)
         if not warm:
             x, lam_x, lam_g = nlp.x0, None, None
@@ -72,19 +78,42 @@ def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: Ipo
                         method="continuation")
         stages.append(r)
         if stage_callback is not None:
-            stage_callback(k, r)
+            stage_callback(len(stages) - 1, r)
         if np.all(np.isfinite(r.x)):
             x, lam_x, lam_g = r.x, r.lam_x, r.lam_g
+        nxt = (sched[i + 1] if i + 1 < len(sched) else None) if given else \
+            next_stage(sched, i, r.extra["kkt_dual_floor"], options.tol)
+        if nxt is not None and i + 1 < len(sched) and nxt == sched[i + 1]:
+            i += 1
+        elif nxt is not None:
+            sched, i = [M, nxt], 0  # the last stage, at the certifiable M
+        M = nxt
     failed = sum(not r.success for r in stages)
-    return combine_stages(stages[-1], stages, "continuation", time.perf_counter() - t0,
-                   {"failed_stages": failed})
+    info = {"failed_stages": failed, **extrapolation([stage_record(r) for r in stages])}
+    if polish and "lambda_volume_extrapolated" in info and stages[-1].converged:
+        info.update(polish_stage(nlp, solver, stages[-1], info, options.tol))
+    return combine_stages(stages[-1], stages, "continuation", time.perf_counter() - t0, info)
+
+
+def polish_stage(nlp: PenaltyNLP, solver, last: Result, ext: dict, tol: float) -> dict:
+    """The augmented polish: one augmented-Lagrangian stage at the last M with the multiplier
+    shifts mu = the extrapolated multipliers, warm-started from the last stage. Its minimiser holds
+    A - alpha = (mu - lambda)/M, so with mu within O(1/M^2) of lambda* the constraints hold to
+    O(1/M^3) and it is certified with exact constraints, at the cost of one warm stage of the
+    same solver (an exact polish would build and factor a second NLP). ``polish_*`` keys."""
+    mu = (ext["lambda_volume_extrapolated"], ext["lambda_area_extrapolated"])
+    r = solve_stage(nlp, solver, nlp.parameters(last.M, mu=mu), x0=last.x, lam_x0=last.lam_x, lam_g0=last.lam_g,
+                    tol=tol, method="augmented", exact_constraints=True)
+    return polish_keys(r)
 
 
 def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: IpoptOptions | None = None,
                          max_outer: int | None = None, x0=None, lam_x0=None, lam_g0=None, solver=None,
                          stage_callback=None) -> Result:
-    """Multiplier updates mu <- mu - M (A - alpha, B - beta) between warm-started stages. Every stage is
-    certified with the exact constraints (the method's promise), so the first converged stage ends it."""
+    """Multiplier updates between warm-started stages (``model.penalty.DualSecant``: first
+    mu <- mu - M (A - alpha, B - beta), then Broyden secant steps on c(mu) = 0); M grows only while
+    the floor stays below tol (``model.penalty.raise_M``). Every stage is certified with the exact
+    constraints (the method's promise), so the first converged stage ends it."""
     s = nlp.scene.solver
     M = float(M or s.M)
     max_outer = max_outer or s.max_outer
@@ -94,6 +123,7 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
     mu = (0.0, 0.0)
     x, lam_x, lam_g = (nlp.x0 if x0 is None else x0), lam_x0, lam_g0
     prev = (math.inf, math.inf)
+    secant = DualSecant()
     stages: list[Result] = []
     t0 = time.perf_counter()
     for k in range(max_outer):
@@ -106,9 +136,8 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
             break
         x, lam_x, lam_g = r.x, r.lam_x, r.lam_g
         res = (abs(r.volume_residual) / vol, abs(r.area_residual) / beta)
-        mu = (r.lambda_volume, r.lambda_area)  # = mu - M (A - alpha): the first-order update
-        if any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
-            M = min(M * s.M_factor, s.M_max)
+        mu = tuple(secant.step(mu, (r.volume_residual, r.area_residual), M))  # first step: lambda = mu - M c
+        M = raise_M(M, res, prev, r.extra["kkt_dual_floor"], tol, s.M_factor, s.M_max)
         prev = res
     last = stages[-1]
     return combine_stages(last, stages, "augmented", time.perf_counter() - t0)

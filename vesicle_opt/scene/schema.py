@@ -82,7 +82,8 @@ class Solver:
     M0: float = 10.0
     M_factor: float = 10.0
     M_max: float = 1e6  # continuation end; the round-off floor (model.penalty.roundoff_floor) grows like
-    # M sqrt(N): at tol 1e-8 the last stage is certified only up to M ~ 1e4 on the bundled 2D meshes
+    # M sqrt(N), so the schedule stops earlier where the next stage's floor would reach tol
+    # (model.penalty.next_stage: ~2.7e3 on the default 128^2 scene at tol 1e-8)
     max_outer: int = 20
     array: str = "numpy"  # "numpy" | "jax": the array library of the newton-krylov backend (nk_jax)
     fft: str = "auto"  # "auto" | "scipy" | "pyfftw": the real FFTs of Fourier grids (mesh.spectral.fft_library;
@@ -131,9 +132,11 @@ class Scene:
 # --- schema: key -> (kind, default, allowed). kind in {float, int, str, shape, box, ints, floats}.
 _REQ = object()
 M_LIMIT = 1e12  # largest penalty constant accepted (double precision: M |A - alpha| loses digits beyond)
-# solver.tol: the certificate accepts kkt_residual <= 100 tol, so above 1e-4 a point 1% away from
-# stationarity would pass (tol = 1 certified a saddle with kkt 0.2); below 1e-14 (~50 eps_mach) no
-# relative residual of sums over the mesh can be met in double precision
+# solver.tol: the certificate accepts kkt_dual (the relative residual in the natural norm,
+# verify.kkt) <= 100 tol, so above 1e-4 a point 1% away from stationarity would pass (tol = 1
+# certified a saddle with kkt 0.2); below 1e-14 no grid can certify: the natural-norm floor (the
+# round-off of phi through the bulk Hessian, ~ eps_mach h^-2) is 3.6e-14 at the coarsest bundled
+# grid (torus 16^3) and 1e-12 ... 3e-10 on 2D grids 64^2 ... 1024^2 (measured)
 TOL_RANGE = (1e-14, 1e-4)
 # model.epsilon: below h/10 the tanh profile jumps from -1 to +1 between neighbouring nodes to
 # within 1e-6 (no node sees the diffuse interface); above half the box's shortest side the
@@ -157,7 +160,8 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "constraints.area": ("float", None, "> 0 (area in 3D, perimeter in 2D), with constraints.reduced_volume"),
     "initial": ("shape", _REQ, "a shape table"),
     "solver.method": ("str", "exact", ("exact", "penalty", "continuation", "augmented")),
-    "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
+    "solver.M": ("float", 1e3, f"0 < M <= {M_LIMIT:g}"),  # 1e3: the penalty floor (linear in M,
+    # model.penalty.roundoff_floor) is 1.9e-9 on the default 128^2 scene, below the default tol (1e4: 1.9e-8)
     "solver.tol": ("float", 1e-8, f"{TOL_RANGE[0]:g} <= tol <= {TOL_RANGE[1]:g}"),
     "solver.max_iter": ("int", 500, ">= 1"),
     "solver.backend": ("str", "auto", ("ipopt", "newton-krylov", "auto")),

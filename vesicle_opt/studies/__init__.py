@@ -25,6 +25,7 @@ DESCRIPTIONS = {
     "bench_jax": "the Newton-Krylov path on JAX: numpy against one and two devices (and a GPU if any)",
     "bench_certificate": "the second-order certificate against the solve: time, memory, verdict (torus, NK)",
     "bench_equilibrium": "IPOPT exact solve: iterations, time, Hessian nnz, memory against mesh size",
+    "bench_stationarity": "the stationarity certificate against n: L2 and natural-norm floors and residuals (NK)",
     "bench_overhead": "cost of the abstractions: bare CasADi model against build_nlp + solve",
     "crossing_3d": "3D prolate/oblate crossing on mirror (octant) grids: v and reduced energy per eps, eps -> 0",
     "diagonal": "Theorem 3.4: h -> 0 and M -> inf together; the rule M(h)",

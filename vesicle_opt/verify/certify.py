@@ -7,26 +7,32 @@ code that shares nothing with the solver's derivatives:
 * E_h, A - alpha, B - beta (``model.functionals``; the residuals with compensated sums,
   ``model.penalty.residuals``);
 * the multipliers of a penalty run, lambda = mu - M (A - alpha, B - beta) (exact runs pass theirs);
-* the relative L2 KKT residual (``verify.kkt``, hand-derived gradients);
-* the round-off floor: the least KKT residual double precision permits. For a penalty run it is
-  ``model.penalty.roundoff_floor`` (the multiplier estimates carry M times the round-off of A and
-  B); a solver may pass a floor of its own evaluation (Newton-Krylov on Fourier grids:
-  eps_mach k_max^4); the larger counts.
+* the relative KKT residual in the natural norm, ``kkt_dual`` (``verify.kkt``, hand-derived
+  gradients; the norm of the bulk Hessian model P0, ``model.metric``), which decides, and the
+  relative L2 one, ``kkt_residual``, reported beside it;
+* the round-off floor of each: the least residual double precision permits. In the natural norm
+  (``kkt_dual_floor``, which decides) the round-off of phi through P0 (``verify.kkt.dual_floor``,
+  ~ h^-2), and for a penalty run the larger ``model.penalty.roundoff_floor`` in that norm (the
+  multiplier estimates carry M times the round-off of A and B). The L2 floor ``kkt_floor`` (the
+  penalty's in L2, or one a solver passes: Newton-Krylov on Fourier grids, eps_mach k_max^4,
+  ~ h^-4) is reported only.
 
 :func:`certify` then decides, in this order (the first failure is the outcome):
 
 1. the iterate is finite                                         else ``Status.NON_FINITE``
 2. the solver reports success                                    else ``MAX_ITERATIONS`` / ``SOLVER_FAILED``
-3. floor < tol: a floor at or above tol can never be certified,
+3. kkt_dual_floor < tol: a floor at or above tol can never be certified,
    whatever value the (noise-dominated) residual happens to take  else ``ROUNDOFF_FLOOR``
 4. exact constraints (methods exact, augmented): |A - alpha| <= tol |Omega|,
    |B - beta| <= tol beta                                        else ``INFEASIBLE``
-5. kkt_residual <= KKT_FACTOR tol                                 else ``KKT_NOT_MET``
+5. kkt_dual <= KKT_FACTOR tol                                     else ``KKT_NOT_MET``
 6. the solver's own consistency checks (e.g. the lifted unknowns) else ``NOT_CERTIFIED``
 
 ``converged`` is True exactly when all hold (``Status.CONVERGED``); otherwise ``extra["reason"]``
 says which test failed, in words. Nothing here depends on which BLAS kernel ran: a floor at tol is
-refused before the residual is looked at.
+refused before the residual is looked at. One rule, one quantity, on every backend and method: IPOPT
+and Newton-Krylov results alike (``solver.tol`` means: kkt_dual <= KKT_FACTOR tol with its floor
+below tol, and the constraints to tol where the method promises them).
 """
 
 from __future__ import annotations
@@ -38,9 +44,10 @@ import numpy as np
 
 from vesicle_opt import geometry
 from vesicle_opt.model import functionals as F
+from vesicle_opt.model.metric import natural_metric
 from vesicle_opt.model.penalty import penalised_energy, residuals, roundoff_floor
 from vesicle_opt.result import Result, Status
-from vesicle_opt.verify.kkt import kkt_residual
+from vesicle_opt.verify.kkt import kkt_dual, kkt_residual
 
 KKT_FACTOR = 100.0  # kkt_residual (relative L2) may exceed IPOPT's scaled max-norm test by this:
 # measured ratios (nlp.exact scaling) 0.2-1.3 on ellipse-2d, ~12 on a sphere; a larger ratio means
@@ -79,7 +86,7 @@ def certify(*, solver_status: str, solver_success: bool, finite: bool, tol: floa
     if not floor < tol:
         return Certificate(False, Status.ROUNDOFF_FLOOR,
                            f"round-off floor: stationarity is known only to ~{floor:.1e} here "
-                           f"(>= tol = {tol:g}; kkt_residual {kkt:.2e}); tol >= {certifiable_tol(floor):.0e} "
+                           f"(>= tol = {tol:g}; kkt_dual {kkt:.2e}); tol >= {certifiable_tol(floor):.0e} "
                            f"can be certified: raise solver.tol (or lower solver.M for a penalty)")
     if constraints is not None and not (constraints[0] <= tol and constraints[1] <= tol):
         return Certificate(False, Status.INFEASIBLE,
@@ -87,11 +94,23 @@ def certify(*, solver_status: str, solver_success: bool, finite: bool, tol: floa
                            f"{tol:g} (relative to |Omega| and beta)")
     if not kkt <= KKT_FACTOR * tol:
         return Certificate(False, Status.KKT_NOT_MET,
-                           f"recomputed kkt_residual {kkt:.2e} above {KKT_FACTOR:g} tol = {KKT_FACTOR * tol:g}")
+                           f"recomputed kkt_dual {kkt:.2e} above {KKT_FACTOR:g} tol = {KKT_FACTOR * tol:g}")
     for passed, why in checks:
         if not passed:
             return Certificate(False, Status.NOT_CERTIFIED, why)
     return Certificate(True, Status.CONVERGED, None)
+
+
+def dual_floor_of(disc, phi, epsilon: float, C: float, rigidity: float, lam, M=None, grads=None) -> float:
+    """The floor ``build_result`` certifies against (``kkt_dual_floor``): the round-off of phi in
+    the natural norm, and at a penalty M the larger multiplier floor ``model.penalty.roundoff_floor``
+    in that norm. Solvers call it to plan stages (``model.penalty.next_stage``)."""
+    grads = F.gradients(disc, phi, epsilon, C) if grads is None else grads
+    floor = kkt_dual(disc, phi, epsilon, C, rigidity, lam[0], lam[1], grads=grads)[1]
+    if M is not None:
+        floor = max(floor, roundoff_floor(disc, phi, epsilon, C, rigidity, lam, M, grads=grads,
+                                          norm=natural_metric(disc, epsilon).dual_norm))
+    return floor
 
 
 def _physical(disc, A: float, B: float, energy: float, rigidity: float) -> dict[str, float]:
@@ -128,19 +147,21 @@ def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol
         lam = (mu[0] - M[0] * res[0], mu[1] - M[1] * res[1])
     lam_A, lam_B = (float(v) for v in lam)
     if finite:
-        grads = F.gradients(disc, phi, eps, C)  # once, for the residual and the penalty's floor
+        grads = F.gradients(disc, phi, eps, C)  # once, for the residuals and the penalty's floors
         kkt = kkt_residual(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)
+        dual = kkt_dual(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)[0]
+        dual_floor = dual_floor_of(disc, phi, eps, C, rig, (lam_A, lam_B), M, grads)
         if M is not None:
             floor = max(floor, roundoff_floor(disc, phi, eps, C, rig, (lam_A, lam_B), M, grads=grads))
     else:
-        kkt, floor = np.nan, np.inf
+        kkt, floor, dual, dual_floor = np.nan, np.inf, np.nan, np.inf
     exact_constraints = (M is None) if exact_constraints is None else exact_constraints
     rel = (abs(res[0]) / disc.volume, abs(res[1]) / abs(beta)) if exact_constraints else None
     cert = certify(solver_status=solver_status, solver_success=solver_success, finite=finite, tol=tol,
-                   kkt=kkt, floor=floor, constraints=rel, checks=checks)
+                   kkt=dual, floor=dual_floor, constraints=rel, checks=checks)
     info = {"alpha": alpha, "beta": beta, "epsilon": eps, "c0": scene.model.c0, "h": disc.h,
-            "kkt_floor": floor, **_physical(disc, alpha + res[0], beta + res[1], rig * E, rig),
-            **(extra or {})}
+            "kkt_floor": floor, "kkt_dual_floor": dual_floor, **_physical(disc, alpha + res[0], beta + res[1], rig * E, rig),
+            **(extra or {}), "kkt_dual": dual}
     if M is not None:
         info.update({"M2": M[1], "mu_volume": mu[0], "mu_area": mu[1]})
     if cert.reason is not None:
