@@ -30,9 +30,13 @@ Per accepted point the row also holds
 * ``event`` = ``stability change`` where ``second_order_min_eigenvalue`` (the least eigenvalue of
   the reduced Hessian, symmetry modes excluded) changes sign from the previous accepted point;
   ``Branch.events`` classifies each as a ``fold`` (the parameter turns back within one interval of
-  it) or a ``bifurcation``. With ``switch=True`` the run then starts a branch (``branch`` column 1,
-  2, ...) from the saddle's field pushed along its critical eigenvector (the front door's
-  ``history["second_order_mode"]``) and follows it towards ``to``.
+  it) or a ``bifurcation``; ``second_order_eigenvalues`` / ``second_order_errors`` hold the check's
+  least few (';'-joined) and ``index`` the number of negative ones;
+* the diagram (``branch.tree``): every change of ``index`` is located (a ``locate`` row, ``event``
+  ``fold`` or ``branch point``, ``Branch.located``), and with ``switch`` the branches leaving each
+  branch point are followed in both directions, recursively to ``depth`` levels (``branch`` the id,
+  ``parent`` the branch left); with ``deflate`` = N, where switching found none, up to N other
+  points at the start by deflation, each a new root (``Branch.parents``: the tree);
 * ``sharp_reduced_energy``: the place of a sharp-interface reference (``reference(param, value,
   dim)`` -> float or None, not computed here).
 
