@@ -131,3 +131,19 @@ def test_a_diagram_cut_after_any_row_resumes_to_the_same_rows(tmp_path, name, ar
 
 
 WALL = COLUMNS.index("wall_time_s")
+
+
+def test_a_mode_within_its_bound_of_zero_is_passed_over():
+    """Two far components have a soft relative translation (measured on a deflated 2D branch:
+    -1e-3 ... +5e-5 mu_ref, bound ~2e-3). It is not counted in the index, and the location follows
+    the eigenvalue that crosses, g(p) = p - 0.3, not the soft one, sorted first near the root."""
+    def point(p):
+        eig = sorted([p - 0.3, -8e-4])
+        err = [2e-3 if mu == -8e-4 else 1e-9 for mu in eig]
+        return events.Point(p, np.zeros(2), 0.0, tuple(eig), tuple(err))
+    a, b = point(0.0), point(0.6)
+    assert (a.index, b.index) == (1, 0)
+    assert events.critical_values(a, b) == (-0.3, pytest.approx(0.3))
+    loc = events.locate_branch_point(lambda p, phi, lam: point(p), a, b, 1e-9)
+    assert abs(loc.p - 0.3) <= 1e-9 and loc.located_by == "illinois"  # |g| <= its bound 1e-9 or the bracket
+    assert loc.eigenvalue == pytest.approx(loc.p - 0.3, abs=0)

@@ -3,15 +3,18 @@
 Every point of a branch carries the least few eigenvalues mu_1 <= mu_2 <= ... of the reduced
 Hessian (the Hessian of the Lagrangian of (6)-(8) on the tangent space of the constraints (7), (8),
 symmetry modes excluded as the second-order check decides, ``verify.verdict``), in mu_ref units, and
-their error bounds. Its *index* is the number of negative ones. Between two accepted points whose
-indices differ one eigenvalue has crossed zero: the *critical* one, number m = min(index_a,
-index_b) (0-based), >= 0 on one side and < 0 on the other.
+their error bounds. Its *index* is the number of decidedly negative ones (mu < -err: a mode within
+its bound of zero, e.g. the relative translation of two far components, counts for neither side).
+Between two accepted points whose indices differ one eigenvalue has crossed zero: the *critical*
+one (``critical_values``: the largest decidedly negative on one side, the least decidedly positive
+on the other), followed through the trials by continuity (``tracked``: the eigenvalue nearest the
+linear interpolation of its end values).
 
 * **Classification** (``classify``): at a fold (saddle-node) the branch turns in p, so the
   tangent's parameter component changes sign: some secant of the three around the bracket has dp
   of the other sign. At a branch point (pitchfork, transcritical) p moves on monotonically.
 * **A branch point** is located by the Illinois (modified regula falsi) iteration on
-  g(p) = mu_m(p), each trial a fixed-p solve started from the linear interpolation of the bracket's
+  g(p), the critical eigenvalue, each trial a fixed-p solve started from the linear interpolation of the bracket's
   fields and multipliers (``locate_branch_point``): superlinear for a simple crossing, bracketed, so
   it cannot leave the interval; it ends where |g| is within the eigenvalue's own error bound or the
   bracket is narrower than ``p_tol``.
@@ -21,7 +24,7 @@ index_b) (0-based), >= 0 on one side and < 0 on the other.
   is the vertex of the parabola p(s) through the three points around it (s the chord arclength),
   located to O(ds^3) only and marked so (``located_by`` = ``parabola``).
 
-Nothing here knows about vesicles: ``tests/branch/test_events.py`` runs it on closed forms.
+Nothing here knows about vesicles: ``tests/branch/test_tree.py`` runs it on closed forms.
 """
 
 from __future__ import annotations
@@ -50,21 +53,42 @@ class Point:
 
     @property
     def index(self) -> int:
-        return index(self.eigenvalues)
+        return index(self.eigenvalues, self.errors)
 
 
-def index(eigenvalues) -> int:
-    """The number of negative eigenvalues among those computed."""
-    return int(sum(1 for mu in eigenvalues if mu is not None and math.isfinite(mu) and mu < 0))
+def index(eigenvalues, errors=()) -> int:
+    """The number of eigenvalues decidedly negative: mu < -err (its error bound; a mode within its
+    bound of zero, such as the relative translation of two far components, is not counted)."""
+    errs = tuple(errors) + (0.0,) * (len(eigenvalues) - len(errors))
+    return int(sum(1 for mu, e in zip(eigenvalues, errs)
+                   if mu is not None and math.isfinite(mu) and mu < -abs(e if math.isfinite(e) else 0.0)))
 
 
-def critical_number(a: Point, b: Point) -> int:
-    """m: the eigenvalue that crosses zero between a and b (module docstring)."""
-    return min(a.index, b.index)
+def _err(point: Point, i: int) -> float:
+    e = point.errors[i] if i < len(point.errors) else 0.0
+    return abs(e) if math.isfinite(e) else 0.0
 
 
-def g(point: Point, m: int) -> float:
-    return point.eigenvalues[m] if m < len(point.eigenvalues) else math.inf
+def critical_values(a: Point, b: Point) -> tuple[float, float]:
+    """(g_a, g_b): the critical eigenvalue at both ends. On the side with more decidedly negative
+    eigenvalues its largest decidedly negative one; on the other its least decidedly positive one
+    (mu > err), so that a mode within its bound of zero at both ends is passed over."""
+    def largest_negative(q):
+        return max(mu for i, mu in enumerate(q.eigenvalues) if mu < -_err(q, i))
+
+    def least_positive(q):
+        pos = [mu for i, mu in enumerate(q.eigenvalues) if mu > _err(q, i)]
+        return min(pos) if pos else max(q.eigenvalues)
+    if a.index > b.index:
+        return largest_negative(a), least_positive(b)
+    return least_positive(a), largest_negative(b)
+
+
+def tracked(point: Point, target: float) -> tuple[int, float, float]:
+    """(position, value, error bound) of the point's eigenvalue nearest ``target`` (the critical
+    one, followed by continuity between the bracket's ends)."""
+    i = min(range(len(point.eigenvalues)), key=lambda j: abs(point.eigenvalues[j] - target))
+    return i, point.eigenvalues[i], _err(point, i)
 
 
 def crossings(points: list[Point]) -> list[int]:
@@ -88,7 +112,7 @@ class Located:
     point: Point | None  # None: parabola (no solve) or the location failed
     p: float
     energy: float
-    critical: int  # m
+    critical: int  # the critical eigenvalue's position in the located point's list (its mode's)
     eigenvalue: float  # g at the located point (nan for a parabola)
     error: float  # its error bound (nan for a parabola)
     bracket: float  # final width of the bracket, in p (branch point) or tau (chord)
@@ -142,20 +166,30 @@ def locate_branch_point(solve: Callable, a: Point, b: Point, p_tol: float,
                         max_solves: int = MAX_LOCATE) -> Located:
     """The branch point between a and b (same sheet, p monotone): ``solve(p, phi0, lam0)`` -> a
     certified Point or None; each trial warm from the interpolation of a and b."""
-    m = critical_number(a, b)
+    ga, gb = critical_values(a, b)
 
     def evaluate(p):
         t = (p - a.p) / (b.p - a.p)
         pt = solve(p, (1 - t) * a.phi + t * b.phi, _mix(a.lam, b.lam, t))
-        if pt is None or m >= len(pt.eigenvalues) or not math.isfinite(pt.eigenvalues[m]):
-            return None
-        return pt.eigenvalues[m], (pt.errors[m] if m < len(pt.errors) else 0.0), pt
+        return _tracked(pt, ga + t * (gb - ga))
 
-    pt, gx, err, width, n = _illinois(evaluate, a.p, g(a, m), b.p, g(b, m), p_tol, max_solves)
-    if pt is None:
-        return Located(BRANCH_POINT, None, (a.p + b.p) / 2, (a.energy + b.energy) / 2, m, math.nan,
-                       math.nan, abs(b.p - a.p), n, "failed: no trial converged")
-    return Located(BRANCH_POINT, pt, pt.p, pt.energy, m, gx, err, width, n, "illinois")
+    return _located(BRANCH_POINT, _illinois(evaluate, a.p, ga, b.p, gb, p_tol, max_solves), a, b, "illinois")
+
+
+def _tracked(pt: Point | None, target: float):
+    if pt is None or not pt.eigenvalues or not all(math.isfinite(x) for x in pt.eigenvalues):
+        return None
+    i, mu, err = tracked(pt, target)
+    return mu, err, (pt, i)
+
+
+def _located(kind, found, a, b, how) -> Located:
+    best, gx, err, width, n = found
+    if best is None:
+        return Located(kind, None, (a.p + b.p) / 2, (a.energy + b.energy) / 2, 0, math.nan, math.nan, width, n,
+                       "failed: no trial converged")
+    pt, i = best
+    return Located(kind, pt, pt.p, pt.energy, i, gx, err, width, n, how)
 
 
 def locate_on_chord(free: Callable, a: Point, b: Point, weights, theta: float, tau_tol: float,
@@ -163,25 +197,18 @@ def locate_on_chord(free: Callable, a: Point, b: Point, weights, theta: float, t
     """The event between a and b with p free: ``free(phi_pred, p_pred, t_phi, t_p, theta)`` -> a
     certified Point on the hyperplane through the chord point at tau orthogonal to the chord (in
     the metric theta^2 <., .>_w + dp^2) or None; Illinois in tau."""
-    m = critical_number(a, b)
+    ga, gb = critical_values(a, b)
     dphi, dp = b.phi - a.phi, b.p - a.p
     length = math.hypot(theta * math.sqrt(float(np.dot(weights, dphi * dphi))), dp)
     t_phi, t_p = dphi / length, dp / length
 
     def evaluate(tau):
-        pt = free(a.phi + tau * dphi, a.p + tau * dp, t_phi, t_p, theta)
-        if pt is None or m >= len(pt.eigenvalues) or not math.isfinite(pt.eigenvalues[m]):
-            return None
-        return pt.eigenvalues[m], (pt.errors[m] if m < len(pt.errors) else 0.0), pt
+        return _tracked(free(a.phi + tau * dphi, a.p + tau * dp, t_phi, t_p, theta), ga + tau * (gb - ga))
 
-    pt, gx, err, width, n = _illinois(evaluate, 0.0, g(a, m), 1.0, g(b, m), tau_tol, max_solves)
-    if pt is None:
-        return Located(kind, None, (a.p + b.p) / 2, (a.energy + b.energy) / 2, m, math.nan, math.nan,
-                       1.0, n, "failed: no trial converged")
-    return Located(kind, pt, pt.p, pt.energy, m, gx, err, width, n, "chord")
+    return _located(kind, _illinois(evaluate, 0.0, ga, 1.0, gb, tau_tol, max_solves), a, b, "chord")
 
 
-def locate_fold_parabola(pts: list[Point], weights, theta: float, m: int) -> Located:
+def locate_fold_parabola(pts: list[Point], weights, theta: float, m: int = 0) -> Located:
     """The fold as the vertex of the parabola p(s) through three points around it (s: the chord
     arclength in the metric theta^2 <., .>_w + dp^2), the energy from the parabola E(s) through the
     same points (module docstring)."""

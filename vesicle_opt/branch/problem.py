@@ -20,7 +20,7 @@ from typing import Callable
 import numpy as np
 
 from vesicle_opt.branch import arclength as arc
-from vesicle_opt.branch.events import Located, Point
+from vesicle_opt.branch.events import Located, Point, index
 
 
 def joined(values) -> str | None:
@@ -103,7 +103,7 @@ class TreeProblem:
             row["second_order_eigenvalues"] = joined(ex.get("second_order_eigenvalues"))
             row["second_order_errors"] = joined(ex.get("second_order_errors"))
             if ex.get("second_order_eigenvalues") is not None:
-                row["index"] = sum(1 for x in ex["second_order_eigenvalues"] if x < 0)
+                row["index"] = index(ex["second_order_eigenvalues"], ex.get("second_order_errors") or ())
         self.store.append(row, res, mode)
         if self.progress is not None:
             self.progress(self.rows()[-1])

@@ -14,9 +14,9 @@
    the problem's distance takes its symmetries) is one row with ``event`` ``known: branch k`` and
    is not walked; a walked branch that comes within its step of a located branch point of another
    branch has joined it and stops there (``joined branch point at point N``);
-4. with ``deflate`` = N > 0 and no branch found by switching, up to N other certified points at the
-   root's start parameter are sought by deflation (``branch.deflation``) and walked as new roots
-   (``parent`` empty, ``event`` ``deflation``).
+4. with ``deflate`` = N > 0 and no branch walked by switching, up to N other certified points at
+   the root's start parameter are sought by deflation (``branch.deflation``), walked as new roots
+   (``parent`` empty, ``event`` ``deflation``) and expanded as the root is (steps 2-3).
 
 Every decision is read back from the rows (a located event by its ``detected_at``, a branch by its
 id, ids given out in the same order), so a resumed diagram redoes nothing and loses no row.
@@ -69,7 +69,7 @@ def locate(problem, k: int, pts: list[ev.Point], j: int) -> dict:
         loc = ev.locate_on_chord(problem.free, a, b, problem.weights, problem.theta(k), TAU_TOL)
     else:
         around = pts[max(j - 2, 0): j + 1] if j + 1 >= len(pts) else pts[j - 1: j + 2]
-        loc = ev.locate_fold_parabola(around, problem.weights, problem.theta(k), ev.critical_number(a, b))
+        loc = ev.locate_fold_parabola(around, problem.weights, problem.theta(k))
     mode = None if loc.point is None else problem.mode(loc.point, loc.critical)
     problem.record_event(k, detected, loc, mode)
     return problem.rows()[-1]
@@ -81,11 +81,21 @@ def _point_of(problem, row: dict) -> ev.Point | None:
         str(row["located_by"]).startswith("failed") else problem.point_of_row(row)
 
 
-def grow(problem, depth: int = 1, switch: bool = True, deflate: int = 0, progress=None) -> dict[int, Node]:
+def grow(problem, depth: int = 1, switch: bool = True, deflate: int = 0) -> dict[int, Node]:
     """The tree (module docstring): {branch id: Node}."""
     nodes = {0: Node(0, None, 0)}
     nodes[0].stopped = problem.walk(0, None, _stop(problem, nodes, 0))
-    queue, next_id = [0], 1
+    next_id = _expand(problem, nodes, [0], 1, depth, switch)
+    switched = any(n.parent is not None and not n.stopped.startswith(("known", "none found")) for n in nodes.values())
+    if deflate and not switched:  # the fallback: other points at the start, each a root, expanded alike
+        queue: list[int] = []
+        next_id = _deflate(problem, nodes, deflate, next_id, queue)
+        _expand(problem, nodes, queue, next_id, depth, switch)
+    return nodes
+
+
+def _expand(problem, nodes, queue, next_id, depth, switch) -> int:
+    """Locate the events of the queued branches and walk the branches they switch to, breadth first."""
     while queue:
         k = queue.pop(0)
         node = nodes[k]
@@ -109,11 +119,9 @@ def grow(problem, depth: int = 1, switch: bool = True, deflate: int = 0, progres
                 if not first["accepted"]:
                     nodes[cid].stopped = first["event"] or "switch failed"
                     continue
-                nodes[cid].stopped = problem.walk(cid, first["target"], _stop(problem, nodes, cid))
+                nodes[cid].stopped = problem.walk(cid, None, _stop(problem, nodes, cid))
                 queue.append(cid)
-    if deflate and len(nodes) == 1:
-        next_id = _deflate(problem, nodes, deflate, next_id, queue)
-    return nodes
+    return next_id
 
 
 def _switch(problem, nodes, cid, k, bp, row, sigma) -> None:
@@ -190,5 +198,6 @@ def _deflate(problem, nodes, n, next_id, queue) -> int:
             nodes[cid].stopped = mine[0]["event"] or "deflation found nothing"
             break
         known.append(problem.phi(mine[0]["point"]))
-        nodes[cid].stopped = problem.walk(cid, mine[0]["target"], _stop(problem, nodes, cid))
+        nodes[cid].stopped = problem.walk(cid, None, _stop(problem, nodes, cid))
+        queue.append(cid)
     return next_id
