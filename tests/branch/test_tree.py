@@ -147,3 +147,16 @@ def test_a_mode_within_its_bound_of_zero_is_passed_over():
     loc = events.locate_branch_point(lambda p, phi, lam: point(p), a, b, 1e-9)
     assert abs(loc.p - 0.3) <= 1e-9 and loc.located_by == "illinois"  # |g| <= its bound 1e-9 or the bracket
     assert loc.eigenvalue == pytest.approx(loc.p - 0.3, abs=0)
+
+
+def test_align_undoes_a_grid_rotation_and_a_translation():
+    """A field rotated by 90 degrees, reflected and shifted on a periodic square grid is brought
+    back exactly (grid symmetries: the image is a permutation of the values); a rectangle's grid
+    has no axis exchange, so there the rotated field is not matched."""
+    from vesicle_opt.branch.symmetry import align
+    x = np.linspace(0, 1, 16, endpoint=False)
+    X, Y = np.meshgrid(x, x, indexing="ij")
+    a = np.exp(-10 * (X - 0.3) ** 2 - 40 * (Y - 0.6) ** 2)
+    b = np.roll(np.rot90(a)[::-1], (3, 5), axis=(0, 1))
+    assert np.abs(align(b.ravel(), a.ravel(), (16, 16), [[0, 1], [0, 1]]) - a.ravel()).max() == 0.0
+    assert np.abs(align(b.ravel(), a.ravel(), (16, 16), [[0, 1], [0, 2]]) - a.ravel()).max() > 0.1

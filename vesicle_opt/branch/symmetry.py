@@ -38,7 +38,7 @@ def align(phi: np.ndarray, ref: np.ndarray, shape, box) -> np.ndarray:
     best, best_d = A, np.inf
     for T in transforms(shape, box):
         B = np.ascontiguousarray(T(A))
-        corr = np.fft.irfftn(FR * np.conj(np.fft.rfftn(B)), s=shape)
+        corr = np.fft.irfftn(FR * np.conj(np.fft.rfftn(B)), s=shape, axes=tuple(range(len(shape))))
         shift = np.unravel_index(int(np.argmax(corr)), shape)
         C = np.roll(B, shift, axis=tuple(range(len(shape))))
         d = float(np.sum((C - R) ** 2))
