@@ -30,6 +30,7 @@ POWER = 2.0  # q: Farrell et al.'s choice; M ~ |phi - r|^-2 near a known root
 SHIFT = 1.0  # sigma: M -> 1 + ... far from the known roots, so Newton far away is Newton
 NEWTON_STEPS = 60
 SAME = 1e-3  # a root within this fraction of |phi|_w of a known one (after alignment) is that one
+RETRIES = 3  # roots refused from one start (deflated in turn) before the next start
 
 
 def factor(phi: np.ndarray, dphi: np.ndarray, known: list[np.ndarray], weights, align: Callable | None = None) -> float:
@@ -67,8 +68,11 @@ def newton(residual: Callable, jacobian: Callable, u0: np.ndarray, known: list[n
 def deflated_vesicle(problem, p: float, phi0: np.ndarray, known: list[np.ndarray]):
     """Another certified point of the vesicle problem at p (``branch.vesicle``): the bordered Newton
     at fixed p deflated by ``known``, from the scene's own start field and from phi0 pushed both
-    ways along its least eigenvector, each root handed to IPOPT, which certifies it; None when
-    every start fails or finds a known point (IPOPT with lumped mass only: elsewhere None)."""
+    ways along its least eigenvector, each root handed to IPOPT, which certifies it. A root of
+    another topology than phi0's (a vesicle diagram is one membrane: two far components are a KKT
+    point too, measured at nu = 0.95, 48^2) or an image of a known one is deflated as well and the
+    start retried (``RETRIES``). None when every start fails (IPOPT with lumped mass only: elsewhere
+    None)."""
     from vesicle_opt.branch.corrector import least_squares_multipliers
     ip = problem.ipopt
     if ip is None or ip.disc.consistent:
@@ -81,14 +85,20 @@ def deflated_vesicle(problem, p: float, phi0: np.ndarray, known: list[np.ndarray
     mode = None if base is None else problem.mode(base, 0)
     if mode is not None:
         starts += [phi0 + 0.2 * scale * mode, phi0 - 0.2 * scale * mode]
+    shape = None if base is None else base.payload.extra.get("topology")
+    deflated = list(known)
     for start in starts:
-        lam = least_squares_multipliers(sc, ip.disc, start)
-        nw = problem.bordered().fixed(start, p, lam, lambda phi, d: factor(phi, d, known, w, problem.align))
-        if not nw.converged:
-            continue
-        pt = problem.solve(p, nw.phi, nw.lam)
-        if pt is None:
-            continue
-        if all(math.sqrt(float(np.dot(w, (problem.align(r, pt.phi) - pt.phi) ** 2))) > SAME * scale for r in known):
-            return pt
+        for _ in range(RETRIES):
+            lam = least_squares_multipliers(sc, ip.disc, start)
+            nw = problem.bordered().fixed(start, p, lam, lambda phi, d: factor(phi, d, deflated, w, problem.align))
+            if not nw.converged:
+                break
+            pt = problem.solve(p, nw.phi, nw.lam)
+            if pt is None:
+                break
+            new = all(math.sqrt(float(np.dot(w, (problem.align(r, pt.phi) - pt.phi) ** 2))) > SAME * scale
+                      for r in known)
+            if new and (shape is None or pt.payload.extra.get("topology") == shape):
+                return pt
+            deflated.append(pt.phi)  # another topology (e.g. two far components) or a known image: deflated too
     return None
