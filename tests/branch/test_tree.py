@@ -160,3 +160,20 @@ def test_align_undoes_a_grid_rotation_and_a_translation():
     b = np.roll(np.rot90(a)[::-1], (3, 5), axis=(0, 1))
     assert np.abs(align(b.ravel(), a.ravel(), (16, 16), [[0, 1], [0, 1]]) - a.ravel()).max() == 0.0
     assert np.abs(align(b.ravel(), a.ravel(), (16, 16), [[0, 1], [0, 2]]) - a.ravel()).max() > 0.1
+
+
+def test_pitchfork_switched_with_a_fixed_p_corrector_only():
+    """Without a p-free corrector the switch tries p* + dp/2 and p* - dp/2 from u* + a v: at p < 0
+    Newton falls back to x = 0 (the parent, refused), at p > 0 it lands on x = sqrt(p)."""
+    class FixedOnly(Toy):
+        free = None
+
+        def free_attempt(self, k):
+            return None
+    t = FixedOnly("pitchfork", -0.5, 0.5, 0.1, np.array([0.0, 1.0]))
+    nodes = tree.grow(t, depth=1)
+    switched = [r for r in t.rows() if r["corrector"] == "switch"]
+    assert "p fixed at p* + 0.05" in switched[0]["event"] and nodes[1].stopped == "reached"
+    assert switched[0]["target"] == pytest.approx(0.05, abs=1e-5)  # p* + dp/2, p* located to 1e-5
+    assert abs(t.points(1)[1].phi[0] - math.sqrt(switched[0]["target"])) < 1e-12
+    assert nodes[2].stopped == "known: branch 1"
