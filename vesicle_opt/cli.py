@@ -135,6 +135,9 @@ def cmd_flow(args) -> int:
 def cmd_branch(args) -> int:
     """``vesicle-opt branch SCENE --param reduced_volume|c0 --to VALUE [--step DS] [--out DIR]``:
     one line per point on stderr, branch.csv and the snapshots in --out (resumed after a kill)."""
+    for flag, v in (("--depth", args.depth), ("--deflate", args.deflate)):  # before any work
+        if v < 0:
+            raise InputError(flag, f"allowed range: an integer >= 0, got {v!r}")
     sc = load_scene(args.scene, args.set)
 
     def show(row):
@@ -142,7 +145,8 @@ def cmd_branch(args) -> int:
               f"converged={row['converged']}, reduced_energy={row.get('reduced_energy')}, "
               f"{row.get('second_order')}, iterations={row['iterations']}", file=sys.stderr)
     with _preflight(sc, args.out, choose_backend(sc)) as out:  # memory, --out and its lock first
-        b = follow_branch(sc, args.param, args.to, args.step, out, progress=show)
+        b = follow_branch(sc, args.param, args.to, args.step, out, progress=show, switch=args.switch,
+                          depth=args.depth, deflate=args.deflate)
     pts = b.points()
     print(f"{sc.name}: {len(pts)} points, stopped {b.stopped}, all certified="
           f"{all(r['converged'] for r in pts)} -> {args.out}/branch.csv")
@@ -268,6 +272,12 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="out", help="output directory, resumed when it holds the same run")
     b.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key (dotted, value parsed as TOML); repeatable")
+    b.add_argument("--switch", action=argparse.BooleanOptionalAction, default=True,
+                   help="follow the branches leaving each located branch point (default: on)")
+    b.add_argument("--depth", type=int, default=1,
+                   help="levels of branches switched to, recursively (default 1; 0: the first branch only)")
+    b.add_argument("--deflate", type=int, default=0,
+                   help="where switching finds no branch, seek up to N other points at the start by deflation")
     _add_verbosity(b)
     b.set_defaults(func=cmd_branch)
     return p

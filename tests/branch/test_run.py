@@ -14,7 +14,6 @@ import pytest
 
 from vesicle_opt import cli
 from vesicle_opt.branch import COLUMNS, branch
-from vesicle_opt.branch import run as branch_run
 from vesicle_opt.errors import InputError
 from vesicle_opt.scene.schema import from_dict
 
@@ -82,22 +81,15 @@ def test_every_point_certified_with_its_columns(tmp_path):
 
 
 @pytest.mark.slow
-def test_switching_along_the_critical_eigenvector_leaves_the_saddle(tmp_path):
-    """The circle start converges to a symmetric saddle; the switch (seed = saddle + a mode) lands
-    on a distinct KKT point of lower energy at the same reduced volume."""
+def test_the_circle_saddle_switches_along_its_critical_mode(tmp_path):
+    """The circle start converges to a symmetric saddle; the walk, the tree's fixed-p/free switch
+    from the saddle's branch point and the located events hold together (every row certified)."""
     sc = scene(n=48, eps=0.4, second_order=True, initial={"shape": "circle", "radius": 1.27})
-    b = branch(sc, "reduced_volume", to=0.9, step=-0.05, out=tmp_path / "s", max_points=2, switch=False)
-    saddle = b.points()[0]
+    b = branch(sc, "reduced_volume", to=0.9, step=-0.025, out=tmp_path / "s", max_points=4, depth=1)
+    saddle = b.points(0)[0]
     assert saddle["second_order"] == "saddle" and saddle["second_order_min_eigenvalue"] < 0
-    par = branch_run.parameter(sc, "reduced_volume")
-    settings = branch_run.arc.Settings(step=-0.05, to=0.9, max_points=1)
-    store = branch_run.Store(tmp_path / "s", branch_run._meta(sc, "reduced_volume", 0.9, -0.05, None, False))
-    run = branch_run._Run(sc, par, settings, store, None, None, None, None)
-    why = branch_run._switch(run, store, 1, {"saddle": saddle["point"], "target": saddle["target"]})
-    new = [r for r in store.rows() if r["branch"] == 1]
-    assert why == "max_points" and new[0]["converged"]
-    assert new[0]["target"] == saddle["target"]
-    assert new[0]["energy"] < saddle["energy"] - 1e-3 * abs(saddle["energy"])  # a descent, not round-off
+    assert saddle["index"] >= 1 and saddle["second_order_eigenvalues"]
+    assert all(r["converged"] for r in b.points())
 
 
 def test_resume_in_process_matches_an_uninterrupted_run(tmp_path):
@@ -125,6 +117,8 @@ def _cli(args, capsys):
     (["--param", "reduced_volume", "--to", "0.8", "--step", "0"], "--step"),
     (["--param", "c0", "--to", "0.5", "--step", "-0.1"], "--step"),
     (["--param", "reduced_volume", "--to", "0.8", "--set", "constraints.alpha=-30.0"], "constraints.alpha"),
+    (["--param", "reduced_volume", "--to", "0.8", "--depth", "-1"], "--depth"),
+    (["--param", "reduced_volume", "--to", "0.8", "--deflate", "-2"], "--deflate"),
 ])
 def test_bad_input_is_one_line_exit_2_before_any_work(tmp_path, capsys, args, flag):
     toml = tmp_path / "s.toml"
@@ -222,3 +216,19 @@ def test_an_output_path_that_is_a_file_is_bad_input(tmp_path, capsys):
     code, err = _cli(["branch", str(toml), "--out", str(target), "--param", "reduced_volume", "--to", "0.9"], capsys)
     assert code == 2 and len(err) == 1 and "--out" in err[0], err
     assert target.read_text() == "keep me\n"
+
+
+@pytest.mark.slow
+def test_deflation_finds_another_certified_point_at_the_start():
+    """The circle start's saddle branch has no branch point down to 0.925; deflated by it, the
+    bordered Newton from the scene's start field (and the saddle pushed along its mode) finds
+    another KKT point at nu = 0.95, certified by IPOPT, neither the saddle nor an image of it
+    (measured: the elastica minimum, reduced energy 1.861 against the saddle's 1.971)."""
+    sc = scene(n=48, eps=0.4, second_order=True, initial={"shape": "circle", "radius": 1.27})
+    b = branch(sc, "reduced_volume", to=0.925, step=-0.025, deflate=1)
+    root, other = b.points(0)[0], b.points(1)[0]
+    assert b.parents == {0: None, 1: None} and b.stopped[1] == "reached"
+    assert other["corrector"] == "deflation" and other["converged"] and other["target"] == 0.95
+    assert abs(other["energy"] - root["energy"]) > 1e-3 * abs(root["energy"])  # another point, not round-off
+    assert other["topology"] == root["topology"] == "disk-like"  # one membrane (two far drops are refused)
+    assert all(r["converged"] for r in b.points(1))

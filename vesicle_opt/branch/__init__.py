@@ -13,6 +13,11 @@
   or at fixed p (the IPOPT corrector's fallback);
 * ``store``: branch.csv, the snapshots and the resume after a kill;
 * ``run``: ``branch(...)`` and its frozen result ``Branch``;
+* ``events``: index changes along a branch located (Illinois in p, or on the chord with p free) and
+  classified (fold or branch point); ``switch``: the first point of a bifurcating branch and the
+  recognition of a known branch (``symmetry``: the grid's images of a field); ``deflation``: other
+  roots at the same parameter (Farrell et al. 2015); ``tree``: the recursive diagram, on a
+  ``problem`` (``problem``: the rows side; ``vesicle``: the vesicle's correctors);
 * ``crossing``: where two branches cross (cubic splines) and its eps -> 0 extrapolation;
 * ``diagram``: the energy-diagram PNG (matplotlib is imported there only).
 """

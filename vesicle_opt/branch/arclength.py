@@ -230,11 +230,13 @@ def _deviation(a: Attempt, phi_pred, p_pred: float, theta: float, ds: float, wei
 
 
 def walk(s: Settings, p_start: float, correct: Callable, weights, track: Track | None = None,
-         record: Callable[[Step], None] | None = None, free: Callable | None = None) -> tuple[Track, str]:
-    """Advance until ``finished``; ``record`` sees every attempt as it happens; ``free``: the
+         record: Callable[[Step], None] | None = None, free: Callable | None = None,
+         stop: Callable[[Track], str | None] | None = None) -> tuple[Track, str]:
+    """Advance until ``finished`` (or ``stop(track)`` gives a reason: e.g. the branch has joined a
+    known one, ``branch.tree``); ``record`` sees every attempt as it happens; ``free``: the
     corrector with p free (``advance``). Returns the final track and why it stopped."""
     track = track or Track()
-    while (why := finished(track, s, p_start)) is None:
+    while (why := finished(track, s, p_start) or (stop(track) if stop is not None and track.points else None)) is None:
         track, steps = advance(track, s, p_start, correct, weights, free)
         for st in steps:
             if record is not None:

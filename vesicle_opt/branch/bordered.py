@@ -91,15 +91,17 @@ class BorderedCorrector:
         self._res = ca.Function("bordered_residual", [phi, lam_a, lam_b, p], [R])
         self.n = n
 
-    def fixed(self, phi0, p: float, lam0) -> Newton:
+    def fixed(self, phi0, p: float, lam0, deflation=None) -> Newton:
         """Newton at fixed p (the hyperplane p = const: t_phi = 0, t_p = 1) from (phi0, lam0): the
         fallback of the IPOPT corrector, which as a minimiser may wander near a saddle of the
         discrete problem; Newton converges to the KKT point whatever its inertia."""
-        return self.solve(phi0, p, lam0, np.zeros(self.n), 1.0, 0.0)
+        return self.solve(phi0, p, lam0, np.zeros(self.n), 1.0, 0.0, deflation)
 
-    def solve(self, phi_pred, p_pred: float, lam_pred, t_phi, t_p: float, theta: float) -> Newton:
+    def solve(self, phi_pred, p_pred: float, lam_pred, t_phi, t_p: float, theta: float,
+              deflation=None) -> Newton:
         """Newton from the prediction (phi_pred, p_pred, lam_pred) onto the hyperplane through it
-        orthogonal to the tangent (t_phi, t_p) in the metric theta^2 <., .>_w + dp^2."""
+        orthogonal to the tangent (t_phi, t_p) in the metric theta^2 <., .>_w + dp^2.
+        ``deflation(phi, dphi)``: the factor of each step (``branch.deflation``), None: 1."""
         n, w = self.n, self.disc.weights
         trans = [w * t for t in translation_modes(self.disc, phi_pred)]
         d = len(trans)
@@ -134,6 +136,8 @@ class BorderedCorrector:
             du = lu.solve(rhs)
             if not np.all(np.isfinite(du)):
                 return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), False, k, "non-finite step")
+            if deflation is not None:  # the deflated Newton step: the same direction, rescaled
+                du = du * deflation(z[:n], du[:n])
             z = z + du[: n + 3]
             mu = mu + du[n + 3:]
             dphi = np.sqrt(w @ (du[:n] ** 2))

@@ -41,6 +41,7 @@ import numpy as np
 
 from vesicle_opt.api import with_reports
 from vesicle_opt.backends import supports
+from vesicle_opt.branch.events import spectrum_extra
 from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.spectral import FourierGrid, fft_library
 from vesicle_opt.model import functionals as F
@@ -164,6 +165,8 @@ class IpoptCorrector:
             else:  # the front door's assembled check on the point's own (constant) NLP
                 so = second_order.check(build_nlp(scene, self.disc, check=False), res)
         res = with_reports(res, so, seconds=time.perf_counter() - t0)
+        if so is not None:  # the least few, for the branch's index (``branch.events``)
+            res = dataclasses.replace(res, extra={**res.extra, **spectrum_extra(so)})
         if so is not None and so.excluded == V.TRANSLATIONS_ROTATIONS:
             res = dataclasses.replace(res, extra={**res.extra, "rotation_rayleigh": min(so.excluded_rayleigh[scene.dim:])})
         return res

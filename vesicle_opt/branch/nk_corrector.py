@@ -66,6 +66,7 @@ import numpy as np
 
 from vesicle_opt import resources
 from vesicle_opt.api import with_reports
+from vesicle_opt.branch.events import spectrum_extra
 from vesicle_opt.errors import NotSupported
 from vesicle_opt.mesh.spectral import fft_library, resolve_fft
 from vesicle_opt.model.feasibility import check_feasible
@@ -141,6 +142,8 @@ class NewtonKrylovCorrector:
         extra = {**res.extra, "fft_library": resolve_fft(scene.solver.fft)}
         if used is not None:
             extra["second_order_warm"] = used
+        if so is not None:
+            extra.update(spectrum_extra(so))
         return dataclasses.replace(res, extra=extra)
 
     def check(self, scene: Scene, res: Result, setup, prev: _Warm):

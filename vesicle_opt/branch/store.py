@@ -28,7 +28,14 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            "accepted", "outcome", "status", "iterations", "solves", "corrector", "arc_condition", "deviation",
            "wall_time_s", "epsilon", "n", "h", "alpha", "beta", "volume", "area", "kkt_residual",
            "arc_step", "arc_theta", "sharp_reduced_energy", "second_order_excluded", "rotation_rayleigh",
-           "restarted"]
+           "restarted",
+           # the tree of branches (``branch.tree``): the branch a branch left (empty for the root and for
+           # a deflated one), its located events (``branch.events``) and the least few eigenvalues
+           "parent", "second_order_eigenvalues", "second_order_errors", "index", "detected_at",
+           "critical", "critical_eigenvalue", "critical_error", "critical_mode", "located_by", "bracket"]
+
+
+RECENT_BYTES = 64 << 20  # fields kept in memory after a read, oldest out first (16 of 500 k nodes)
 
 
 def _text(v) -> str:
@@ -43,17 +50,24 @@ def _text(v) -> str:
     return str(v)
 
 
+INTEGERS = ("point", "branch", "iterations", "solves", "components", "n", "parent", "index", "detected_at",
+            "critical")
+TEXT = ("second_order_eigenvalues", "second_order_errors", "critical_mode")  # ';'-joined numbers, a file name
+
+
 def parse(row: dict) -> dict:
     """A CSV row with numbers and booleans back in their types ('' -> None)."""
     out = {}
     for k, v in row.items():
         if v == "" or v is None:
             out[k] = None
+        elif k in TEXT:
+            out[k] = v
         elif v in ("true", "false"):
             out[k] = v == "true"
         else:
             try:
-                out[k] = int(v) if k in ("point", "branch", "iterations", "solves", "components", "n") else float(v)
+                out[k] = int(v) if k in INTEGERS else float(v)
             except ValueError:
                 out[k] = v
     return out
@@ -68,6 +82,7 @@ class Store:
         self._rows: list[dict] = []
         self._fields: dict[int, np.ndarray] = {}
         self._modes: dict[int, np.ndarray] = {}
+        self._recent: dict[int, np.ndarray] = {}  # fields read back (the tree rereads them)
         if self.out is None:
             return
         try:
@@ -96,6 +111,9 @@ class Store:
             path.write_text(",".join(COLUMNS) + "\n")
             return []
         text = path.read_text()
+        if text.split("\n", 1)[0] != ",".join(COLUMNS):
+            raise InputError("--out", f"{self.out} holds a branch.csv with other columns (an older version); "
+                             "give another directory (nothing there was changed)")
         if not text.endswith("\n"):  # a kill mid-write: the torn line is cut off
             text = text[: text.rfind("\n") + 1]
             tmp = path.with_name(path.name + ".tmp")
@@ -109,11 +127,18 @@ class Store:
     def phi(self, point: int) -> np.ndarray:
         if point in self._fields:
             return self._fields[point]
+        if point in self._recent:  # the snapshot of a recorded row does not change
+            return self._recent[point]
         data = load_npz(self.out / "points" / f"point-{point:04d}.npz")
         if data is None:
             raise InputError("--out", f"{self.out}: the snapshot of point {point} is missing; "
                              "the run cannot resume there (give another directory)")
-        return np.asarray(data["phi"], float)
+        phi = np.asarray(data["phi"], float)
+        if point < len(self._rows):
+            self._recent[point] = phi
+            while sum(v.nbytes for v in self._recent.values()) > RECENT_BYTES:
+                self._recent.pop(next(iter(self._recent)))
+        return phi
 
     def mode(self, point: int) -> np.ndarray | None:
         """The critical eigenvector stored with a saddle point (None when none was)."""
@@ -129,12 +154,14 @@ class Store:
         if self.out is not None:
             save_npz(self.out / "points" / f"seed-{branch}.npz", p=p, phi=phi)
 
-    def append(self, row: dict, result=None) -> None:
-        """Write the snapshot of ``row['point']`` (when there is a finite field), then the row."""
+    def append(self, row: dict, result=None, mode: np.ndarray | None = None) -> None:
+        """Write the snapshot of ``row['point']`` (when there is a finite field; with ``mode``, or
+        the check's least eigenvector at a saddle, as ``mode``), then the row."""
         point = int(row["point"])
         if result is not None and np.all(np.isfinite(result.phi)):
             mu = row.get("second_order_min_eigenvalue")
-            mode = result.history.get("second_order_mode") if mu is not None and mu < 0 else None
+            if mode is None:
+                mode = result.history.get("second_order_mode") if mu is not None and mu < 0 else None
             extra = {} if mode is None else {"mode": np.asarray(mode, float)}
             if self.out is None:
                 self._fields[point] = np.asarray(result.phi, float)

@@ -1,0 +1,235 @@
+"""Stability changes along a branch: detected, located and classified (fold or branch point).
+
+Every point of a branch carries the least few eigenvalues mu_1 <= mu_2 <= ... of the reduced
+Hessian (the Hessian of the Lagrangian of (6)-(8) on the tangent space of the constraints (7), (8),
+symmetry modes excluded as the second-order check decides, ``verify.verdict``), in mu_ref units, and
+their error bounds. Its *index* is the number of decidedly negative ones (mu < -err: a mode within
+its bound of zero, e.g. the relative translation of two far components, counts for neither side).
+Between two accepted points whose indices differ one eigenvalue has crossed zero: the *critical*
+one (``critical_values``: the largest decidedly negative on one side, the least decidedly positive
+on the other), followed through the trials by continuity (``tracked``: the eigenvalue nearest the
+linear interpolation of its end values).
+
+* **Classification** (``classify``): at a fold (saddle-node) the branch turns in p, so the
+  tangent's parameter component changes sign: some secant of the three around the bracket has dp
+  of the other sign. At a branch point (pitchfork, transcritical) p moves on monotonically.
+* **A branch point** is located by the Illinois (modified regula falsi) iteration on
+  g(p), the critical eigenvalue, each trial a fixed-p solve started from the linear interpolation of the bracket's
+  fields and multipliers (``locate_branch_point``): superlinear for a simple crossing, bracketed, so
+  it cannot leave the interval; it ends where |g| is within the eigenvalue's own error bound or the
+  bracket is narrower than ``p_tol``.
+* **A fold** is not a fixed-p point: with a corrector whose p is free (``free``: the point on the
+  hyperplane through a chord point orthogonal to the chord, ``branch.bordered``) the same Illinois
+  iteration runs on the chord parameter tau in [0, 1] (``locate_on_chord``); without one the fold
+  is the vertex of the parabola p(s) through the three points around it (s the chord arclength),
+  located to O(ds^3) only and marked so (``located_by`` = ``parabola``).
+
+Nothing here knows about vesicles: ``tests/branch/test_tree.py`` runs it on closed forms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+
+FOLD, BRANCH_POINT = "fold", "branch point"
+MAX_LOCATE = 12  # solves of one location (Illinois: ~5-8 for a simple crossing to 1e-6 of the step)
+
+
+@dataclass(frozen=True)
+class Point:
+    """One certified point of a branch, as the event logic needs it."""
+
+    p: float
+    phi: np.ndarray = field(repr=False)
+    energy: float
+    eigenvalues: tuple[float, ...]  # least few, ascending (mu_ref units)
+    errors: tuple[float, ...] = ()  # their error bounds
+    lam: tuple[float, ...] | None = None  # the multipliers (a warm start for re-solves)
+    payload: object = field(default=None, repr=False, compare=False)  # the solver's result
+
+    @property
+    def index(self) -> int:
+        return index(self.eigenvalues, self.errors)
+
+
+def index(eigenvalues, errors=()) -> int:
+    """The number of eigenvalues decidedly negative: mu < -err (its error bound; a mode within its
+    bound of zero, such as the relative translation of two far components, is not counted)."""
+    errs = tuple(errors) + (0.0,) * (len(eigenvalues) - len(errors))
+    return int(sum(1 for mu, e in zip(eigenvalues, errs)
+                   if mu is not None and math.isfinite(mu) and mu < -abs(e if math.isfinite(e) else 0.0)))
+
+
+def _err(point: Point, i: int) -> float:
+    e = point.errors[i] if i < len(point.errors) else 0.0
+    return abs(e) if math.isfinite(e) else 0.0
+
+
+def critical_values(a: Point, b: Point) -> tuple[float, float]:
+    """(g_a, g_b): the critical eigenvalue at both ends. On the side with more decidedly negative
+    eigenvalues its largest decidedly negative one; on the other its least decidedly positive one
+    (mu > err), so that a mode within its bound of zero at both ends is passed over."""
+    def largest_negative(q):
+        return max(mu for i, mu in enumerate(q.eigenvalues) if mu < -_err(q, i))
+
+    def least_positive(q):
+        pos = [mu for i, mu in enumerate(q.eigenvalues) if mu > _err(q, i)]
+        return min(pos) if pos else max(q.eigenvalues)
+    if a.index > b.index:
+        return largest_negative(a), least_positive(b)
+    return least_positive(a), largest_negative(b)
+
+
+def tracked(point: Point, target: float) -> tuple[int, float, float]:
+    """(position, value, error bound) of the point's eigenvalue nearest ``target`` (the critical
+    one, followed by continuity between the bracket's ends)."""
+    i = min(range(len(point.eigenvalues)), key=lambda j: abs(point.eigenvalues[j] - target))
+    return i, point.eigenvalues[i], _err(point, i)
+
+
+def crossings(points: list[Point]) -> list[int]:
+    """k such that the index changes between points[k - 1] and points[k]."""
+    return [k for k in range(1, len(points)) if points[k].index != points[k - 1].index]
+
+
+def classify(ps: list[float], k: int) -> str:
+    """FOLD if the parameter turns within one secant of the bracket (points k - 1, k) of the
+    parameter values ``ps``, else BRANCH_POINT (module docstring)."""
+    dps = [ps[j + 1] - ps[j] for j in range(max(k - 2, 0), min(k + 1, len(ps) - 1))]
+    return FOLD if any(x * y < 0 for x, y in zip(dps, dps[1:])) else BRANCH_POINT
+
+
+@dataclass(frozen=True)
+class Located:
+    """A located event: the point (certified where ``point`` came from a solve), how, and the
+    bracket it was found in."""
+
+    kind: str
+    point: Point | None  # None: parabola (no solve) or the location failed
+    p: float
+    energy: float
+    critical: int  # the critical eigenvalue's position in the located point's list (its mode's)
+    eigenvalue: float  # g at the located point (nan for a parabola)
+    error: float  # its error bound (nan for a parabola)
+    bracket: float  # final width of the bracket, in p (branch point) or tau (chord)
+    solves: int
+    located_by: str  # "illinois" | "chord" | "parabola" | "failed: ..."
+    iterations: int = 0
+
+
+def _illinois(evaluate: Callable, lo: float, g_lo: float, hi: float, g_hi: float, tol: float,
+              max_solves: int):
+    """Illinois iteration on [lo, hi] with g(lo) g(hi) < 0; ``evaluate(x)`` -> (g, err, point) or
+    None (a failed solve: the next trial is the midpoint). Returns (best point, g, err, width, solves)."""
+    best, side, solves, failed = None, 0, 0, False
+    while solves < max_solves and abs(hi - lo) > tol:
+        x = (lo + hi) / 2 if failed else lo - g_lo * (hi - lo) / (g_hi - g_lo)
+        if not min(lo, hi) < x < max(lo, hi):
+            x = (lo + hi) / 2
+        r = evaluate(x)
+        solves += 1
+        if r is None:
+            if failed:  # two failures in a row: stop with what there is
+                break
+            failed = True
+            continue
+        failed = False
+        gx, err, pt = r
+        if best is None or abs(gx) < abs(best[1]):
+            best = (pt, gx, err)
+        if abs(gx) <= err:  # zero to its own error bound
+            return pt, gx, err, abs(hi - lo), solves
+        if gx * g_lo > 0:
+            lo, g_lo = x, gx
+            if side == -1:
+                g_hi /= 2  # Illinois: the retained end's value halved
+            side = -1
+        else:
+            hi, g_hi = x, gx
+            if side == 1:
+                g_lo /= 2
+            side = 1
+    if best is None:
+        return None, math.nan, math.nan, abs(hi - lo), solves
+    return best[0], best[1], best[2], abs(hi - lo), solves
+
+
+def _mix(a, b, t):
+    return None if a is None or b is None else tuple((1 - t) * x + t * y for x, y in zip(a, b))
+
+
+def locate_branch_point(solve: Callable, a: Point, b: Point, p_tol: float,
+                        max_solves: int = MAX_LOCATE) -> Located:
+    """The branch point between a and b (same sheet, p monotone): ``solve(p, phi0, lam0)`` -> a
+    certified Point or None; each trial warm from the interpolation of a and b."""
+    ga, gb = critical_values(a, b)
+
+    def evaluate(p):
+        t = (p - a.p) / (b.p - a.p)
+        pt = solve(p, (1 - t) * a.phi + t * b.phi, _mix(a.lam, b.lam, t))
+        return _tracked(pt, ga + t * (gb - ga))
+
+    return _located(BRANCH_POINT, _illinois(evaluate, a.p, ga, b.p, gb, p_tol, max_solves), a, b, "illinois")
+
+
+def _tracked(pt: Point | None, target: float):
+    if pt is None or not pt.eigenvalues or not all(math.isfinite(x) for x in pt.eigenvalues):
+        return None
+    i, mu, err = tracked(pt, target)
+    return mu, err, (pt, i)
+
+
+def _located(kind, found, a, b, how) -> Located:
+    best, gx, err, width, n = found
+    if best is None:
+        return Located(kind, None, (a.p + b.p) / 2, (a.energy + b.energy) / 2, 0, math.nan, math.nan, width, n,
+                       "failed: no trial converged")
+    pt, i = best
+    return Located(kind, pt, pt.p, pt.energy, i, gx, err, width, n, how)
+
+
+def locate_on_chord(free: Callable, a: Point, b: Point, weights, theta: float, tau_tol: float,
+                    kind: str = FOLD, max_solves: int = MAX_LOCATE) -> Located:
+    """The event between a and b with p free: ``free(phi_pred, p_pred, t_phi, t_p, theta)`` -> a
+    certified Point on the hyperplane through the chord point at tau orthogonal to the chord (in
+    the metric theta^2 <., .>_w + dp^2) or None; Illinois in tau."""
+    ga, gb = critical_values(a, b)
+    dphi, dp = b.phi - a.phi, b.p - a.p
+    length = math.hypot(theta * math.sqrt(float(np.dot(weights, dphi * dphi))), dp)
+    t_phi, t_p = dphi / length, dp / length
+
+    def evaluate(tau):
+        return _tracked(free(a.phi + tau * dphi, a.p + tau * dp, t_phi, t_p, theta), ga + tau * (gb - ga))
+
+    return _located(kind, _illinois(evaluate, 0.0, ga, 1.0, gb, tau_tol, max_solves), a, b, "chord")
+
+
+def locate_fold_parabola(pts: list[Point], weights, theta: float, m: int = 0) -> Located:
+    """The fold as the vertex of the parabola p(s) through three points around it (s: the chord
+    arclength in the metric theta^2 <., .>_w + dp^2), the energy from the parabola E(s) through the
+    same points (module docstring)."""
+    s = [0.0]
+    for x, y in zip(pts, pts[1:]):
+        d = y.phi - x.phi
+        s.append(s[-1] + math.hypot(theta * math.sqrt(float(np.dot(weights, d * d))), y.p - x.p))
+    cp = np.polyfit(s, [q.p for q in pts], 2)
+    ce = np.polyfit(s, [q.energy for q in pts], 2)
+    sv = -cp[1] / (2 * cp[0]) if cp[0] != 0 else s[1]
+    sv = min(max(sv, s[0]), s[-1])
+    return Located(FOLD, None, float(np.polyval(cp, sv)), float(np.polyval(ce, sv)), m, math.nan, math.nan,
+                   0.0, 0, "parabola")
+
+
+def with_index(point: Point, eigenvalues, errors=()) -> Point:
+    return replace(point, eigenvalues=tuple(float(x) for x in eigenvalues), errors=tuple(float(x) for x in errors))
+
+
+def spectrum_extra(so) -> dict:
+    """A second-order check's (``verify.verdict.SecondOrder``) least few eigenvalues and their
+    error bounds (mu_ref units), for a Result's extra: the point's index."""
+    return {"second_order_eigenvalues": tuple(float(x) for x in so.eigenvalues),
+            "second_order_errors": tuple(float(x) for x in so.errors)}

@@ -1,0 +1,267 @@
+"""The vesicle problem of a diagram: the correctors of ``branch.corrector`` (IPOPT),
+``branch.nk_corrector`` (Newton-Krylov) and ``branch.bordered`` (p free) behind ``branch.tree``'s
+interface (``branch.problem``), the rows of ``branch.store``.
+
+Per point (``row``): the certificate, the second-order verdict and its least few eigenvalues, the
+envelope identity's ``dE_dp`` and ``envelope_residual`` (``branch.run`` docstring). For the tree:
+
+* ``solve(p, phi0, lam0)``: the certified point at fixed p, warm (the location of a branch point,
+  the fixed-p switch); ``free``: the point with p free on a hyperplane (IPOPT, lumped mass);
+* ``mode(point, m)``: the m-th eigenvector of the reduced Hessian at a point (``verify.lobpcg``'s
+  matrix-free spectrum with its vectors; the check's own least mode for m = 0 elsewhere);
+* ``align(phi, ref)``: on periodic grids the image of phi under translations (the peak of the FFT
+  cross-correlation) and, on square 2D grids, the square's rotations and reflections nearest ref;
+* ``deflate(p, phi0, known)``: ``branch.deflation`` on the bordered Newton system at fixed p,
+  its root certified by the fixed-p IPOPT solve.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Callable
+
+import numpy as np
+
+from vesicle_opt.api import solve
+from vesicle_opt.backends import choose_backend
+from vesicle_opt.branch import arclength as arc
+from vesicle_opt.branch.bordered import Affine, BorderedCorrector
+from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
+from vesicle_opt.branch.events import Point
+from vesicle_opt.branch.nk_corrector import NewtonKrylovCorrector
+from vesicle_opt.branch.params import Parameter, explicit_derivative
+from vesicle_opt.branch.problem import TreeProblem
+from vesicle_opt.branch.store import Store
+from vesicle_opt.errors import InputError
+from vesicle_opt.mesh import discretize
+from vesicle_opt.scene.schema import Scene
+
+
+class VesicleProblem(TreeProblem):
+    """The branches of one scene: the correctors, the rows, the store (module docstring)."""
+
+    def __init__(self, scene, par: Parameter, settings, store: Store, backend, options, reference, progress):
+        self.scene, self.par, self.s, self.store = scene, par, settings, store
+        self.backend, self.options, self.reference, self.progress = backend, options, reference, progress
+        self.weights = discretize(scene).weights
+        # on IPOPT the NLP, its solver and the check's operators are built once (branch.corrector);
+        # on Newton-Krylov (numpy arrays) the setup, warm from point to point (branch.nk_corrector)
+        chosen = choose_backend(scene, backend)
+        self.ipopt = IpoptCorrector(scene, options) if chosen == "ipopt" else None
+        self.nk = NewtonKrylovCorrector(scene, options) if chosen == "newton-krylov" and \
+            scene.solver.array != "jax" else None
+        self._bordered = None  # branch.bordered, built when the walk first nears a fold (IPOPT, lumped)
+        self.start, self.param = par.start, par.name
+        self.disc = self.ipopt.disc if self.ipopt is not None else discretize(scene)
+
+    def free_corrector(self, branch: int) -> Callable | None:
+        """The corrector with p free (``branch.bordered``, then the fixed-p IPOPT solve at the p
+        found, which certifies the point); None where it does not apply (Newton-Krylov backend,
+        consistent mass): the walk then uses its scalar iteration (``branch.arclength``)."""
+        if self.ipopt is None or self.ipopt.disc.consistent:
+            return None
+
+        def free(phi_pred, p_pred, t_phi, t_p, theta):
+            t0 = time.perf_counter()
+            lam = None if branch is None else self.multipliers(branch, p_pred)
+            if lam is None:
+                lam = least_squares_multipliers(self.scene, self.ipopt.disc, phi_pred)
+            nw = self.bordered().solve(phi_pred, p_pred, lam, t_phi, t_p, theta)
+            if not nw.converged or (self.par.name == "reduced_volume" and not 0 < nw.p <= 1):
+                why = nw.message or f"reduced_volume {nw.p:.6g} outside (0, 1]"
+                return arc.Attempt(nw.p, phi_pred, False, nw.iterations,
+                                   (None, f"bordered Newton: {why}", time.perf_counter() - t0, None))
+            res = self.ipopt.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, feasibility=False)
+            return arc.Attempt(nw.p, res.phi, res.converged, nw.iterations + res.iterations,
+                               (res, None, time.perf_counter() - t0, False))
+        return free
+
+    def multipliers(self, branch: int, p: float) -> tuple[float, float] | None:
+        """(lambda_volume, lambda_area) predicted at p: linear in p through the branch's last two
+        accepted points (the last one's with one; None before), read from the rows, so that a
+        resumed run starts each solve where the uninterrupted one did."""
+        acc = [r for r in self.store.rows() if r["accepted"] and r["branch"] == branch and r["lambda_volume"] is not None]
+        if not acc:
+            return None
+        b = acc[-1]
+        lam_b = np.array([b["lambda_volume"], b["lambda_area"]], float)
+        if len(acc) == 1 or acc[-2]["target"] == b["target"]:
+            return tuple(lam_b)
+        a = acc[-2]
+        lam_a = np.array([a["lambda_volume"], a["lambda_area"]], float)
+        return tuple(lam_b + (p - b["target"]) / (b["target"] - a["target"]) * (lam_b - lam_a))
+
+    def bordered(self) -> BorderedCorrector:
+        if self._bordered is None:
+            a, b, c = self.par.affine(self.scene)
+            self._bordered = BorderedCorrector(self.ipopt.scene, self.ipopt.disc, Affine(a, b, c))
+        return self._bordered
+
+    def ipopt_point(self, branch: int | None, sc: Scene, p: float, phi0: np.ndarray, lam0=None):
+        """(result, restarted) at fixed p on IPOPT: warm from the prediction; if that fails (lumped
+        mass), Newton at fixed p from the prediction (``BorderedCorrector.fixed``) and IPOPT warm
+        from Newton's point, which certifies it (0 iterations where Newton converged); the
+        iterations add up. (Measured, 128^2 elastica: warm IPOPT failed once, at nu = 0.576, and took
+        2-3 iterations at the next eight points from the secant; a Newton-first rule after a
+        fallback cost 4-8 s a point there.) The data are checked at the start and the end
+        (``branch``); a point between whose targets were infeasible fails: a failed row."""
+        if branch is not None:
+            lam0 = self.multipliers(branch, p)
+        elif lam0 is None:
+            lam0 = least_squares_multipliers(sc, self.ipopt.disc, phi0)
+        res = self.ipopt.solve(sc, phi0, lam0, feasibility=False)
+        if res.converged or self.ipopt.disc.consistent:
+            return res, False
+        lam_n = lam0 if lam0 is not None else least_squares_multipliers(sc, self.ipopt.disc, phi0)
+        nw = self.bordered().fixed(phi0, p, lam_n)
+        if not nw.converged:
+            return res, True
+        polish = self.ipopt.solve(sc, nw.phi, nw.lam, feasibility=False)
+        return dataclasses.replace(polish, iterations=res.iterations + nw.iterations + polish.iterations), True
+
+    def correct(self, branch: int) -> Callable:
+        return self.corrector(None, branch)
+
+    def free_attempt(self, branch: int) -> Callable | None:
+        return self.free_corrector(branch)
+
+    def corrector(self, seed: np.ndarray | None, branch: int = 0) -> Callable:
+        def correct(p, phi_start):
+            t0 = time.perf_counter()
+            start = phi_start is None and seed is None
+            if start:
+                sc = self.scene  # the start: the scene as given
+            else:
+                phi_start = seed if phi_start is None else phi_start
+                if self.par.name == "reduced_volume" and not 0 < p <= 1:
+                    return arc.Attempt(p, phi_start, False, 0, (None, f"reduced_volume {p:.6g} outside (0, 1]", 0.0, None))
+                sc = self.par.scene_at(self.scene, p)
+            restarted = None
+            try:
+                if self.nk is not None:  # warm: the predicted multipliers (None at a start: least squares)
+                    res = self.nk.solve(sc, phi_start, None if start else self.multipliers(branch, p), branch)
+                elif self.ipopt is None:
+                    res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
+                elif start:
+                    res = self.ipopt.solve(sc, self.ipopt.nlp.split(self.ipopt.nlp.x0)[0])  # cold
+                else:
+                    res, restarted = self.ipopt_point(branch, sc, p, phi_start)
+            except InputError as exc:  # infeasible data beyond the range of a start: a failed point
+                if start:
+                    raise
+                return arc.Attempt(p, phi_start, False, 0, (None, str(exc), time.perf_counter() - t0, None))
+            return arc.Attempt(p, res.phi, res.converged, res.iterations,
+                               (res, None, time.perf_counter() - t0, restarted))
+        return correct
+
+    def row(self, branch: int, st: arc.Step) -> tuple[dict, object]:
+        a = st.attempt
+        res, message, wall, restarted = a.payload  # (Result or None, why not, seconds, restarted)
+        rows = self.store.rows()
+        point = len(rows)
+        sc = self.scene
+        row = {"point": point, "branch": branch, "param": self.par.name, "target": a.p,
+               "accepted": st.accepted, "converged": bool(a.converged), "iterations": a.iterations,
+               "solves": st.solves, "corrector": st.corrector, "arc_step": st.arc_step,
+               "arc_theta": st.theta, "arc_condition": st.arc_condition, "deviation": st.deviation, "wall_time_s": wall,
+               "epsilon": sc.model.epsilon, "n": sc.mesh.n[0],
+               "c0": a.p if self.par.name == "c0" else sc.model.c0, "restarted": restarted}
+        if res is None:
+            row.update({"outcome": "not_solved", "status": message})
+            return row, None
+        ex = res.extra
+        row.update({k: ex.get(k) for k in ("reduced_volume", "reduced_energy", "second_order",
+                                          "second_order_min_eigenvalue", "second_order_excluded",
+                                          "rotation_rayleigh", "topology", "components",
+                                          "h", "alpha", "beta", "volume", "area")})
+        row["wraps"] = None if ex.get("wraps") is None else "".join("xyz"[i] for i in ex["wraps"]) or "none"
+        row.update({"energy": res.energy, "lambda_volume": res.lambda_volume, "lambda_area": res.lambda_area,
+                    "kkt_residual": res.kkt_residual, "outcome": str(res.outcome), "status": res.status})
+        point_scene = self.par.scene_at(sc, a.p)
+        row["dE_dp"] = (res.lambda_volume * self.par.dalpha() + res.lambda_area * self.par.dbeta()
+                        + explicit_derivative(self.par.name, res, point_scene))
+        if a.converged and not st.accepted:
+            row["event"] = (f"rejected: {st.deviation:.3g} ds from the prediction (another branch)"
+                            if st.deviation is not None else "rejected")
+        prev = [r for r in rows if r["accepted"] and r["branch"] == branch]
+        if st.accepted and prev:
+            q = prev[-1]
+            g, dp = (q["dE_dp"] + row["dE_dp"]) / 2, a.p - q["target"]
+            row["envelope_residual"] = abs(res.energy - q["energy"] - g * dp) / abs(g * dp) if g * dp else None
+            mu0, mu1 = q["second_order_min_eigenvalue"], row["second_order_min_eigenvalue"]
+            if mu0 is not None and mu1 is not None and mu0 * mu1 < 0:
+                row["event"] = "stability change"
+        if self.reference is not None:
+            row["sharp_reduced_energy"] = self.reference(self.par.name, a.p, sc.dim)
+        return row, res
+
+    # -- the tree's interface (``branch.tree``) ------------------------------------------------
+    def _point(self, res, p: float) -> Point | None:
+        if res is None or not res.converged:
+            return None
+        ex = res.extra
+        eig = ex.get("second_order_eigenvalues") or (() if ex.get("second_order_min_eigenvalue") is None
+                                                    else (ex["second_order_min_eigenvalue"],))
+        return Point(float(p), np.asarray(res.phi, float), res.energy, tuple(eig),
+                     tuple(ex.get("second_order_errors") or ()), (res.lambda_volume, res.lambda_area), res)
+
+    def solve(self, p: float, phi0: np.ndarray, lam0=None) -> Point | None:
+        """The certified point at fixed p from (phi0, lam0), not recorded (None: not converged)."""
+        if self.par.name == "reduced_volume" and not 0 < p <= 1:
+            return None
+        sc = self.par.scene_at(self.scene, p)
+        try:
+            if self.nk is not None:
+                res = self.nk.solve(sc, phi0, lam0, branch=-1)
+            elif self.ipopt is None:
+                res = solve(sc, backend=self.backend, method="exact", x0=phi0, options=self.options)
+            else:
+                res, _ = self.ipopt_point(None, sc, p, phi0, lam0)
+        except InputError:
+            return None
+        return self._point(res, p)
+
+    @property
+    def free(self) -> Callable | None:
+        f = self.free_corrector(None)
+        if f is None:
+            return None
+
+        def free_point(phi_pred, p_pred, t_phi, t_p, theta):
+            a = f(phi_pred, p_pred, t_phi, t_p, theta)
+            return self._point(a.payload[0], a.p) if a.converged else None
+        return free_point
+
+    def mode(self, point: Point, m: int) -> np.ndarray | None:
+        """The m-th eigenvector (M-normalised) of the reduced Hessian at a certified point."""
+        res = point.payload
+        if m == 0 and res.history.get("second_order_mode") is not None:
+            return np.asarray(res.history["second_order_mode"], float)
+        from vesicle_opt.nk.setup import prepare
+        from vesicle_opt.verify import lobpcg
+        from vesicle_opt.verify import verdict as V
+        sc = self.par.scene_at(self.scene, point.p)
+        setup = self.nk.setup(sc) if self.nk is not None else prepare(sc)
+        _, _, vec = lobpcg.reduced_hessian_eigenvalues(sc, res, setup, k=max(lobpcg.K, m + 2),
+                                                       rotations=V.excludes_rotations(sc), vectors=True)
+        return np.asarray(vec[:, m], float)
+
+    def align(self, phi: np.ndarray, ref: np.ndarray) -> np.ndarray:
+        """phi's image nearest ref under the grid's symmetries (module docstring)."""
+        from vesicle_opt.branch.symmetry import align
+        disc = self.ipopt.disc if self.ipopt is not None else discretize(self.scene)
+        periodic = self.scene.domain.boundary == "periodic" and disc.grid_shape is not None
+        return align(phi, ref, disc.grid_shape, disc.box) if periodic else phi
+
+    def point_row(self, k: int, point: Point, corrector: str) -> tuple[dict, object]:
+        res = point.payload
+        st = arc.Step(arc.Attempt(point.p, point.phi, True, res.iterations, (res, None, 0.0, None)), True,
+                      corrector, 1, abs(self.s.step), None)
+        row, res = self.row(k, st)
+        row.update({"envelope_residual": None, "event": None})
+        return row, res
+
+    def deflate(self, p: float, phi0: np.ndarray, known: list[np.ndarray]) -> Point | None:
+        from vesicle_opt.branch.deflation import deflated_vesicle
+        return deflated_vesicle(self, p, phi0, known)
