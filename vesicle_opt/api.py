@@ -53,6 +53,7 @@ from vesicle_opt.nk.setup import prepare
 from vesicle_opt.nlp import NLP, IpoptOptions, PenaltyNLP, build_nlp, solve_nlp
 from vesicle_opt.result import Result
 from vesicle_opt.scene import Scene
+from vesicle_opt.scene.ranges import resolution_warning
 from vesicle_opt.verify import lobpcg, second_order, shape, topology, verdict
 
 
@@ -169,6 +170,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         resources.check(scene, chosen)  # the memory estimate, before anything is built
     else:
         raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
+    if (coarse := resolution_warning(scene)) is not None:  # eps / h below the recommended 2: before the solve
+        log.warning("%s", coarse)
     check_second_order = scene.solver.method in EXACT_METHODS and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)
