@@ -66,6 +66,7 @@ class ShapeCheck:
     bulk_volume_share: float  # the volume the offsets take up, over the phase-field volume
     phase_field_volume: float  # (|Omega| + A) / 2
     reduced_volume: float  # the phase-field one (of A and B), the target's at a certified point
+    epsilon: float = 0.0
     zero_volume: float | None = None  # enclosed by phi = 0 (None: no closed level set measured)
     zero_area: float | None = None  # its area (perimeter in 2D)
     curvature_integral: float | None = None  # int_Gamma kappa dA of that level set
@@ -168,7 +169,7 @@ def measure(disc, phi: np.ndarray, epsilon: float, A: float, B: float, wraps=Non
     out_vol = mirror * float(w[phi < 0].sum())
     share = (d_out * out_vol - d_in * (disc.volume - out_vol)) / 2 / V if V > 0 else math.inf
     nu = geometry.reduced_volume(V, geometry.surface_area(B), disc.dim) if V > 0 and B > 0 else math.nan
-    check = ShapeCheck(d_out, d_in, share, V, nu, wraps=None if wraps is None else tuple(wraps))
+    check = ShapeCheck(d_out, d_in, share, V, nu, epsilon, wraps=None if wraps is None else tuple(wraps))
     grid = _grid(disc, phi)
     if grid is None or grid[0].ndim not in (2, 3) or not grid[0].min() < 0 < grid[0].max():
         return check
@@ -201,8 +202,10 @@ def judge(check: ShapeCheck) -> tuple[str, str | None]:
         return "ok", None
     if abs(check.volume_gap) <= VOLUME_GAP_MAX:
         return "ok", None
-    what = (f"the phi = 0 surface encloses {check.zero_volume:.4g}, {check.volume_gap:+.0%} off the "
-            f"phase-field volume {check.phase_field_volume:.4g} after its O(eps^2) curvature term ({bulk})")
+    corrected = check.zero_volume + CURVATURE_COEFFICIENT * check.epsilon**2 * check.curvature_integral
+    what = (f"the phi = 0 surface encloses {check.zero_volume:.4g}, {corrected:.4g} with the tanh profile's "
+            f"O(eps^2) curvature term: {check.volume_gap:+.0%} off the phase-field volume "
+            f"{check.phase_field_volume:.4g} ({bulk})")
     rounder = check.zero_reduced_volume - check.reduced_volume
     if check.volume_gap > 0 and rounder > ROUNDER_MAX:
         return "wrong_shape", (f"wrong shape: {what}; its reduced volume is {check.zero_reduced_volume:.3f}, "
