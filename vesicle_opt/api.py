@@ -15,7 +15,11 @@ the same reports added here:
   error bound of that eigenvalue ``second_order_error_bound`` (mu_ref units, ``verify.verdict``), the
   check's iterations (matrix-free) and its wall seconds ``second_order_time_s`` (beside the
   solve's ``wall_time_s``);
-* ``topology`` and its counts (``verify.topology.report``).
+* ``topology`` and its counts (``verify.topology.report``);
+* ``shape`` (``verify.shape``): the phi = 0 surface's volume, corrected by the tanh profile's
+  O(eps^2) curvature term, against (|Omega| + A) / 2 (4), the bulk's offset from -1 and the volume
+  it carries, merged periodic images: ``ok``, ``bulk_offset`` (a warning line, ``shape_reason``)
+  or ``wrong_shape`` (outcome ``wrong_shape``, not converged, the line its ``reason``).
 
 ``solver.array = 'jax'`` runs the newton-krylov backend's arrays on JAX devices (``nk_jax``); its
 field comes back to the host and is certified, and second-order checked, by the numpy code.
@@ -49,7 +53,8 @@ from vesicle_opt.nk.setup import prepare
 from vesicle_opt.nlp import NLP, IpoptOptions, PenaltyNLP, build_nlp, solve_nlp
 from vesicle_opt.result import Result
 from vesicle_opt.scene import Scene
-from vesicle_opt.verify import lobpcg, second_order, topology, verdict
+from vesicle_opt.scene.ranges import resolution_warning
+from vesicle_opt.verify import lobpcg, second_order, shape, topology, verdict
 
 
 # the methods whose converged result promises A = alpha, B = beta to tol: second-order checked
@@ -140,7 +145,8 @@ def with_reports(result: Result, so, seconds: float = 0.0) -> Result:
     backend's pieces themselves (``vesicle_opt.branch`` reuses one IPOPT solver along a branch) and
     report the same way."""
     result = _second_order(result, so, seconds)
-    return _replace_extra(result, **topology.report(result.disc, result.phi))
+    result = _replace_extra(result, **topology.report(result.disc, result.phi))
+    return shape.apply(result)  # the physical shape against the targets (verify.shape)
 
 
 def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | None = None, x0=None,
@@ -167,6 +173,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         resources.check(scene, chosen)  # the memory estimate, before anything is built
     else:
         raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
+    if (coarse := resolution_warning(scene)) is not None:  # eps / h below the recommended 2: before the solve
+        log.warning("%s", coarse)
     check_second_order = scene.solver.method in EXACT_METHODS and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)
@@ -199,6 +207,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
             so = (lobpcg.check(scene, result, setup, rotations=rotations)
                   if check_second_order and result.converged else None)
     result = with_reports(result, so, seconds=time.perf_counter() - t0)
+    if result.extra.get("shape") == "bulk_offset":
+        log.warning("%s: %s", scene.name, result.extra["shape_reason"])
     if chosen != "ipopt" and getattr(result.disc, "fourier", None) is not None:  # which FFTs the solve ran
         lib = "jax" if scene.solver.array == "jax" else resolve_fft(scene.solver.fft)
         result = _replace_extra(result, fft_library=lib)

@@ -31,6 +31,7 @@ from vesicle_opt.io import outdir, output, progress
 from vesicle_opt.io.files import package_version
 from vesicle_opt.scene import load as load_scene
 from vesicle_opt.scene import resolved
+from vesicle_opt.scene.ranges import resolution_warning
 from vesicle_opt.studies import DESCRIPTIONS, STUDIES, docstring, run_study, study
 
 DESCRIPTION = ("Equilibrium shapes of vesicle membranes with the phase-field bending model, computed as "
@@ -120,6 +121,8 @@ def cmd_flow(args) -> int:
         overrides.append('flow.stepping="adaptive"')
     sc = load_scene(args.scene, overrides)
     check_flow_supported(sc)  # the flows' own refusals, before the directory is touched
+    if (coarse := resolution_warning(sc)) is not None:  # eps / h below the recommended 2, before the flow
+        logging.getLogger("vesicle_opt.cli").warning("%s", coarse)
     with _preflight(sc, args.out, "flow") as out:
         run = write_flow(sc, out, restart=args.restart, progress=not getattr(args, "quiet", False))
     s = run.summary

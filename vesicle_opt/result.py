@@ -28,6 +28,7 @@ class Status(str, enum.Enum):
     INFEASIBLE = "infeasible"  # the constraints A = alpha, B = beta do not hold to tol
     KKT_NOT_MET = "kkt_not_met"  # the recomputed KKT residual exceeds its bound
     NOT_CERTIFIED = "not_certified"  # another consistency check failed (it says which)
+    WRONG_SHAPE = "wrong_shape"  # a KKT point, but not the vesicle asked (verify.shape: bulk, merged images)
     # gradient flows (``vesicle_opt.flows``)
     T_END = "t_end"  # reached the final time
     STEADY = "steady"  # ||phi_t|| fell below flow.steady_tol times its first value

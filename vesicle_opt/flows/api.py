@@ -16,6 +16,7 @@ No directory is needed: output, progress, checkpoints and stop criteria are trac
 
 from __future__ import annotations
 
+import copy
 import hashlib
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -138,8 +139,12 @@ def _field(md: FlowModel, phi, key: str) -> np.ndarray:
 
 def fingerprint(scene) -> str:
     """Identifies the problem a checkpoint belongs to (not t_end, steps, frames: those may change)."""
-    key = replace(scene, name="", flow=replace(scene.flow, t_end=0.0, steps=1, frames=1, dt=0.0,
-                                                stepping="constant", checkpoint_every=1))
+    # the placeholders (dt = t_end = 0) lie outside the ranges a Flow is built with (scene.ranges):
+    # set on a copy, so the key (and every checkpoint's fingerprint) is what it was
+    neutral = copy.copy(scene.flow)
+    for name, value in dict(t_end=0.0, steps=1, frames=1, dt=0.0, stepping="constant", checkpoint_every=1).items():
+        object.__setattr__(neutral, name, value)
+    key = replace(scene, name="", flow=neutral)
     return hashlib.sha256(repr(key).encode()).hexdigest()[:16]
 
 

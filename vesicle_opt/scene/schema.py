@@ -18,7 +18,9 @@ from typing import Any
 
 from vesicle_opt.errors import InputError
 from vesicle_opt.geometry import targets, volume_of_reduced
+from vesicle_opt.scene import ranges
 from vesicle_opt.scene.bundled import resolve as resolve_scene
+from vesicle_opt.scene.ranges import EPS_PER_BOX_MAX, EPS_PER_H_MIN, M_LIMIT, TOL_RANGE
 from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES, Shape, number, numbers, parse_shape
 
 @dataclass(frozen=True)
@@ -27,6 +29,9 @@ class Domain:
     boundary: str  # "periodic" | "natural"
     mirror_cells: int = 1  # spectral + natural (``mesh.cosine``): 2^d, the box is one mirror cell of the
     # doubled periodic box, and |Omega| (so alpha, volume, area, energy) is the full symmetric field's
+
+    def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
+        ranges.check_domain(self)
 
     @property
     def dim(self) -> int:
@@ -46,12 +51,18 @@ class Mesh:
     quadrature: str  # "nodal" | "gauss"
     file: str | None = None
 
+    def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
+        ranges.check_mesh(self)
+
 
 @dataclass(frozen=True)
 class Model:
     epsilon: float
     c0: float = 0.0
     rigidity: float = 1.0
+
+    def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
+        ranges.check_model(self)
 
     @property
     def C(self) -> float:
@@ -67,6 +78,9 @@ class Constraints:
     # physical targets (geometry.targets): given together, they set alpha and beta
     reduced_volume: float | None = None
     area: float | None = None
+
+    def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
+        ranges.check_constraints(self)
 
 
 @dataclass(frozen=True)
@@ -90,6 +104,9 @@ class Solver:
     # auto: pyFFTW where the optional extra is installed, else scipy)
     max_memory_gb: float | None = None  # the resource guard's limit (vesicle_opt.resources); None: available memory
 
+    def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
+        ranges.check_solver(self)
+
 
 @dataclass(frozen=True)
 class Flow:
@@ -109,6 +126,9 @@ class Flow:
     checkpoint_every: int = 50
     initial: str = "projected"  # "projected" onto A = alpha, B = beta | "shape" (not for lagrange)
 
+    def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
+        ranges.check_flow(self)
+
 
 @dataclass(frozen=True)
 class Scene:
@@ -121,6 +141,9 @@ class Scene:
     solver: Solver
     flow: Flow = Flow()
 
+    def __post_init__(self):  # the checks across sections, wherever it is built or replaced (scene.ranges)
+        ranges.check_scene(self)
+
     @property
     def dim(self) -> int:
         return self.domain.dim
@@ -131,17 +154,6 @@ class Scene:
 
 # --- schema: key -> (kind, default, allowed). kind in {float, int, str, shape, box, ints, floats}.
 _REQ = object()
-M_LIMIT = 1e12  # largest penalty constant accepted (double precision: M |A - alpha| loses digits beyond)
-# solver.tol: the certificate accepts kkt_dual (the relative residual in the natural norm,
-# verify.kkt) <= 100 tol, so above 1e-4 a point 1% away from stationarity would pass (tol = 1
-# certified a saddle with kkt 0.2); below 1e-14 no grid can certify: the natural-norm floor (the
-# round-off of phi through the bulk Hessian, ~ eps_mach h^-2) is 3.6e-14 at the coarsest bundled
-# grid (torus 16^3) and 1e-12 ... 3e-10 on 2D grids 64^2 ... 1024^2 (measured)
-TOL_RANGE = (1e-14, 1e-4)
-# model.epsilon: below h/10 the tanh profile jumps from -1 to +1 between neighbouring nodes to
-# within 1e-6 (no node sees the diffuse interface); above half the box's shortest side the
-# interface is as wide as the box (no vesicle fits)
-EPS_PER_H_MIN, EPS_PER_BOX_MAX = 0.1, 0.5
 SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "domain.box": ("box", _REQ, "list of [lo, hi] pairs with lo < hi, 2 or 3 of them"),
     "domain.boundary": ("str", "periodic", ("periodic", "natural")),
@@ -196,15 +208,8 @@ _POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "constraints
 
 
 def _check_penalty(val: dict) -> None:
-    """Ranges of the penalty keys (methods penalty, continuation, augmented)."""
-    for key in ("solver.M", "solver.M0", "solver.M_max"):
-        if val[key] > M_LIMIT:
-            raise InputError(key, f"allowed range {SCHEMA[key][2]}, got {val[key]!r}")
-    if val["solver.M_factor"] <= 1:
-        raise InputError("solver.M_factor", f"allowed range > 1, got {val['solver.M_factor']!r}")
-    if val["solver.M0"] > val["solver.M_max"]:
-        raise InputError("solver.M0", f"allowed range {SCHEMA['solver.M0'][2]}, got M0 = "
-                         f"{val['solver.M0']!r} > M_max = {val['solver.M_max']!r}")
+    """Ranges of the penalty keys (methods penalty, continuation, augmented): ``ranges.check_penalty``."""
+    ranges.check_penalty(val["solver.M"], val["solver.M0"], val["solver.M_max"], val["solver.M_factor"])
 
 
 def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
@@ -370,21 +375,9 @@ def _check_fft(val: dict) -> None:
 
 
 def _check_ranges(val: dict, box, n) -> None:
-    """solver.tol and model.epsilon within the ranges that mean something (TOL_RANGE, EPS_*)."""
-    lo, hi = TOL_RANGE
-    if not lo <= val["solver.tol"] <= hi:
-        raise InputError("solver.tol", f"allowed range {lo:g} <= tol <= {hi:g} (the certificate accepts "
-                         f"kkt_residual <= 100 tol), got {val['solver.tol']!r}")
-    eps, lengths = val["model.epsilon"], [b - a for a, b in box]
-    if not all(math.isfinite(L) for L in lengths):
-        raise InputError("domain.box", f"side lengths must be finite, got {lengths}")
-    top = EPS_PER_BOX_MAX * min(lengths)
-    h = max(L / k for L, k in zip(lengths, n))
-    bottom = EPS_PER_H_MIN * h if val["mesh.file"] is None else 0.0  # a mesh file: h unknown here
-    if not bottom <= eps <= top:
-        raise InputError("model.epsilon", f"allowed range {bottom:.3g} <= epsilon <= {top:.3g} "
-                         f"(h/{1 / EPS_PER_H_MIN:g} with h = {h:.3g}, and {EPS_PER_BOX_MAX:g} x the shortest "
-                         f"box side), got {eps!r}")
+    """solver.tol and model.epsilon within the ranges that mean something (``scene.ranges``)."""
+    ranges.check_tol(val["solver.tol"])
+    ranges.check_epsilon(val["model.epsilon"], box, n, val["mesh.file"])
 
 
 def _physical_targets(val: dict, target, dim: int, domain: Domain) -> tuple[float, float]:

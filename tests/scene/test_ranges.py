@@ -1,0 +1,102 @@
+"""One validation that cannot be bypassed: every ranged scene key refused the same way by the TOML
+path (the CLI's ``--set``) and by ``Scene.replace`` / ``dataclasses.replace`` on its section."""
+
+import dataclasses
+import tomllib
+
+import pytest
+
+from vesicle_opt.errors import InputError
+from vesicle_opt.scene import load
+from vesicle_opt.scene.ranges import CHOICES, EPS_PER_H_RECOMMENDED, resolution_warning
+from vesicle_opt.scene.bundled import resolve
+from vesicle_opt.scene.schema import SCHEMA, from_dict
+
+# key -> an out-of-range value for ellipse-2d (box [-4, 4]^2, FD 128^2, eps = 0.2)
+BAD = {
+    "model.epsilon": 100.0, "model.rigidity": 0.0, "constraints.beta": -1.0, "constraints.area": 0.0,
+    "constraints.reduced_volume": 1.5, "constraints.alpha": 1e9,
+    "solver.M": 1e13, "solver.tol": 1.0, "solver.max_iter": 0, "solver.second_order_max_iter": 0,
+    "solver.M0": 0.0, "solver.M_factor": 1.0, "solver.M_max": 1e13, "solver.max_outer": 0,
+    "solver.max_memory_gb": -1.0,
+    "flow.gamma": 0.0, "flow.dt": -1e-3, "flow.t_end": 0.0, "flow.steps": 0, "flow.dt_min": 0.0,
+    "flow.dt_max": 0.0, "flow.steady_tol": -1.0, "flow.law_tol": 0.0, "flow.frames": 0,
+    "flow.checkpoint_every": 0, "mesh.n": 2,
+}
+RANGED = [k for k, (kind, _, allowed) in SCHEMA.items()
+          if kind in ("float", "int", "ints") and allowed != "any real"]
+
+
+def test_every_ranged_key_has_a_bad_value():
+    assert sorted(RANGED) == sorted(BAD)
+
+
+def _replace(scene, key, value):
+    section, field = key.split(".")
+    if key == "mesh.n":
+        value = (value,) * scene.dim
+    if section == "constraints" and field in ("reduced_volume", "area"):
+        other = {"reduced_volume": 0.9, "area": 8.0}
+        other[field] = value
+        return scene.replace(constraints=dataclasses.replace(scene.constraints, **other))
+    return scene.replace(**{section: dataclasses.replace(getattr(scene, section), **{field: value})})
+
+
+@pytest.mark.parametrize("key", sorted(BAD))
+def test_out_of_range_refused_by_the_cli_path_and_by_replace_alike(key):
+    scene = load("ellipse-2d")
+    value = BAD[key]
+    with pytest.raises(InputError) as via_replace:
+        _replace(scene, key, value)
+    assert via_replace.value.key == key
+    with pytest.raises(InputError) as via_load:
+        if key in ("constraints.reduced_volume", "constraints.area"):  # the pair, in place of the target
+            raw = tomllib.loads(resolve("ellipse-2d")[1])
+            raw["constraints"] = {"reduced_volume": 0.9, "area": 8.0, key.split(".")[1]: value}
+            from_dict(raw)
+        else:
+            load("ellipse-2d", [f"{key}={value}"])
+    assert via_load.value.key == key
+    if key not in ("mesh.n", "constraints.alpha"):  # load's message names the integer / the list form
+        assert str(via_load.value) == str(via_replace.value)
+
+
+def test_the_issue_case_tol_1_is_refused_by_the_api():
+    from vesicle_opt.api import solve
+    scene = load("ellipse-2d")
+    with pytest.raises(InputError, match="solver.tol"):  # before: converged=True at kkt 0.049
+        solve(scene.replace(solver=dataclasses.replace(scene.solver, tol=1.0)))
+
+
+@pytest.mark.parametrize("key", sorted(CHOICES))
+def test_every_choice_key_refused_by_replace(key):
+    scene = load("ellipse-2d")
+    with pytest.raises(InputError) as exc:
+        _replace(scene, key, "nonsense")
+    assert exc.value.key == key
+
+
+def test_cross_section_checks_on_replace():
+    scene = load("ellipse-2d")
+    with pytest.raises(InputError, match="model.epsilon"):  # eps below h / 10 once the mesh is coarsened
+        scene.replace(mesh=dataclasses.replace(scene.mesh, n=(4, 4)), model=dataclasses.replace(scene.model, epsilon=0.01))
+    with pytest.raises(InputError, match="domain.boundary"):
+        scene.replace(domain=dataclasses.replace(scene.domain, boundary="natural"),
+                      mesh=dataclasses.replace(scene.mesh, kind="fd"))
+
+
+def test_resolution_warning_below_the_recommended_eps_over_h():
+    fine = load("ellipse-2d")
+    h = (fine.domain.box[0][1] - fine.domain.box[0][0]) / fine.mesh.n[0]
+    assert fine.model.epsilon / h >= EPS_PER_H_RECOMMENDED and resolution_warning(fine) is None
+    coarse = load("ellipse-2d", ["mesh.n=16"])
+    line = resolution_warning(coarse)
+    assert line is not None and "raise mesh.n" in line
+
+
+def test_cli_warns_before_the_solve(capsys, tmp_path):
+    from vesicle_opt.cli import main
+    main(["solve", "ellipse-2d", "--set", "mesh.n=32", "--set", "solver.second_order=false", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    warn = err.index("epsilon / h = 0.8 is below the recommended 2")
+    assert warn < err.index("method exact")  # before the solve's first line
