@@ -28,7 +28,7 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            "accepted", "outcome", "status", "iterations", "solves", "corrector", "arc_condition", "deviation",
            "wall_time_s", "epsilon", "n", "h", "alpha", "beta", "volume", "area", "kkt_residual",
            "arc_step", "arc_theta", "sharp_reduced_energy", "second_order_excluded", "rotation_rayleigh",
-           "restarted"]
+           "restarted", "f", "c0_reduced"]  # f = F/8 pi kappa, c0_reduced = C0 R0 (geometry.literature_units; 3D)
 
 
 def _text(v) -> str:
