@@ -27,9 +27,9 @@ AUTO_3D_NODES = 20**3
 BACKENDS = ("ipopt", "newton-krylov")
 METHODS = ("exact", "penalty", "continuation", "augmented")
 SUPPORT = {
-    "ipopt": {"mesh.kind": ("fem-p1", "fd"), "mesh.mass": ("lumped", "consistent"),
+    "ipopt": {"mesh.kind": ("fem-p1", "fd", "axisymmetric"), "mesh.mass": ("lumped", "consistent"),
               "mesh.quadrature": ("nodal", "gauss"), "solver.method": METHODS},
-    "newton-krylov": {"mesh.kind": ("fem-p1", "fd", "spectral"), "mesh.mass": (LUMPED["mesh.mass"],),
+    "newton-krylov": {"mesh.kind": ("fem-p1", "fd", "spectral", "axisymmetric"), "mesh.mass": (LUMPED["mesh.mass"],),
                       "mesh.quadrature": (LUMPED["mesh.quadrature"],), "solver.method": METHODS},
 }
 _WHY = {("ipopt", "mesh.kind"): "its Laplacian is dense; use 'newton-krylov' or 'auto'",
@@ -94,7 +94,7 @@ def _choose(scene, backend: str | None) -> str:
     b = backend or scene.solver.backend
     if b == "auto":
         n_nodes = math.prod(scene.mesh.n)
-        big_3d = scene.dim == 3 and n_nodes > AUTO_3D_NODES and supports(scene, "newton-krylov")
+        big_3d = scene.domain.dim == 3 and n_nodes > AUTO_3D_NODES and supports(scene, "newton-krylov")
         chosen = "newton-krylov" if scene.mesh.kind == "spectral" or big_3d else "ipopt"
         check_supported(scene, chosen)  # e.g. a method the chosen backend does not run
         return chosen

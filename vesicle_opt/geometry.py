@@ -12,6 +12,18 @@ Scaling conventions (the paper's, with phi = +1 inside and -1 outside):
   (16 sqrt(2) pi / 3 for every radius) or the circle of perimeter S (2 sqrt(2) pi / (3 R), R = S / 2 pi),
   both at c0 = 0; so the sphere / circle has reduced energy 1 (``sphere_energy``).
 
+Literature units (Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 1182 (1991); 3D only): the bending
+energy F = (kappa/2) int (C1 + C2 - C0)^2 dA, f = F / (8 pi kappa), c0 = C0 R0, R0 = sqrt(S / 4 pi)
+(``literature_units``). With phi = +1 inside, the tanh profile gives f_c = (1 - phi^2)(C - H/sqrt 2),
+H = C1 + C2 > 0 on a sphere (the normal points from phi = +1 to phi = -1, outwards), so (3) tends to
+(sqrt(2)/3) int (H - sqrt(2) C)^2 = (2 sqrt(2)/3) F / kappa with
+
+    C0 = + sqrt(2) C = 2 c0 (the scene's ``model.c0``, the paper's c0 of the mean curvature (k1 + k2)/2),
+
+the literature's sign (its sphere has f = (1 - c0/2)^2); the physical energy is rigidity E_h with
+kappa = rigidity, hence f = E / (rigidity (2 sqrt(2)/3) 8 pi) = ``reduced_energy`` in 3D, for every c0.
+A test pins the sign on the sphere (f at c0 = +0.5 is (1 - 1/4)^2, not (1 + 1/4)^2).
+
 The tanh profile of a shape on a mesh has A_h, B_h that differ from these sharp values by O(eps^2)
 curvature terms and the mesh error; a scene that gives ``constraints.reduced_volume`` and
 ``constraints.area`` is converted with the sharp formulas above (``targets``), so the diffuse vesicle
@@ -80,6 +92,13 @@ def sphere_energy(area: float, dim: int) -> float:
 def reduced_energy(energy: float, area: float, dim: int, rigidity: float = 1.0) -> float:
     """energy / (rigidity * sphere_energy(area, dim)): 1 for the sphere / circle of that area."""
     return energy / (rigidity * sphere_energy(area, dim))
+
+
+def literature_units(energy: float, area: float, c0: float, rigidity: float = 1.0) -> dict[str, float]:
+    """f = F / (8 pi kappa) and c0_reduced = C0 R0 of a 3D vesicle (module docstring: C0 = 2 c0,
+    f = the reduced energy), the summary's ``f`` and ``c0_reduced``."""
+    R0 = math.sqrt(area / (4 * math.pi))
+    return {"f": reduced_energy(energy, area, 3, rigidity), "c0_reduced": 2.0 * c0 * R0}
 
 
 def targets(reduced: float, area: float, dim: int, domain_volume: float) -> tuple[float, float]:

@@ -55,7 +55,7 @@ def _nodes(scene) -> int | None:
 
 def bytes_per_node(scene, path: str) -> float:
     """The measured figure for ``path`` = a backend ("ipopt", "newton-krylov") or "flow"."""
-    dim = scene.dim
+    dim = scene.domain.dim  # the mesh's (2 on the meridian half-plane of an axisymmetric scene)
     if path == "ipopt":
         base = BYTES_PER_NODE[("ipopt", dim)]
         if scene.mesh.mass == "consistent":  # the 2D ratios, applied in 3D too (not measured there)

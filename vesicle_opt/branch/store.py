@@ -32,7 +32,8 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            # the tree of branches (``branch.tree``): the branch a branch left (empty for the root and for
            # a deflated one), its located events (``branch.events``) and the least few eigenvalues
            "parent", "second_order_eigenvalues", "second_order_errors", "index", "detected_at",
-           "critical", "critical_eigenvalue", "critical_error", "critical_mode", "located_by", "bracket"]
+           "critical", "critical_eigenvalue", "critical_error", "critical_mode", "located_by", "bracket",
+           "f", "c0_reduced"]  # f = F/8 pi kappa, c0_reduced = C0 R0 (geometry.literature_units; 3D)
 
 
 RECENT_BYTES = 64 << 20  # fields kept in memory after a read, oldest out first (16 of 500 k nodes)

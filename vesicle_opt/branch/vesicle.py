@@ -174,7 +174,7 @@ class VesicleProblem(TreeProblem):
         row.update({k: ex.get(k) for k in ("reduced_volume", "reduced_energy", "second_order",
                                           "second_order_min_eigenvalue", "second_order_excluded",
                                           "rotation_rayleigh", "topology", "components",
-                                          "h", "alpha", "beta", "volume", "area")})
+                                          "h", "alpha", "beta", "volume", "area", "f", "c0_reduced")})
         row["wraps"] = None if ex.get("wraps") is None else "".join("xyz"[i] for i in ex["wraps"]) or "none"
         row.update({"energy": res.energy, "lambda_volume": res.lambda_volume, "lambda_area": res.lambda_area,
                     "kkt_residual": res.kkt_residual, "outcome": str(res.outcome), "status": res.status})

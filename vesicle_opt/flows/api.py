@@ -69,7 +69,7 @@ def initial_field(scene, md: FlowModel) -> np.ndarray:
     if scene.initial.shape == "file":  # an earlier solve's phi.npz (resampled from another periodic grid)
         phi0 = load_warm_start(scene.initial.file, md.disc)
     else:
-        phi0 = phase_field(scene.initial, md.disc.nodes, md.disc.box, scene.model.epsilon)
+        phi0 = phase_field(scene.initial, *md.disc.scene_points(), scene.model.epsilon)
     if scene.flow.initial == "projected" or scene.flow.scheme == "lagrange":
         phi0 = project(md, phi0, md.alpha, md.beta, volume_first=scene.initial.shape != "file")
     return phi0

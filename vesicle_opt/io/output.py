@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.io import png
+from vesicle_opt.io import meridian, png
 from vesicle_opt.io import surface as zero_level
 from vesicle_opt.io import vtk
 from vesicle_opt.io.files import package_version, write_json
@@ -38,7 +38,7 @@ def write_vtk(path: Path, disc, phi: np.ndarray) -> None:
     points = disc.mesh.p.T
     if points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
-    cells = [("triangle" if disc.dim == 2 else "tetra", disc.mesh.t.T)]
+    cells = [("triangle" if disc.mesh_dim == 2 else "tetra", disc.mesh.t.T)]
     meshio.write(str(path), meshio.Mesh(points, cells, point_data={"phi": np.asarray(values, float)}))
 
 
@@ -64,7 +64,7 @@ def figure_spec(disc, phi: np.ndarray, title: str = "") -> dict:
     """What ``png.draw`` draws for phi, as plain arrays and strings (the mesh-dependent part, apart
     from the drawing): 2D, the field (grids) or its triangles (meshes); 3D, the three central cuts."""
     box = disc.box
-    if disc.dim == 2:
+    if disc.mesh_dim == 2:  # the meridian half-plane of an axisymmetric scene too (r, z)
         if disc.grid_shape is not None:
             return {"kind": "image", "field": _grid_field(disc, phi), "lo": (box[0][0], box[1][0]),
                     "hi": (box[0][1], box[1][1]), "title": title}
@@ -107,8 +107,15 @@ def _sample_cut(disc, phi, axis: int, n: int = 64) -> np.ndarray:
 
 def write_surface_files(out: Path, disc, phi: np.ndarray, summary: dict) -> dict:
     """3D grids: ``surface.ply`` (the phi = 0 surface, marching cubes) and its area and volume beside
-    the phase-field ``area`` and ``volume`` of ``summary`` (``io.surface.report``); {} otherwise."""
-    surf = zero_level.zero_surface(disc, phi)
+    the phase-field ``area`` and ``volume`` of ``summary`` (``io.surface.report``); the meridian
+    half-plane: ``meridian.csv`` (the phi = 0 curve) and ``surface.ply`` (its surface of revolution,
+    ``io.meridian``), reported the same way; {} otherwise."""
+    if disc.axisymmetric:
+        curves = meridian.meridian_curves(disc, phi)
+        meridian.write_meridian(out / "meridian.csv", curves)
+        surf = meridian.revolve(curves)
+    else:
+        surf = zero_level.zero_surface(disc, phi)
     if surf is None:
         return {}
     zero_level.write_surface(out / "surface.ply", surf)
@@ -119,8 +126,9 @@ def write_result(out: Path, scene, disc, result) -> dict:
     """Write everything a solve produced into ``out``; returns the summary dict.
 
     ``summary.json``, ``phi.npz``, ``phi.vtu`` (every mesh; periodic grids complete, wrap included),
-    ``phi.vti`` (periodic grids: ImageData), ``phi.png``, and for 3D grids ``surface.ply`` with
-    ``surface_area`` / ``surface_volume`` in the summary (``write_surface_files``)."""
+    ``phi.vti`` (periodic grids: ImageData), ``phi.png``, and for 3D grids and the meridian
+    half-plane ``surface.ply`` with ``surface_area`` / ``surface_volume`` in the summary (and
+    ``meridian.csv`` there: ``write_surface_files``)."""
     out.mkdir(parents=True, exist_ok=True)
     summary = {**result.summary(scene.name), "version": package_version()}
     finite = np.all(np.isfinite(result.phi))

@@ -5,7 +5,8 @@
 * ``fd``: uniform periodic grids with the (2d+1)-point Laplacian (sparse);
 * ``fem``: P1 finite elements on triangles / tetrahedra (scikit-fem);
 * ``spectral``: periodic grids whose Laplacian is applied by FFT (pseudo-spectral, or FD by FFT);
-* ``cosine``: mirror-symmetric grids (spectral with natural boundaries), Laplacian applied by DCT.
+* ``cosine``: mirror-symmetric grids (spectral with natural boundaries), Laplacian applied by DCT;
+* ``axisymmetric``: P1 on the meridian half-plane with the weight 2 pi r (axisymmetric 3D vesicles).
 """
 
 from __future__ import annotations
@@ -24,6 +25,10 @@ def discretize(scene) -> Discretization:
         return cosine.grid(scene.domain.box, scene.mesh.n)  # mirror-symmetric (cosine series)
     if scene.mesh.kind == "spectral":
         return spectral.grid(scene.domain.box, scene.mesh.n)
+    if scene.mesh.kind == "axisymmetric":
+        from vesicle_opt.mesh import axisymmetric  # scikit-fem: loaded with the first FEM mesh (below)
+        return axisymmetric.p1(scene.domain.box, scene.mesh.n, mass=scene.mesh.mass,
+                               quadrature=scene.mesh.quadrature)
     # P1 only here: scikit-fem (0.04 s at import) loads with the first FEM mesh, not with the package
     from vesicle_opt.mesh import fem
     return fem.p1(scene.domain.box, scene.mesh.n, periodic=scene.domain.boundary == "periodic",

@@ -68,9 +68,22 @@ class Discretization:
     mesh: object = None  # scikit-fem mesh (FEM), for output
     unfold: sp.csr_matrix | None = None  # periodic FEM: maps periodic dofs to all mesh nodes
 
+    axisymmetric = False  # (class attribute) the meridian discretisation (``mesh.axisymmetric``) says True
+
     @property
     def n_nodes(self) -> int:
         return self.nodes.shape[0]
+
+    @property
+    def mesh_dim(self) -> int:
+        """The mesh's dimension (columns of ``nodes``); ``dim`` is the geometry's (3 on the meridian
+        half-plane of ``mesh.axisymmetric``, equal to this everywhere else)."""
+        return self.nodes.shape[1]
+
+    def scene_points(self):
+        """(points, box) where the scene's shapes are evaluated (``scene.shapes.phase_field``): the
+        nodes and the box; the meridian discretisation maps (r, z) to (r, 0, z)."""
+        return self.nodes, self.box
 
     @property
     def consistent(self) -> bool:

@@ -42,7 +42,7 @@ def _fold(mesh, box, n) -> sp.csr_matrix:
     return sp.csr_matrix((np.ones(len(cols)), (np.arange(len(cols)), cols)), shape=(len(cols), int(np.prod(n))))
 
 
-def _gauss(basis) -> tuple[sp.csr_matrix, np.ndarray]:
+def gauss_interpolation(basis) -> tuple[sp.csr_matrix, np.ndarray]:
     """Interpolation matrix to all Gauss points (row e*nq + q) and their weights."""
     dofs = basis.element_dofs  # (n_local, n_elem)
     n_elem, nq = basis.dx.shape
@@ -73,7 +73,7 @@ def _assemble(mesh, elem, form, intorder: int, dofs=None) -> sp.csr_matrix:
     return out.tocsr()
 
 
-def _max_edge(mesh) -> float:
+def max_edge(mesh) -> float:
     t = mesh.t
     return float(max(np.max(np.linalg.norm(mesh.p[:, t[i]] - mesh.p[:, t[j]], axis=0))
                      for i in range(t.shape[0]) for j in range(i)))
@@ -106,7 +106,7 @@ def p1(box, n, periodic: bool, mass: str = "lumped", quadrature: str = "nodal",
     M = _assemble(mesh, elem, mass_form, MASS_ORDER, dofs)
     quad_P = quad_w = None
     if quadrature == "gauss":
-        quad_P, quad_w = _gauss(skfem.Basis(mesh, elem, intorder=GAUSS_ORDER, dofs=dofs))
+        quad_P, quad_w = gauss_interpolation(skfem.Basis(mesh, elem, intorder=GAUSS_ORDER, dofs=dofs))
     del dofs
     nodes = mesh.p.T
     unfold = None
@@ -122,6 +122,6 @@ def p1(box, n, periodic: bool, mass: str = "lumped", quadrature: str = "nodal",
     weights = np.asarray(M.sum(axis=1)).ravel()
     volume = float(weights.sum())
     return Discretization(kind="fem-p1", dim=dim, nodes=np.ascontiguousarray(nodes), weights=weights,
-                          K=K, M=M, mass=mass, h=_max_edge(mesh), volume=volume, box=tuple(box),
+                          K=K, M=M, mass=mass, h=max_edge(mesh), volume=volume, box=tuple(box),
                           quad_P=quad_P, quad_w=quad_w,
                           grid_shape=tuple(n) if periodic else None, mesh=mesh, unfold=unfold)

@@ -149,6 +149,17 @@ def beta_upper(alpha: float, epsilon: float, box, boundary: str) -> float:
     return _least_radial_b(alpha, epsilon, box, boundary, radial_competitor)
 
 
+def _bounding_box_data(alpha: float, volume: float, box):
+    """(alpha, |box|, box) of the same enclosed volume in the square box [-R, R]^2 x [z0, z1] around the
+    cylinder of an axisymmetric scene's meridian box [[0, R], [z0, z1]] (``mesh.axisymmetric``): the
+    box's bound allows every field of the cylinder (extended by phi = -1) and the corner pieces the
+    cylinder cannot hold, so it is at most the cylinder's; a necessary condition, never a false refusal."""
+    R, (z0, z1) = box[0][1], box[1]
+    box3 = ((-R, R), (-R, R), (z0, z1))
+    volume3 = 4 * R * R * (z1 - z0)
+    return alpha + volume - volume3, volume3, box3
+
+
 def check_feasible(alpha: float, beta: float, scene, disc=None) -> float:
     """Refuse infeasible (alpha, beta) with a one-line InfeasibleError; warn near the bound. Returns
     the bound beta was checked against: ``beta_upper`` when beta is at least (1 + WARN) times it
@@ -162,6 +173,8 @@ def check_feasible(alpha: float, beta: float, scene, disc=None) -> float:
     if not beta > 0:
         raise InfeasibleError("constraints.beta", f"beta = {beta:.6g} must be > 0")
     box = scene.domain.box if disc is None else disc.box  # a mesh file brings its own bounding box
+    if scene.domain.axisymmetric:  # the meridian half-plane: bound the cylinder by its bounding box
+        alpha, volume, box = _bounding_box_data(alpha, volume, box)
     # mirror grids (mesh.cosine): alpha, beta are the full symmetric field's, 2^d times the box's own,
     # whose natural-boundary problem the box's bound covers
     cells = max(1, round(volume / math.prod(b - a for a, b in box)))

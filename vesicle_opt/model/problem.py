@@ -27,7 +27,7 @@ def constraint_data(scene: Scene, disc: Discretization) -> tuple[float, float]:
     eps = scene.model.epsilon
     alpha, beta = c.alpha, c.beta
     if c.target is not None:
-        vals = F.evaluate(disc, phase_field(c.target, disc.nodes, disc.box, eps), eps, scene.model.C)
+        vals = F.evaluate(disc, phase_field(c.target, *disc.scene_points(), eps), eps, scene.model.C)
         alpha = vals["A"] if alpha is None else alpha
         beta = vals["B"] if beta is None else beta
     return float(alpha), float(beta)
@@ -37,7 +37,7 @@ def initial_guess(scene: Scene, disc: Discretization) -> np.ndarray:
     if scene.initial.shape == "file":
         phi0 = load_warm_start(scene.initial.file, disc)
     else:
-        phi0 = phase_field(scene.initial, disc.nodes, disc.box, scene.model.epsilon)
+        phi0 = phase_field(scene.initial, *disc.scene_points(), scene.model.epsilon)
     if disc.consistent:
         return np.concatenate([phi0, disc.apply_laplacian(phi0)])
     return phi0

@@ -63,7 +63,7 @@ def prepare(scene, disc=None, tensor_fft: bool = True):
     if fourier is not None:
         prec = FourierPreconditioner(fourier, disc.weights[0], scene.model.epsilon)
     else:
-        prec = SparsePreconditioner(disc.K, disc.weights, scene.model.epsilon, disc.dim)
+        prec = SparsePreconditioner(disc.K, disc.weights, scene.model.epsilon, disc.mesh_dim)
     # translations are null modes only where the discrete problem is translation invariant: the
     # spectral grid (trigonometric interpolation commutes with every shift, up to aliasing). A
     # tetrahedral mesh breaks the symmetry, so its gradient has parts along d_i phi that a

@@ -399,7 +399,7 @@ def _solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = N
     phi = W = prev_shape = None
     for shape in levels:
         cdisc = fourier_grid(disc.box, shape, disc.kind)
-        start = phase_field(scene.initial, cdisc.nodes, cdisc.box, eps) if phi is None else \
+        start = phase_field(scene.initial, *cdisc.scene_points(), eps) if phi is None else \
             resample(phi, prev_shape, shape, disc.kind)
         n0, c0, tl = cnt.newton, cnt.cg, time.perf_counter()
         _, cstages, *_, W = _run_level(scene, cdisc, start, cnt, log, max(tol, opts.coarse_tol), opts, W=W)

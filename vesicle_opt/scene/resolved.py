@@ -44,7 +44,7 @@ def as_dict(scene) -> dict:
     """The scene as a raw TOML table (the inverse of ``schema.from_dict``)."""
     c = scene.constraints
     physical = c.reduced_volume is not None
-    return {"domain": _table(scene.domain, drop=("mirror_cells",)),  # derived from mesh.kind and boundary
+    return {"domain": _table(scene.domain, drop=("mirror_cells", "axisymmetric")),  # derived from mesh.kind and boundary
             "mesh": _table(scene.mesh), "model": _table(scene.model),
             "constraints": _table(c, drop=("alpha", "beta") if physical else ()),
             "initial": _table(scene.initial), "solver": _table(scene.solver), "flow": _table(scene.flow)}

@@ -29,23 +29,30 @@ class Domain:
     boundary: str  # "periodic" | "natural"
     mirror_cells: int = 1  # spectral + natural (``mesh.cosine``): 2^d, the box is one mirror cell of the
     # doubled periodic box, and |Omega| (so alpha, volume, area, energy) is the full symmetric field's
+    axisymmetric: bool = False  # mesh.kind "axisymmetric" (``mesh.axisymmetric``): the box is the
+    # meridian half-plane [[0, R], [z0, z1]] of the cylinder Omega, and |Omega| is the cylinder's
 
     def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
         ranges.check_domain(self)
 
     @property
     def dim(self) -> int:
+        """The mesh's dimension: the box's pairs (2 on the meridian half-plane; ``Scene.dim`` is 3 there)."""
         return len(self.box)
 
     @property
     def volume(self) -> float:
-        """|Omega|: the box's volume, times ``mirror_cells`` on mirror grids (``mesh.cosine``)."""
+        """|Omega|: the box's volume, times ``mirror_cells`` on mirror grids (``mesh.cosine``); the
+        cylinder's pi R^2 (z1 - z0) on the meridian half-plane (``mesh.axisymmetric``)."""
+        if self.axisymmetric:
+            (r0, r1), (z0, z1) = self.box
+            return math.pi * (r1 * r1 - r0 * r0) * (z1 - z0)
         return self.mirror_cells * math.prod(b - a for a, b in self.box)
 
 
 @dataclass(frozen=True)
 class Mesh:
-    kind: str  # "fem-p1" | "fd" | "spectral"
+    kind: str  # "fem-p1" | "fd" | "spectral" | "axisymmetric"
     n: tuple[int, ...]  # cells per side
     mass: str  # "lumped" | "consistent"
     quadrature: str  # "nodal" | "gauss"
@@ -146,7 +153,8 @@ class Scene:
 
     @property
     def dim(self) -> int:
-        return self.domain.dim
+        """The vesicle's dimension: 3 on the meridian half-plane (``mesh.axisymmetric``), else the box's."""
+        return 3 if self.domain.axisymmetric else self.domain.dim
 
     def replace(self, **sections) -> "Scene":
         return dataclasses.replace(self, **sections)
@@ -157,7 +165,7 @@ _REQ = object()
 SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "domain.box": ("box", _REQ, "list of [lo, hi] pairs with lo < hi, 2 or 3 of them"),
     "domain.boundary": ("str", "periodic", ("periodic", "natural")),
-    "mesh.kind": ("str", "fem-p1", ("fem-p1", "fd", "spectral")),
+    "mesh.kind": ("str", "fem-p1", ("fem-p1", "fd", "spectral", "axisymmetric")),
     "mesh.n": ("ints", _REQ, "integer >= 4, or one per dimension"),
     "mesh.mass": ("str", "lumped", ("lumped", "consistent")),
     "mesh.quadrature": ("str", "nodal", ("nodal", "gauss")),
@@ -302,6 +310,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     box = tuple(numbers("domain.box", p, 2) for p in box_raw)
     if any(hi <= lo for lo, hi in box):
         raise InputError("domain.box", f"each pair needs lo < hi, got {[list(p) for p in box]}")
+    _check_axisymmetric_box(val, box)
     dim = len(box)
     n_raw = val["mesh.n"]
     n = (n_raw,) * dim if isinstance(n_raw, int) and not isinstance(n_raw, bool) else n_raw
@@ -311,7 +320,9 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     if min(n) < 4:
         raise InputError("mesh.n", f"must be >= 4 cells per side, got {n_raw!r}")
     mirrored = val["mesh.kind"] == "spectral" and val["domain.boundary"] == "natural"
-    domain = Domain(box, val["domain.boundary"], 2**dim if mirrored else 1)
+    axisym = val["mesh.kind"] == "axisymmetric"
+    domain = Domain(box, val["domain.boundary"], 2**dim if mirrored else 1, axisym)
+    dim = 3 if axisym else dim  # the vesicle's: the shapes and the physical targets are 3D
     _check_ranges(val, box, n)
     if val["mesh.kind"] == "fd" and domain.boundary != "periodic":
         raise InputError("domain.boundary", "mesh.kind 'fd' supports only 'periodic'")
@@ -320,15 +331,15 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     if val["mesh.kind"] == "spectral":  # Fourier pseudo-spectral grids (issue 6); natural: mesh.cosine
         if val["mesh.mass"] == "consistent":
             raise InputError("mesh.mass", "mesh.kind 'spectral' is lumped by construction; use 'lumped'")
-    if val["mesh.quadrature"] == "gauss" and val["mesh.kind"] != "fem-p1":
-        raise InputError("mesh.quadrature", "'gauss' needs mesh.kind = 'fem-p1'; use 'nodal'")
+    if val["mesh.quadrature"] == "gauss" and val["mesh.kind"] not in ("fem-p1", "axisymmetric"):
+        raise InputError("mesh.quadrature", "'gauss' needs mesh.kind = 'fem-p1' or 'axisymmetric'; use 'nodal'")
     if val["mesh.file"] is not None and val["mesh.kind"] != "fem-p1":
         raise InputError("mesh.file", "a mesh file needs mesh.kind = 'fem-p1'")
     mesh = Mesh(val["mesh.kind"], tuple(n), val["mesh.mass"], val["mesh.quadrature"], val["mesh.file"])
     model = Model(val["model.epsilon"], val["model.c0"], val["model.rigidity"])
     target = None
     if val["constraints.target"] is not None:
-        target = parse_shape("constraints.target", val["constraints.target"], dim)
+        target = _parse_shape("constraints.target", val["constraints.target"], dim, axisym)
     alpha, beta = val["constraints.alpha"], val["constraints.beta"]
     nu, area = val["constraints.reduced_volume"], val["constraints.area"]
     if nu is not None or area is not None:
@@ -340,7 +351,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
         raise InputError("constraints.alpha",
                          f"must lie in (-|Omega|, |Omega|) = ({-domain.volume:.6g}, {domain.volume:.6g}), got {alpha!r}")
     constraints = Constraints(alpha, beta, target, nu, area)
-    initial = parse_shape("initial", val["initial"], dim)
+    initial = _parse_shape("initial", val["initial"], dim, axisym)
     _check_penalty(val)
     _check_array(val)
     _check_fft(val)
@@ -351,6 +362,44 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
                     max_outer=val["solver.max_outer"], array=val["solver.array"], fft=val["solver.fft"],
                     max_memory_gb=val["solver.max_memory_gb"])
     return Scene(name, domain, mesh, model, constraints, initial, solver, _flow(val))
+
+
+def _check_axisymmetric_box(val: dict, box) -> None:
+    """mesh.kind 'axisymmetric' (``mesh.axisymmetric``): the box is the meridian half-plane
+    [[0, R], [z0, z1]] (r from the axis, then z) with natural boundaries; checked before any work."""
+    if val["mesh.kind"] != "axisymmetric":
+        return
+    if len(box) != 2:
+        raise InputError("domain.box", f"mesh.kind 'axisymmetric' takes the meridian half-plane [[0, R], "
+                         f"[z0, z1]] (2 pairs: r, then z), got {len(box)} pairs")
+    if box[0][0] != 0.0:
+        raise InputError("domain.box", f"an axisymmetric box must start at r = 0 (the axis): [[0, R], "
+                         f"[z0, z1]], got r from {box[0][0]!r}")
+    if val["domain.boundary"] != "natural":
+        raise InputError("domain.boundary", "mesh.kind 'axisymmetric' needs 'natural' (the axis and the "
+                         f"cylinder's walls are natural boundaries), got {val['domain.boundary']!r}")
+
+
+def _parse_shape(key: str, spec, dim: int, axisym: bool) -> Shape:
+    """``parse_shape``; on the meridian half-plane the shape is 3D and symmetric about the z axis
+    (its centre on the axis, an ellipsoid's x and y semi-axes equal): a 2D shape or one off the
+    axis is refused in one line."""
+    if not axisym:
+        return parse_shape(key, spec, dim)
+    if isinstance(spec, dict):
+        for k in ("center", "semi_axes"):
+            if isinstance(spec.get(k), (list, tuple)) and len(spec[k]) == 2:
+                raise InputError(f"{key}.{k}", f"an axisymmetric scene is 3D (the vesicle revolved about "
+                                 f"the z axis; the box is its meridian): give {k} as 3 numbers, got "
+                                 f"{list(spec[k])} (a 2D scene)")
+    shape = parse_shape(key, spec, 3)
+    if shape.center is not None and (shape.center[0] != 0.0 or shape.center[1] != 0.0):
+        raise InputError(f"{key}.center", f"must lie on the axis of an axisymmetric scene, [0, 0, z], "
+                         f"got {list(shape.center)}")
+    if shape.semi_axes is not None and shape.semi_axes[0] != shape.semi_axes[1]:
+        raise InputError(f"{key}.semi_axes", f"must be symmetric about the z axis (x and y semi-axes "
+                         f"equal) in an axisymmetric scene, got {list(shape.semi_axes)}")
+    return shape
 
 
 def _check_array(val: dict) -> None:

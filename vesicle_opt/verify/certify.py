@@ -113,11 +113,15 @@ def dual_floor_of(disc, phi, epsilon: float, C: float, rigidity: float, lam, M=N
     return floor
 
 
-def _physical(disc, A: float, B: float, energy: float, rigidity: float) -> dict[str, float]:
-    """volume, area, reduced_volume and reduced_energy of the field (geometry: sphere/circle = 1)."""
+def _physical(disc, A: float, B: float, energy: float, rigidity: float, c0: float = 0.0) -> dict[str, float]:
+    """volume, area, reduced_volume and reduced_energy of the field (geometry: sphere/circle = 1);
+    in 3D also the literature's f = F / 8 pi kappa and c0_reduced = C0 R0 (``geometry.literature_units``)."""
     out = geometry.physical(A, B, disc.dim, disc.volume)
     ok = np.isfinite(out["area"]) and out["area"] > 0
     out["reduced_energy"] = geometry.reduced_energy(energy, out["area"], disc.dim, rigidity) if ok else np.nan
+    if disc.dim == 3:
+        out.update(geometry.literature_units(energy, out["area"], c0, rigidity) if ok
+                   else {"f": np.nan, "c0_reduced": np.nan})
     return out
 
 
@@ -160,7 +164,7 @@ def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol
     cert = certify(solver_status=solver_status, solver_success=solver_success, finite=finite, tol=tol,
                    kkt=dual, floor=dual_floor, constraints=rel, checks=checks)
     info = {"alpha": alpha, "beta": beta, "epsilon": eps, "c0": scene.model.c0, "h": disc.h,
-            "kkt_floor": floor, "kkt_dual_floor": dual_floor, **_physical(disc, alpha + res[0], beta + res[1], rig * E, rig),
+            "kkt_floor": floor, "kkt_dual_floor": dual_floor, **_physical(disc, alpha + res[0], beta + res[1], rig * E, rig, scene.model.c0),
             **(extra or {}), "kkt_dual": dual}
     if M is not None:
         info.update({"M2": M[1], "mu_volume": mu[0], "mu_area": mu[1]})

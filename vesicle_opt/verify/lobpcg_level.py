@@ -65,7 +65,7 @@ def symmetry_modes(disc, translations, phi, rotations: bool):
     fourier = getattr(disc, "fourier", None)
     if fourier is None:
         modes = translation_modes(disc, phi)
-        return (V.TRANSLATIONS if modes else V.NONE), modes
+        return V.excluded_label(disc, modes), modes
     g = fourier.derivatives(phi)  # the translations d_i phi (what ``translations`` gives, as rows)
     if not g:  # a mirror grid (``mesh.cosine``): only mirror-symmetric perturbations exist at all
         return V.MIRROR_CLASS, []

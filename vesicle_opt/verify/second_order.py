@@ -165,5 +165,5 @@ def check(nlp, result, n_eig: int = N_EIG) -> SecondOrder:
     verdict, reason = V.classify(rel, errors[0], rayleigh)
     return SecondOrder(verdict, float(mu[0]), rel, tuple(float(m / mu_ref) for m in mu), tuple(rayleigh),
                        float(max(errors)), reason, Vec[:, 0] / np.sqrt(Vec[:, 0] @ (Mphi @ Vec[:, 0])),
-                       excluded=V.TRANSLATIONS if trans else V.NONE, errors=tuple(float(e) for e in errors),
+                       excluded=V.excluded_label(disc, trans), errors=tuple(float(e) for e in errors),
                        rotation_rayleigh=rotation)

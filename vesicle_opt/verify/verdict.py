@@ -60,6 +60,18 @@ NONE, TRANSLATIONS, TRANSLATIONS_ROTATIONS = "none", "translations", "translatio
 # mirror grids (``mesh.cosine``, spectral with natural boundaries): the check sees only perturbations
 # symmetric in every coordinate plane, so its "minimum" is a minimum within that class, no more
 MIRROR_CLASS = "all but mirror-symmetric perturbations (mirror grid: minimum within the symmetric class only)"
+# the meridian half-plane (``mesh.axisymmetric``): the check sees only axisymmetric perturbations (the
+# translation along the axis among them, reported as an eigenvalue as on P1 meshes, not removed)
+AXISYMMETRIC_CLASS = ("all but axisymmetric perturbations (meridian mesh: minimum within the axisymmetric "
+                      "class only)")
+
+
+def excluded_label(disc, modes) -> str:
+    """``SecondOrder.excluded`` of a check on ``disc`` that removed ``modes`` (the translations, or
+    none): the meridian mesh's class, else ``TRANSLATIONS`` or ``NONE``."""
+    if getattr(disc, "axisymmetric", False):
+        return AXISYMMETRIC_CLASS
+    return TRANSLATIONS if modes else NONE
 
 
 @dataclass(frozen=True)
