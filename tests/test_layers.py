@@ -2,7 +2,8 @@
 
 Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
 
-    0  errors, result,       the vocabulary every layer speaks
+    0  errors, result,       the vocabulary every layer speaks (extras: whether the optional
+       extras,               extras load, errors only)
        geometry, sharp,      (geometry: volume, area, reduced volume <-> alpha, beta; sharp: the
        blas, sums            sharp-interface references, which import nothing of the package;
                              blas: in-place vector updates of the hot loops, numpy/scipy only;
@@ -34,7 +35,7 @@ from __future__ import annotations
 import _imports as I
 
 LAYERS = {
-    "errors": 0, "result": 0, "geometry": 0, "sharp": 0, "blas": 0, "sums": 0,
+    "errors": 0, "result": 0, "extras": 0, "geometry": 0, "sharp": 0, "blas": 0, "sums": 0,
     "scene": 1,
     "mesh": 2,
     "model": 3,
@@ -53,7 +54,8 @@ IO_MAY_IMPORT = {"errors", "result"}
 ALLOWED: dict[tuple[str, str], str] = {}
 # units of one layer that may import each other, one way (otherwise one layer means independent)
 SIDEWAYS = {("api", "backends"): "the front door consults its own support table",
-            ("nk_jax", "nk"): "the JAX arrays reuse nk's options, setup and constants (never back)"}
+            ("nk_jax", "nk"): "the JAX arrays reuse nk's options, setup and constants (never back)",
+            ("extras", "errors"): "an extra that does not load is refused with the package's InputError"}
 
 
 def unit(module: str) -> str:

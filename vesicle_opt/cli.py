@@ -4,7 +4,9 @@ or a bundled name), ``vesicle-opt flow SCENE --scheme ... [--out DIR]`` (a gradi
 ``vesicle-opt branch SCENE --param reduced_volume|c0 --to VALUE [--step DS] [--out DIR]``.
 
 Exit codes: 0 converged; 1 the solver did not converge (results still written); 2 bad input
-(one line naming the key and the allowed range, no traceback).
+(one line naming the key and the allowed range, no traceback); 130 / 143 interrupted by SIGINT /
+SIGTERM (one line saying where, ``io.interrupt``; ``solve`` and ``flow`` stage their files and move
+them into --out only when the run has ended, ``io.staging``).
 
 Output: the final result line of a verb on stdout; everything else through ``logging`` on stderr
 (``setup_logging``): INFO by default (which backend and why, the phases of a solve, study lines,
@@ -18,6 +20,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -27,7 +30,7 @@ from vesicle_opt.api import solve
 from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import branch as follow_branch
 from vesicle_opt.errors import InputError, VesicleError
-from vesicle_opt.io import outdir, output, progress
+from vesicle_opt.io import interrupt, outdir, output, progress, staging
 from vesicle_opt.io.files import package_version
 from vesicle_opt.scene import load as load_scene
 from vesicle_opt.scene import resolved
@@ -72,11 +75,18 @@ def _preflight(scene, out: str | None, path: str | None):
 def cmd_solve(args) -> int:
     sc = load_scene(args.scene, args.set)
     with _preflight(sc, args.out, choose_backend(sc)) as out:
+        interrupt.note("during the solve", resume=False)
         result = solve(sc)
-        summary = output.write_result(out, sc, result.disc, result)
-        resolved.write(out / "scene.resolved.toml", sc)  # the run, repeatable: vesicle-opt solve DIR/scene.resolved.toml
+        interrupt.check()  # a signal a C extension swallowed: the result is not written
+
+        def write(d: Path) -> dict:
+            summary = output.write_result(d, sc, result.disc, result)
+            resolved.write(d / "scene.resolved.toml", sc)  # the run, repeatable: vesicle-opt solve DIR/scene.resolved.toml
+            return summary
+        summary, where = staging.write_run(out, write, lambda s: result.converged, sc.name)
     print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
-          f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {args.out}/summary.json")
+          f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {where}/summary.json")
+    _kept(where, out)
     if result.converged and summary.get("second_order") == "saddle":
         print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser (smallest tangent "
               f"Hessian eigenvalue {summary['second_order_min_eigenvalue']:.3g} mu_ref, mass metric, "
@@ -92,6 +102,13 @@ def cmd_solve(args) -> int:
               f"area_residual {summary['area_residual']}", file=sys.stderr)
         return 1
     return 0
+
+
+def _kept(where: Path, out: Path) -> None:
+    """The warning of a failed run whose files stayed in the staging directory (``io.staging``)."""
+    if Path(where) != Path(out):
+        print(f"vesicle-opt: warning: this run failed and {out} holds a good run, which was kept; "
+              f"this run's files are in {where}", file=sys.stderr)
 
 
 def cmd_study(args) -> int:
@@ -128,7 +145,8 @@ def cmd_flow(args) -> int:
     s = run.summary
     print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "
           f"energy = {s['energy']:.10g}, rejections = {s['rejections']}, wall = {s['wall_time_s']:.2f}s "
-          f"-> {args.out}/history.csv")
+          f"-> {run.where}/history.csv")
+    _kept(run.where, out)
     if s["status"] == "failed":
         print(f"vesicle-opt: flow failed: {s['message']}", file=sys.stderr)
         return 1
@@ -295,12 +313,18 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = one_line_warning
     handler = setup_logging(getattr(args, "verbose", 0), getattr(args, "quiet", False))
     try:
-        code = args.func(args)
+        with interrupt.handled():  # SIGINT / SIGTERM: one line, exit 130 / 143 (io.interrupt)
+            code = args.func(args)
+            interrupt.check()
         sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at interpreter exit
         return code
     except VesicleError as exc:
         print(f"vesicle-opt: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except KeyboardInterrupt as exc:  # io.interrupt.Interrupted, or a bare one (before the handlers)
+        signum = getattr(exc, "signum", signal.SIGINT)
+        print(f"vesicle-opt: {interrupt.message(signum)}", file=sys.stderr)
+        return 128 + signum
     except BrokenPipeError:  # stdout piped into a reader that closed early (`| head`): not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return 0

@@ -40,3 +40,21 @@ class SolverError(VesicleError, RuntimeError):
 class NotSupported(InputError):
     """A combination the package does not support (a backend, method, mesh or scheme): names the
     key and what is supported. Raised before any work; the CLI exits 2 with one line."""
+
+
+class OutputError(VesicleError):
+    """The output directory failed during the run (no space left, a read-only remount, ...): the
+    message names the path and where the computed result was written instead. Exit 1: the run
+    computed its result, only its place changed."""
+
+    exit_code = 1
+
+
+class StateFileError(InputError):
+    """A state file in ``--out`` (branch.csv, branch.json, a study's CSV, a flow's checkpoint) that
+    does not parse or belongs to another run: names the file and what to do; the file is left as
+    it is. Exit 2, before any work."""
+
+    def __init__(self, path, message: str, key: str = "--out"):
+        self.path = str(path)
+        super().__init__(key, f"{self.path}: {message}")

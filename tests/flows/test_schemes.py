@@ -173,7 +173,7 @@ def test_rejection_on_oversized_step():
 
 
 def test_resume_from_checkpoint(tmp_path, monkeypatch):
-    """A run killed during step 6 (last checkpoint: step 4) and resumed to step 8 equals the
+    """A run interrupted during step 6 (periodic checkpoint: step 4; the interrupt's: step 5) and resumed to step 8 equals the
     uninterrupted 8-step run bit for bit, and its history has each step once."""
     from vesicle_opt.flows.lagrange import LagrangeScheme
     sc = _scene('flow.scheme="lagrange"', "flow.dt=1e-3", "flow.t_end=1.0", "flow.frames=2",
@@ -192,7 +192,8 @@ def test_resume_from_checkpoint(tmp_path, monkeypatch):
         write_flow(sc, tmp_path / "b", frames=False)
     monkeypatch.setattr(LagrangeScheme, "step", real_step)
     rest = write_flow(sc, tmp_path / "b", frames=False)
-    assert rest.summary["resumed_from_step"] == 4 and rest.result.steps == 8
+    # the interrupt (a KeyboardInterrupt, as SIGINT/SIGTERM raise) checkpointed step 5, the last accepted
+    assert rest.summary["resumed_from_step"] == 5 and rest.result.steps == 8
     assert np.array_equal(full.result.phi, rest.result.phi)
     with open(tmp_path / "b" / "history.csv") as fh:
         steps = [int(r["step"]) for r in csv.DictReader(fh)]

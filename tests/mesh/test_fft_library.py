@@ -10,6 +10,7 @@ import pytest
 
 from vesicle_opt import scene as S
 from vesicle_opt.api import solve
+from vesicle_opt import extras
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import fftlib, spectral
 from vesicle_opt.mesh.spectral import fft_library, fourier_grid
@@ -57,6 +58,7 @@ def test_fft_key_is_checked(monkeypatch):
         S.load("torus-table1-3d", [*sets, "solver.fft='mkl'"])
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pyfftw" else real(name, *a))
+    monkeypatch.setattr(extras, "_outcome", {})  # the outcome of the import, found afresh
     with pytest.raises(InputError, match="solver.fft.*fftw"):
         S.load("torus-table1-3d", [*sets, "solver.fft='pyfftw'"])
     assert spectral.resolve_fft("auto") == "scipy"  # without pyFFTW the default is scipy's

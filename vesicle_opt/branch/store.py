@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import os
 from pathlib import Path
@@ -20,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.errors import InputError
+from vesicle_opt.io import interrupt, state
 from vesicle_opt.io.files import load_npz, save_npz, write_json
 
 COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy", "reduced_energy",
@@ -34,6 +34,14 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            "parent", "second_order_eigenvalues", "second_order_errors", "index", "detected_at",
            "critical", "critical_eigenvalue", "critical_error", "critical_mode", "located_by", "bracket",
            "f", "c0_reduced"]  # f = F/8 pi kappa, c0_reduced = C0 R0 (geometry.literature_units; 3D)
+
+INTS = ("point", "branch", "iterations", "solves", "components", "n", "parent", "index", "detected_at", "critical")
+BOOLS = ("converged", "accepted", "restarted")
+FLOATS = ("target", "reduced_volume", "c0", "energy", "reduced_energy", "lambda_volume", "lambda_area", "dE_dp",
+          "envelope_residual", "second_order_min_eigenvalue", "arc_condition", "deviation", "wall_time_s",
+          "epsilon", "h", "alpha", "beta", "volume", "area", "kkt_residual", "arc_step", "arc_theta",
+          "sharp_reduced_energy", "rotation_rayleigh", "critical_eigenvalue", "critical_error", "f", "c0_reduced")
+ADVICE = "move it away or give another --out (nothing there was changed)"
 
 
 RECENT_BYTES = 64 << 20  # fields kept in memory after a read, oldest out first (16 of 500 k nodes)
@@ -51,8 +59,6 @@ def _text(v) -> str:
     return str(v)
 
 
-INTEGERS = ("point", "branch", "iterations", "solves", "components", "n", "parent", "index", "detected_at",
-            "critical")
 TEXT = ("second_order_eigenvalues", "second_order_errors", "critical_mode")  # ';'-joined numbers, a file name
 
 
@@ -68,7 +74,7 @@ def parse(row: dict) -> dict:
             out[k] = v == "true"
         else:
             try:
-                out[k] = int(v) if k in INTEGERS else float(v)
+                out[k] = int(v) if k in INTS else float(v)
             except ValueError:
                 out[k] = v
     return out
@@ -93,34 +99,46 @@ class Store:
                              f"({exc.strerror or exc})") from None
         meta_path = self.out / "branch.json"
         if meta_path.exists():
-            old = json.loads(meta_path.read_text())
+            old = state.read_json(meta_path, ADVICE)  # checked (io.state): garbage is refused, untouched
             if old != meta:
                 diff = sorted(k for k in set(old) | set(meta) if old.get(k) != meta.get(k))
                 raise InputError("--out", f"{self.out} holds a branch run with other {', '.join(diff)}; "
                                  "give another directory (nothing there was changed)")
-        else:
+        self._rows = self._repair()  # checked before branch.json is written for a new run
+        if not meta_path.exists():
             write_json(meta_path, meta)
-        self._rows = self._repair()
+        self._note()
+
+    def _note(self) -> None:
+        """Where the run is, for an interrupt's message (``io.interrupt``): it resumes from here."""
+        interrupt.note(f"at point {len(self._rows)} of the branch ({len(self._rows)} rows in {self.csv_path})",
+                       resume=True)
 
     @property
     def csv_path(self) -> Path:
         return self.out / "branch.csv"
 
+    def _check_row(self, row: dict, index: int) -> str | None:
+        """What is wrong with a row of branch.csv (its types; the points numbered 0, 1, ...)."""
+        if row["point"] != str(index):
+            return f"point = {row['point'][:40]!r}, expected {index} (the rows are the points in order)"
+        return state.typed_row(row, INTS, FLOATS, BOOLS)
+
     def _repair(self) -> list[dict]:
+        """The rows of branch.csv, read through the checked loader (``io.state``): a torn last line
+        cut off (the file rewritten without it), anything else refused before any work."""
         path = self.csv_path
-        if not path.exists() or path.stat().st_size == 0:
+        found = state.read_csv(path, lambda h: None if h == COLUMNS else f"{len(h)} columns, "
+                               f"{', '.join(h[:3])[:60]}...", self._check_row, ADVICE)
+        if found is None:
             path.write_text(",".join(COLUMNS) + "\n")
             return []
-        text = path.read_text()
-        if text.split("\n", 1)[0] != ",".join(COLUMNS):
-            raise InputError("--out", f"{self.out} holds a branch.csv with other columns (an older version); "
-                             "give another directory (nothing there was changed)")
-        if not text.endswith("\n"):  # a kill mid-write: the torn line is cut off
-            text = text[: text.rfind("\n") + 1]
+        _, rows, repaired = found
+        if repaired is not None:  # a kill mid-write: the torn line is cut off
             tmp = path.with_name(path.name + ".tmp")
-            tmp.write_text(text)
+            tmp.write_text(repaired)
             os.replace(tmp, path)
-        return [parse(r) for r in csv.DictReader(io.StringIO(text))]
+        return [parse(r) for r in rows]
 
     def rows(self) -> list[dict]:
         return list(self._rows)
@@ -181,10 +199,11 @@ class Store:
         buf = io.StringIO()
         csv.DictWriter(buf, COLUMNS, extrasaction="ignore", lineterminator="\n").writerow(
             {k: _text(row.get(k)) for k in COLUMNS})
-        with open(self.csv_path, "a", newline="") as fh:
+        with interrupt.deferred(), open(self.csv_path, "a", newline="") as fh:  # a row is written whole
             fh.write(buf.getvalue())
             fh.flush()
             os.fsync(fh.fileno())
+        self._note()
 
 
 def _write_vtk(path: Path, disc, phi) -> None:

@@ -178,7 +178,8 @@ def flow(scene, *, trackers=(), x0=None, phi0=None, resume_from: FlowState | str
     if resume_from is not None:
         if phi0 is not None:
             raise InputError("phi0", "give phi0 or resume_from, not both")
-        start = resume_from if isinstance(resume_from, FlowState) else CheckpointTracker.load(resume_from, tag)
+        start = (resume_from if isinstance(resume_from, FlowState)
+                 else CheckpointTracker.load(resume_from, tag, md.disc.n_nodes))
         if start is None:
             raise InputError("resume_from", f"no checkpoint at {resume_from}")
         phi_start = _field(md, start.phi, "resume_from")

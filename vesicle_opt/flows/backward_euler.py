@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from vesicle_opt.io import interrupt
 from vesicle_opt.model import functionals as Fn
 from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.model.problem import objective_scale
@@ -85,6 +86,7 @@ class BackwardEulerScheme(Scheme):
         c = 1.0 / (md.gamma * k)
         x0 = np.concatenate([phi_n, [md.A(phi_n), md.B(phi_n)]])
         sol = self.solver(x0=x0, p=np.concatenate([phi_n, [c]]), lbg=0.0, ubg=0.0)
+        interrupt.check()  # CasADi turns a Ctrl-C inside IPOPT into a status: never a step (io.interrupt)
         stats = self.solver.stats()
         phi = np.asarray(sol["x"]).ravel()[:phi_n.size]
         iters = int(stats.get("iter_count", 0))
@@ -97,6 +99,7 @@ class BackwardEulerScheme(Scheme):
         md = self.model
         x0 = np.concatenate([phi_start, [md.A(phi_start), md.B(phi_start)]])
         sol = self.solver(x0=x0, p=np.concatenate([phi_start, [0.0]]), lbg=0.0, ubg=0.0)
+        interrupt.check()
         stats = self.solver.stats()
         phi = np.asarray(sol["x"]).ravel()[:phi_start.size]
         return phi, bool(stats["success"]) and bool(np.all(np.isfinite(phi))), stats["return_status"]

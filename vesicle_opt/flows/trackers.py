@@ -27,9 +27,10 @@ from typing import Callable
 
 import numpy as np
 
-from vesicle_opt.errors import InputError
+from vesicle_opt.errors import InputError, StateFileError
 from vesicle_opt.io import progress
-from vesicle_opt.io.files import load_npz, save_npz
+from vesicle_opt.io.files import save_npz
+from vesicle_opt.io.state import read_npz
 from vesicle_opt.flows.stepper import FlowState
 
 
@@ -210,17 +211,27 @@ class CheckpointTracker(Tracker):
     def finish(self, state):
         self.save(state)
 
+    KEYS = {"phi": ("f", 1), "phi_prev": ("f", 1), "t": ("n", 0), "step": ("i", 0), "k_try": ("n", 0),
+            "k_last": ("x", 0), "rate0": ("x", 0), "rejections": ("i", 0), "wall_time_s": ("x", 0)}
+
     @staticmethod
-    def load(path: Path, fingerprint: str | None = None) -> FlowState | None:
-        """The state saved in ``path``, or None when there is no such file; with ``fingerprint``, an
-        InputError (key resume_from) when the checkpoint was written for another problem."""
-        st = load_npz(path)
-        if st is None:
+    def load(path: Path, fingerprint: str | None = None, n_nodes: int | None = None, key: str = "resume_from",
+             advice: str = "give another checkpoint or none") -> FlowState | None:
+        """The state saved in ``path``, or None when there is no such file; read through the checked
+        loader (``io.state.read_npz``): a file that is not a checkpoint, or one written for another
+        problem (``fingerprint``) or grid (``n_nodes``), is a ``StateFileError`` (key ``key``)."""
+        if not Path(path).exists():
             return None
+        st = read_npz(path, CheckpointTracker.KEYS, advice, key)
         saved = st.get("fingerprint")
         if fingerprint is not None and saved is not None and str(saved) != fingerprint:
-            raise InputError("resume_from", f"{path} is a checkpoint of another problem (scene, scheme or "
-                             "model changed); start afresh or give that scene")
+            raise StateFileError(path, "is a checkpoint of another problem (scene, scheme or model changed); "
+                                 + advice, key)
+        phi, prev = np.asarray(st["phi"]), np.asarray(st["phi_prev"])
+        if (n_nodes is not None and phi.shape != (n_nodes,)) or prev.size not in (0, phi.size) \
+                or st["step"] < 0 or st["rejections"] < 0 or st["t"] < 0 or st["k_try"] <= 0:
+            raise StateFileError(path, f"is not a checkpoint of this grid ({phi.size} values, this grid has "
+                                 f"{n_nodes}) or holds impossible values; {advice}", key)
         return FlowState.from_arrays(st)
 
 

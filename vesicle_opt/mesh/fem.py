@@ -17,6 +17,7 @@ import skfem
 from skfem.models.poisson import laplace, mass as mass_form
 
 from vesicle_opt.mesh.base import Discretization
+from vesicle_opt.mesh.check import checked
 from vesicle_opt.errors import InputError
 
 GAUSS_ORDER = 6  # exact for the degree-6 integrand r^2 of (6) with r cubic in phi
@@ -95,6 +96,7 @@ def p1(box, n, periodic: bool, mass: str = "lumped", quadrature: str = "nodal",
         if mesh.p.shape[0] != len(box):
             raise InputError("mesh.file", f"{mesh_file!r} is a {mesh.p.shape[0]}D mesh, the scene is "
                              f"{len(box)}D (domain.box has {len(box)} pairs)")
+        mesh = checked(mesh, mesh_file)  # orphans, degenerate, duplicate, non-manifold, pieces (mesh.check)
         lo, hi = mesh.p.min(axis=1), mesh.p.max(axis=1)
         box = tuple((float(a), float(b)) for a, b in zip(lo, hi))
     else:

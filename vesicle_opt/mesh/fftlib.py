@@ -9,11 +9,11 @@ hence the same bits, in every run) and reused. ``fft_library`` selects one for a
 from __future__ import annotations
 
 import contextlib
-import importlib.util
-import sys
 import threading
 
 import numpy as np
+
+from vesicle_opt import extras
 
 WORKERS = 1  # FFT threads; the solver's timings in the README are measured with 1
 FFT_LIBRARIES = ("scipy", "pyfftw")  # solver.fft: scipy.fft or FFTW through pyFFTW ("auto": the latter
@@ -22,14 +22,19 @@ _library = ["scipy"]  # the one in use in this process (``fft_library``, ``in_us
 
 
 def fft_available(name: str) -> bool:
-    """Whether the FFT library ``name`` can be used here (pyFFTW is an optional extra)."""
-    return name in ("scipy", "auto") or (name == "pyfftw" and importlib.util.find_spec("pyfftw") is not None)
+    """Whether the FFT library ``name`` can be used here (pyFFTW is an optional extra: installed
+    *and* loading, ``extras.load_error``)."""
+    return name in ("scipy", "auto") or (name == "pyfftw" and extras.load_error("pyfftw") is None)
 
 
 def resolve_fft(name: str) -> str:
-    """The library ``name`` stands for: "auto" is pyFFTW where installed, else scipy."""
+    """The library ``name`` stands for: "auto" is pyFFTW where it loads, else scipy (one warning
+    line when it is installed but does not load, ``extras.usable``); "pyfftw" is refused with one
+    line when it does not load (``extras.require``)."""
     if name == "auto":
-        return "pyfftw" if fft_available("pyfftw") else "scipy"
+        return "pyfftw" if extras.usable("pyfftw", "solver.fft", "scipy.fft") else "scipy"
+    if name == "pyfftw":
+        extras.require("pyfftw", "solver.fft", name)
     return name
 
 
@@ -46,28 +51,8 @@ def fft_library(name: str):
         _library[0] = old
 
 
-PYFFTW_UNUSED = ("dask.array.fft", "scipy.fftpack")  # what pyfftw's interfaces wrap, never used here
-
-
-def import_pyfftw():
-    """pyfftw (optional extra, third-party: only solver.fft = "pyfftw" needs it), imported without
-    the interfaces it builds over dask and scipy.fftpack: its package ``__init__`` imports them
-    when they are installed (0.35 s measured, inside the first solve's wall time), and only the
-    ``FFTW`` class is used here. A module not yet imported is hidden for that one import by
-    ``sys.modules[name] = None`` (an import of it then raises ImportError, which pyfftw catches)
-    and restored after; ``import pyfftw.interfaces.dask_fft`` later still works."""
-    if "pyfftw" in sys.modules:
-        return sys.modules["pyfftw"]
-    hidden = [name for name in PYFFTW_UNUSED if name not in sys.modules]
-    for name in hidden:
-        sys.modules[name] = None
-    try:
-        import pyfftw
-    finally:
-        for name in hidden:
-            if sys.modules.get(name, 0) is None:
-                del sys.modules[name]
-    return pyfftw
+PYFFTW_UNUSED = extras.PYFFTW_UNUSED
+import_pyfftw = extras.import_pyfftw  # pyFFTW's import lives in ``extras`` (whether it loads)
 
 
 class FFTWPlans:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vesicle_opt.io import progress
+from vesicle_opt.io import interrupt, progress
 from vesicle_opt.nlp.iteration_progress import IterationProgress
 
 _DERIV_KEYS = ("nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad")
@@ -77,6 +77,7 @@ def run_ipopt(solver, nlp, x0, p=None, lam_x0=None, lam_g0=None):
         bar = getattr(solver, "iteration_progress", None)
         if bar is not None:
             bar.close()
+    interrupt.check()  # CasADi turns a Ctrl-C inside IPOPT into a status: never a result (io.interrupt)
     wall = time.perf_counter() - t0
     return sol, solver.stats(), wall, np.asarray(sol["x"]).ravel()
 

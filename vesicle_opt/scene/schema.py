@@ -9,13 +9,13 @@ overrides use the same dotted keys, with values parsed as TOML.
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from vesicle_opt import extras
 from vesicle_opt.errors import InputError
 from vesicle_opt.geometry import targets, volume_of_reduced
 from vesicle_opt.scene import ranges
@@ -413,14 +413,13 @@ def _check_array(val: dict) -> None:
     if val["domain.boundary"] != "periodic":
         raise InputError("solver.array", "'jax' needs domain.boundary = 'periodic' (the mirror grids of "
                          "spectral + natural run on numpy only), got 'natural'")
-    if importlib.util.find_spec("jax") is None:
-        raise InputError("solver.array", "'jax' needs the optional extra: pip install 'vesicle_opt[jax]'")
+    extras.require("jax", "solver.array", "jax")  # installed and loading (a broken jaxlib is refused here)
 
 
 def _check_fft(val: dict) -> None:
     """solver.fft = 'pyfftw' needs pyFFTW installed (the optional extra ``fftw``); checked before any work."""
-    if val["solver.fft"] == "pyfftw" and importlib.util.find_spec("pyfftw") is None:
-        raise InputError("solver.fft", "'pyfftw' needs the optional extra: pip install 'vesicle_opt[fftw]'")
+    if val["solver.fft"] == "pyfftw":
+        extras.require("pyfftw", "solver.fft", "pyfftw")  # installed and loading
 
 
 def _check_ranges(val: dict, box, n) -> None:

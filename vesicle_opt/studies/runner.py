@@ -15,6 +15,10 @@
   of the parent runs then, so the workers themselves must notice; a re-parented process sees a
   new ``os.getppid()``). The watch starts in the pool's initializer, after a spawned worker's
   imports: a worker killed-around while still importing exits as soon as its imports end.
+* Interrupts (SIGINT, SIGTERM; ``io.interrupt``): the workers ignore SIGINT (a Ctrl-C reaches the
+  whole process group; the parent alone decides), and the parent, interrupted, terminates its own
+  pool's workers at once instead of waiting for their cases; no row of an unfinished case is
+  written, so the rerun resumes after the last finished one.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import io
 import logging
 import multiprocessing as mp
 import os
+import signal
 import sys
 import threading
 import time
@@ -33,8 +38,9 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from vesicle_opt.io import progress
+from vesicle_opt.io import interrupt, progress
 from vesicle_opt.io.files import json_safe, write_json
+from vesicle_opt.io.state import read_csv
 
 COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual", "area_residual",
            "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
@@ -46,6 +52,7 @@ PARENT_POLL_S = 0.5  # a worker notices its parent's death within this (the SIGK
 def _exit_with_parent(parent_pid: int, log_level: int | None = None) -> None:
     """Pool initializer: a daemon thread ends this worker at once when ``parent_pid`` is gone; with
     ``log_level``, the worker's ``vesicle_opt`` logger at the parent's level (``worker_logging``)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides (module docstring)
     if log_level is not None:
         worker_logging(log_level)
 
@@ -56,6 +63,18 @@ def _exit_with_parent(parent_pid: int, log_level: int | None = None) -> None:
     threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
+def terminate(executor: Executor) -> None:
+    """End a process pool's workers now (SIGTERM) and drop its queued work: what an interrupted
+    parent does to its own pool instead of ``shutdown(wait=True)``, which waits for every running
+    case. ``_processes`` is the pool's private table of its workers (CPython's, 3.8 to 3.13)."""
+    for proc in list((getattr(executor, "_processes", None) or {}).values()):
+        try:
+            proc.terminate()
+        except (OSError, ValueError):  # already gone
+            pass
+    executor.shutdown(wait=False, cancel_futures=True)
+
+
 def process_pool(workers: int = 1, log_level: int | None = None, **kwargs) -> ProcessPoolExecutor:
     """A spawn-context process pool whose workers end with this process (module docstring) and log
     at ``log_level`` (the parent's, for a study's own pool)."""
@@ -64,29 +83,45 @@ def process_pool(workers: int = 1, log_level: int | None = None, **kwargs) -> Pr
 
 
 class CsvLog:
-    """The single appending writer of a study CSV (see the module docstring)."""
+    """The single appending writer of a study CSV (see the module docstring). ``study``: the
+    study's name, which every row of an existing file must carry (another study's CSV is refused)."""
 
-    def __init__(self, path: Path, extra_columns: Iterable[str] = ()):
+    def __init__(self, path: Path, extra_columns: Iterable[str] = (), study: str | None = None):
         self.path = Path(path)
+        self.study = study
         self.columns = COLUMNS + [c for c in extra_columns if c not in COLUMNS] + BOOKKEEPING
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._repair()
 
+    def _check_header(self, header: list[str]) -> str | None:
+        missing = [c for c in ("study", *BOOKKEEPING) if c not in header]
+        if missing:
+            return f"no {', '.join(missing)} column"
+        if len(set(header)) != len(header) or "" in header:
+            return "empty or repeated column names"
+        return None
+
+    def _check_row(self, row: dict, index: int) -> str | None:
+        if not row["case"] or not row["case_rows"].isdigit() or int(row["case_rows"]) < 1:
+            return f"case {row['case'][:40]!r} with case_rows {row['case_rows'][:40]!r} (a row of no case)"
+        if self.study is not None and row["study"] != self.study:
+            return f"a row of the study {row['study'][:40]!r}, not {self.study!r}"
+        return None
+
     def _repair(self) -> None:
-        """Cut a torn last line, drop incomplete cases, keep the header of an existing file."""
-        if not self.path.exists() or self.path.stat().st_size == 0:
+        """Read the file through the checked loader (``io.state``): a torn last line is cut, the
+        rows of incomplete cases (a kill between two cases' writes) dropped, the header of an
+        existing file kept; anything else is refused before any work, the file untouched."""
+        found = read_csv(self.path, self._check_header, self._check_row,
+                         "move it away or give another --out (nothing there was changed)")
+        if found is None:
             self.path.write_text(",".join(self.columns) + "\n")
             return
-        text = self.path.read_text()
-        if not text.endswith("\n"):
-            text = text[: text.rfind("\n") + 1]
-        rows = list(csv.DictReader(io.StringIO(text)))
-        header = text.splitlines()[0].split(",") if text else self.columns
+        header, rows, _ = found
         counts: dict[str, int] = {}
         for r in rows:
-            counts[r.get("case", "")] = counts.get(r.get("case", ""), 0) + 1
-        keep = [r for r in rows if r.get("case_rows", "").isdigit()
-                and counts[r["case"]] == int(r["case_rows"])]
+            counts[r["case"]] = counts.get(r["case"], 0) + 1
+        keep = [r for r in rows if counts[r["case"]] == int(r["case_rows"])]
         if set(header) != set(self.columns):  # an older layout: keep its columns, add the new ones
             self.columns = header + [c for c in self.columns if c not in header]
         self._rewrite(keep)
@@ -140,11 +175,12 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
     ids = [c["case"] for c in cases]
     if len(set(ids)) != len(ids):
         raise ValueError(f"case ids are not unique in {study}")
-    log = CsvLog(csv_path, extra_columns)
+    log = CsvLog(csv_path, extra_columns, study)
     finished = log.done()
     todo = [c for c in cases if c["case"] not in finished]
     total, done = len(cases), len(cases) - len(todo)
     bar = progress.bar(study, total=total, unit="cases", interval=0.0, force=show_progress)
+    interrupt.note(f"after {done} of {total} cases of {study}", resume=True)
     bar.update(done)
     if done:
         bar.set_postfix_str(f"{done} done before (resumed)")
@@ -165,8 +201,14 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
                                "status": f"error: {type(exc).__name__}: {exc}"[:200]}], float("nan")
             log.append(case["case"], [{"study": study, **r} for r in rows])
             done += 1
+            interrupt.note(f"after {done} of {total} cases of {study}", resume=True)
             bar.set_postfix_str(f"last {case['case']} ({wall:.1f} s)")
             bar.update(1)
+    except KeyboardInterrupt:  # SIGINT/SIGTERM (io.interrupt): the workers end now, not after their case
+        if own:
+            terminate(executor)
+            own = False
+        raise
     finally:
         bar.close()
         if own:
@@ -201,8 +243,14 @@ def worker_logging(level: int) -> None:
 
 def in_fresh_process(fn: Callable, *args):
     """``fn(*args)`` in a new spawned process, so that its peak memory (ru_maxrss) is its own."""
-    with process_pool(1) as pool:
-        return pool.submit(fn, *args).result()
+    pool = process_pool(1)
+    try:
+        result = pool.submit(fn, *args).result()
+    except KeyboardInterrupt:  # interrupted: the worker ends now (``terminate``)
+        terminate(pool)
+        raise
+    pool.shutdown(wait=True)
+    return result
 
 
 def _timed(fn, case):

@@ -1,0 +1,105 @@
+"""Interrupts of a run (SIGINT, SIGTERM): one line, the conventional exit code, no traceback.
+
+``handled()`` installs, for the block, handlers of SIGINT and SIGTERM that record the signal and
+raise ``Interrupted`` (a ``KeyboardInterrupt``, so no ``except Exception`` of a solver swallows it).
+C extensions may still catch it: CasADi turns an exception raised during an IPOPT iteration into a
+solver status ("NonIpopt_Exception_Thrown") and returns. The record stays, so ``check()`` raises
+``Interrupted`` again at the next boundary (after each IPOPT call, before files are committed):
+an interrupted solve is never returned as a result nor written as a row.
+
+``note(where, resume)`` says where the run is ("at step 12 (t = 0.012)", "at point 3", "after 4 of 9
+cases") and whether the verb resumes from its files; ``message(signum)`` is the one line the CLI prints:
+``interrupted (SIGINT) at step 12; rerun the same command to resume``. ``deferred()`` is a block a
+signal does not split (the staged files' move into ``--out``): a signal received inside it is
+raised at its end. Exit codes: 128 + the signal's number (130 SIGINT, 143 SIGTERM).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_state = {"signum": None, "where": "at start-up", "resume": False, "defer": 0, "pending": None}
+
+
+class Interrupted(KeyboardInterrupt):
+    """The run received ``signum`` (SIGINT or SIGTERM); ``exit_code`` is 128 + signum."""
+
+    def __init__(self, signum: int):
+        self.signum = int(signum)
+        super().__init__(signal.Signals(self.signum).name)
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+def _handler(signum, frame):
+    _state["signum"] = signum
+    if _state["defer"]:
+        _state["pending"] = signum
+        return
+    raise Interrupted(signum)
+
+
+def reset() -> None:
+    _state.update(signum=None, where="at start-up", resume=False, defer=0, pending=None)
+
+
+@contextlib.contextmanager
+def handled():
+    """The block with SIGINT and SIGTERM raising ``Interrupted`` (module docstring); the previous
+    handlers are restored after it. Outside the main thread (no handler can be set) a no-op."""
+    reset()
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.getsignal(s) for s in SIGNALS}
+    for s in SIGNALS:
+        signal.signal(s, _handler)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+def received() -> int | None:
+    """The signal received since ``handled()`` began (None: none)."""
+    return _state["signum"]
+
+
+def check() -> None:
+    """Raise ``Interrupted`` when a signal was received (and swallowed by a C extension)."""
+    if _state["signum"] is not None and not _state["defer"]:
+        raise Interrupted(_state["signum"])
+
+
+def note(where: str, resume: bool | None = None) -> None:
+    """Where the run is, for the message; ``resume``: the verb resumes from its files."""
+    _state["where"] = where
+    if resume is not None:
+        _state["resume"] = resume
+
+
+@contextlib.contextmanager
+def deferred():
+    """A block a signal does not interrupt; a signal received in it is raised at its end."""
+    _state["defer"] += 1
+    try:
+        yield
+    finally:
+        _state["defer"] -= 1
+        if not _state["defer"] and _state["pending"] is not None:
+            signum, _state["pending"] = _state["pending"], None
+            raise Interrupted(signum)
+
+
+def message(signum: int) -> str:
+    """The CLI's one line for an interrupt (module docstring)."""
+    name = signal.Signals(signum).name
+    tail = ("rerun the same command to resume" if _state["resume"] else
+            "the files in --out were left as they were; rerun the same command to start again")
+    return f"interrupted ({name}) {_state['where']}; {tail}"
