@@ -60,6 +60,7 @@ from vesicle_opt.branch.params import Parameter, check_end, check_range, explici
 from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
+from vesicle_opt.scene import resolved
 from vesicle_opt.scene.schema import Scene
 
 SWITCH_AMPLITUDE = 0.05  # the seed phi_s + a |phi_s|_M mode of a branch switch (mode M-normalised)
@@ -75,6 +76,15 @@ class Branch:
     rows: tuple[dict, ...]
     stopped: dict  # branch id -> reason
     out: Path | None = None
+    scene: Scene | None = dataclasses.field(default=None, repr=False)  # the scene the branch started from
+
+    def field(self, point: int) -> dict:
+        """The snapshot of ``point`` (``points/point-NNNN.npz``, the ``io.fields`` layout: phi, nodes,
+        grid_shape, box, p[, mode]); InputError when the run kept no files (``out`` None)."""
+        if self.out is None:
+            raise InputError("out", "this branch was run without out=: no snapshots were kept")
+        from vesicle_opt.io import fields  # numpy only; local to keep the branch package's imports short
+        return fields.read(self.out / "points" / f"point-{point:04d}.npz")
 
     def points(self, branch: int | None = None) -> list[dict]:
         """The accepted (converged) points, of one branch when given."""
@@ -117,7 +127,9 @@ class Branch:
 
 
 def _meta(scene: Scene, param: str, to: float, step: float, backend, switch: bool) -> dict:
-    return {"scene": scene.name, "scene_data": repr(scene), "param": param, "to": float(to),
+    # scene_data: the resolved scene as a JSON table (``scene.resolved.as_dict``; it was a Python repr
+    # string before the npz format had a version), so ``vo.load_branch`` rebuilds the Scene
+    return {"scene": scene.name, "scene_data": resolved.as_dict(scene), "param": param, "to": float(to),
             "step": float(step), "backend": backend, "switch": bool(switch)}
 
 
@@ -288,7 +300,8 @@ class _Run:
 
 
 def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None, step: float | None = None,
-           out=None, *, backend: str | None = None, options=None, max_points: int = 200, switch: bool = True,
+           out: str | Path | None = None, *, backend: str | None = None,
+           options: "IpoptOptions | NewtonKrylovOptions | None" = None, max_points: int = 200, switch: bool = True,
            reference: Callable | None = None, snapshots: bool = True,
            progress: Callable[[dict], None] | None = None, turn: float = arc.Settings.turn) -> Branch:
     """Follow the branch of equilibria of ``scene`` in ``param`` from the scene's value to ``to``
@@ -321,7 +334,8 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
         for k, ev in enumerate([e for e in _result(par, to, step, store, stopped, out).events(0)
                                 if e["kind"] == "bifurcation"], start=1):
             stopped[k] = _switch(run, store, k, ev)
-    result = _result(par, to, step, store, stopped, out)
+    result = _result(par, to, step, store, stopped, out, scene)
+    store.finish(stopped)  # branch.json's "stopped": why each branch ended (vo.load_branch reads it)
     if out is not None and snapshots:
         write_diagram(result, Path(out) / "energy_diagram.png")
     return result
@@ -337,9 +351,9 @@ def write_diagram(b: Branch, path: Path, title: str = "") -> None:
     diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title)
 
 
-def _result(par, to, step, store, stopped, out) -> Branch:
+def _result(par, to, step, store, stopped, out, scene=None) -> Branch:
     return Branch(par.name, float(to), float(step), tuple(store.rows()), dict(stopped),
-                  None if out is None else Path(out))
+                  None if out is None else Path(out), scene=scene)
 
 
 def _switch(run: _Run, store: Store, k: int, ev: dict) -> str:

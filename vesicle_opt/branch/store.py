@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.errors import InputError
+from vesicle_opt.io import fields
 from vesicle_opt.io.files import load_npz, save_npz, write_json
 
 COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy", "reduced_energy",
@@ -29,6 +30,9 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            "wall_time_s", "epsilon", "n", "h", "alpha", "beta", "volume", "area", "kkt_residual",
            "arc_step", "arc_theta", "sharp_reduced_energy", "second_order_excluded", "rotation_rayleigh",
            "restarted"]
+
+
+RESULT_KEYS = ("stopped",)  # keys of branch.json written at the end (not part of what was asked)
 
 
 def _text(v) -> str:
@@ -77,7 +81,7 @@ class Store:
                              f"({exc.strerror or exc})") from None
         meta_path = self.out / "branch.json"
         if meta_path.exists():
-            old = json.loads(meta_path.read_text())
+            old = {k: v for k, v in json.loads(meta_path.read_text()).items() if k not in RESULT_KEYS}
             if old != meta:
                 diff = sorted(k for k in set(old) | set(meta) if old.get(k) != meta.get(k))
                 raise InputError("--out", f"{self.out} holds a branch run with other {', '.join(diff)}; "
@@ -102,6 +106,15 @@ class Store:
             tmp.write_text(text)
             os.replace(tmp, path)
         return [parse(r) for r in csv.DictReader(io.StringIO(text))]
+
+    def finish(self, stopped: dict) -> None:
+        """Record in branch.json why each branch stopped (``{"0": "reached", ...}``)."""
+        if self.out is None:
+            return
+        path = self.out / "branch.json"
+        meta = json.loads(path.read_text())
+        meta["stopped"] = {str(k): v for k, v in stopped.items()}
+        write_json(path, meta)
 
     def rows(self) -> list[dict]:
         return list(self._rows)
@@ -141,10 +154,9 @@ class Store:
                 if mode is not None:
                     self._modes[point] = extra["mode"]
             else:
-                disc = result.disc
-                grid = np.asarray(disc.grid_shape if disc.grid_shape is not None else (), int)
-                save_npz(self.out / "points" / f"point-{point:04d}.npz", phi=result.phi, p=row["target"],
-                         grid_shape=grid, box=np.asarray(disc.box, float), **extra)
+                disc = result.disc  # the npz layout of io.fields (format version)
+                fields.write(self.out / "points" / f"point-{point:04d}.npz", "branch-point", result.phi, disc,
+                             p=row["target"], **extra)
                 if self.snapshots:
                     _write_vtk(self.out / "points" / f"point-{point:04d}.vtu", disc, result.phi)
         self._rows.append(parse({k: _text(row.get(k)) for k in COLUMNS}))

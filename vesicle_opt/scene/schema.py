@@ -14,7 +14,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 from vesicle_opt.errors import InputError
 from vesicle_opt.geometry import targets, volume_of_reduced
@@ -122,10 +122,21 @@ class Scene:
 
     @property
     def dim(self) -> int:
+        """2 or 3: the number of the box's axes."""
         return self.domain.dim
 
     def replace(self, **sections) -> "Scene":
+        """A copy with whole sections (or the name) replaced, e.g.
+        ``scene.replace(solver=dataclasses.replace(scene.solver, tol=1e-10))``: a frozen-dataclass
+        ``replace`` of the top level. For single keys by their dotted names use ``with_overrides``."""
         return dataclasses.replace(self, **sections)
+
+    def with_overrides(self, overrides: "Mapping[str, Any] | Sequence[str]") -> "Scene":
+        """A copy with dotted keys set, validated as a scene file is:
+        ``scene.with_overrides({"mesh.n": 64, "constraints.reduced_volume": 0.8})``, or the CLI's
+        ``["mesh.n=64"]`` (``load``); InputError naming the key when a key or value is refused."""
+        from vesicle_opt.scene import resolved  # the writer of the scene's raw table (TOML-free here)
+        return from_dict(apply_overrides(resolved.as_dict(self), overrides), name=self.name)
 
 
 # --- schema: key -> (kind, default, allowed). kind in {float, int, str, shape, box, ints, floats}.
@@ -242,18 +253,58 @@ def _known(key: str) -> bool:
     return False
 
 
-def apply_overrides(raw: dict, overrides: list[str] | None) -> dict:
-    """Apply ``KEY=VALUE`` overrides (dotted keys) to a raw scene dict, refusing unknown keys."""
-    for item in overrides or []:
+def override_items(overrides) -> list[tuple[str, Any]]:
+    """(dotted key, value) pairs of overrides given as a mapping ``{"mesh.n": 64}`` (values as they
+    are) or a list of ``"KEY=VALUE"`` strings (``--set``; values parsed as TOML); InputError naming
+    ``overrides`` for anything else (a bare string would be iterated character by character)."""
+    if overrides is None:
+        return []
+    if isinstance(overrides, Mapping):
+        return [(str(k).strip(), v) for k, v in overrides.items()]
+    if isinstance(overrides, (str, bytes)) or not isinstance(overrides, Sequence) \
+            or not all(isinstance(item, str) for item in overrides):
+        raise InputError("overrides", "expected a mapping {'mesh.n': 64} or a list of 'KEY=VALUE' "
+                         f"strings (['mesh.n=64']), got {overrides!r}")
+    items = []
+    for item in overrides:
         if "=" not in item:
             raise InputError("--set", f"expected KEY=VALUE, got {item!r}")
         key, text = item.split("=", 1)
-        key = key.strip()
-        if not key:
+        if not key.strip():
             raise InputError("--set", f"expected KEY=VALUE with a key, got {item!r}")
+        items.append((key.strip(), parse_value(text.strip())))
+    return items
+
+
+# the two ways of giving the constraint targets (``_physical_targets``): setting one way by an
+# override drops the other way's keys from the scene, with one INFO line
+_TARGET_WAYS = (("constraints.reduced_volume", "constraints.area"),
+                ("constraints.alpha", "constraints.beta", "constraints.target"))
+
+
+def _replace_targets(raw: dict, keys: set[str]) -> None:
+    for way, other in (_TARGET_WAYS, _TARGET_WAYS[::-1]):
+        if keys & set(way):
+            dropped = [k for k in other if k not in keys and k.split(".")[1] in raw.get("constraints", {})]
+            for k in dropped:
+                del raw["constraints"][k.split(".")[1]]
+            if dropped:
+                import logging  # one line, through the CLI's logging (stderr)
+                logging.getLogger("vesicle_opt.scene").info(
+                    "%s given: the scene's %s dropped", " and ".join(sorted(keys & set(way))), ", ".join(dropped))
+
+
+def apply_overrides(raw: dict, overrides) -> dict:
+    """Apply overrides (``override_items``: a mapping or ``KEY=VALUE`` strings; dotted keys) to a
+    raw scene dict, refusing unknown keys. Setting ``constraints.reduced_volume`` / ``area``
+    replaces a scene's ``alpha`` / ``beta`` / ``target`` (and the other way round), saying so."""
+    items = override_items(overrides)
+    for key, _ in items:
         if not _known(key):
             raise InputError(key or "scene", f"unknown scene key {key!r} (allowed: {', '.join(SCHEMA)})")
-        _set_dotted(raw, key, parse_value(text.strip()))
+    _replace_targets(raw, {k for k, _ in items})
+    for key, value in items:
+        _set_dotted(raw, key, value)
     return raw
 
 
@@ -414,9 +465,10 @@ def _flow(val: dict) -> Flow:
     return Flow(**{f.name: val[f"flow.{f.name}"] for f in dataclasses.fields(Flow)})
 
 
-def load(scene: str | Path, overrides: list[str] | None = None) -> Scene:
+def load(scene: str | Path, overrides: Mapping[str, Any] | Sequence[str] | None = None) -> Scene:
     """Read and validate a scene, given as a TOML path or the name of a bundled scene
-    (``scene.bundled``: ``ellipse-2d``), applying ``--set`` style overrides."""
+    (``scene.bundled``: ``ellipse-2d``), applying overrides: a mapping of dotted keys to values
+    (``{"mesh.n": 64}``) or ``--set`` style strings (``["mesh.n=64"]``); InputError otherwise."""
     name, text = resolve_scene(scene)
     try:
         raw = tomllib.loads(text)
