@@ -19,6 +19,7 @@ from typing import Any, Mapping, Sequence
 from vesicle_opt.errors import InputError
 from vesicle_opt.geometry import targets, volume_of_reduced
 from vesicle_opt.scene.bundled import resolve as resolve_scene
+from vesicle_opt.scene.overrides import override_items, parse_value, replace_targets  # noqa: F401 (parse_value: re-exported)
 from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES, Shape, number, numbers, parse_shape
 
 @dataclass(frozen=True)
@@ -227,14 +228,6 @@ def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
     return out
 
 
-def parse_value(text: str) -> Any:
-    """Parse a ``--set`` value as TOML; a bare word that is not TOML is taken as a string."""
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
 def _set_dotted(d: dict, key: str, value: Any) -> None:
     parts = key.split(".")
     for p in parts[:-1]:
@@ -253,47 +246,6 @@ def _known(key: str) -> bool:
     return False
 
 
-def override_items(overrides) -> list[tuple[str, Any]]:
-    """(dotted key, value) pairs of overrides given as a mapping ``{"mesh.n": 64}`` (values as they
-    are) or a list of ``"KEY=VALUE"`` strings (``--set``; values parsed as TOML); InputError naming
-    ``overrides`` for anything else (a bare string would be iterated character by character)."""
-    if overrides is None:
-        return []
-    if isinstance(overrides, Mapping):
-        return [(str(k).strip(), v) for k, v in overrides.items()]
-    if isinstance(overrides, (str, bytes)) or not isinstance(overrides, Sequence) \
-            or not all(isinstance(item, str) for item in overrides):
-        raise InputError("overrides", "expected a mapping {'mesh.n': 64} or a list of 'KEY=VALUE' "
-                         f"strings (['mesh.n=64']), got {overrides!r}")
-    items = []
-    for item in overrides:
-        if "=" not in item:
-            raise InputError("--set", f"expected KEY=VALUE, got {item!r}")
-        key, text = item.split("=", 1)
-        if not key.strip():
-            raise InputError("--set", f"expected KEY=VALUE with a key, got {item!r}")
-        items.append((key.strip(), parse_value(text.strip())))
-    return items
-
-
-# the two ways of giving the constraint targets (``_physical_targets``): setting one way by an
-# override drops the other way's keys from the scene, with one INFO line
-_TARGET_WAYS = (("constraints.reduced_volume", "constraints.area"),
-                ("constraints.alpha", "constraints.beta", "constraints.target"))
-
-
-def _replace_targets(raw: dict, keys: set[str]) -> None:
-    for way, other in (_TARGET_WAYS, _TARGET_WAYS[::-1]):
-        if keys & set(way):
-            dropped = [k for k in other if k not in keys and k.split(".")[1] in raw.get("constraints", {})]
-            for k in dropped:
-                del raw["constraints"][k.split(".")[1]]
-            if dropped:
-                import logging  # one line, through the CLI's logging (stderr)
-                logging.getLogger("vesicle_opt.scene").info(
-                    "%s given: the scene's %s dropped", " and ".join(sorted(keys & set(way))), ", ".join(dropped))
-
-
 def apply_overrides(raw: dict, overrides) -> dict:
     """Apply overrides (``override_items``: a mapping or ``KEY=VALUE`` strings; dotted keys) to a
     raw scene dict, refusing unknown keys. Setting ``constraints.reduced_volume`` / ``area``
@@ -302,7 +254,7 @@ def apply_overrides(raw: dict, overrides) -> dict:
     for key, _ in items:
         if not _known(key):
             raise InputError(key or "scene", f"unknown scene key {key!r} (allowed: {', '.join(SCHEMA)})")
-    _replace_targets(raw, {k for k, _ in items})
+    replace_targets(raw, {k for k, _ in items})
     for key, value in items:
         _set_dotted(raw, key, value)
     return raw
