@@ -103,3 +103,11 @@ def test_public_api_has_docstrings_and_annotations():
             if sig.return_annotation is inspect.Signature.empty:
                 missing.append(f"{name}: return not annotated")
     assert not missing, "\n".join(missing)
+
+
+def test_solve_list_names_every_bundled_scene(capsys):
+    from vesicle_opt.scene import bundled
+    assert cli.main(["solve", "--list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [ln.split()[0] for ln in lines] == bundled.names() and all(len(ln.split()) > 2 for ln in lines)
+    assert cli.main(["solve"]) == 2  # neither a scene nor --list: one line, bad input
