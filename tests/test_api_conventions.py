@@ -111,3 +111,22 @@ def test_solve_list_names_every_bundled_scene(capsys):
     lines = capsys.readouterr().out.splitlines()
     assert [ln.split()[0] for ln in lines] == bundled.names() and all(len(ln.split()) > 2 for ln in lines)
     assert cli.main(["solve"]) == 2  # neither a scene nor --list: one line, bad input
+
+
+@pytest.mark.parametrize("args", [["study", "energy_diagram", "--help"], ["--help"], ["study", "--list"]])
+def test_no_broken_pipe_traceback(args):
+    import subprocess
+    import sys
+    # a reader that closes at once (`| head -0`): the writer must end quietly with status 0
+    p = subprocess.Popen([sys.executable, "-m", "vesicle_opt", *args], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=120) == 0 and "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_study_summaries_print_for_people_not_as_reprs():
+    from vesicle_opt.studies._common import human
+    line = human({"points": 5, "certified": 5, "crossing": {"v": 0.651234567, "eps": [0.1, 0.2]}, "x": None})
+    assert line == "points 5, certified 5, crossing (v 0.651235, eps 0.1, 0.2), x none"
+    assert "{" not in line and "'" not in line  # no dict repr
