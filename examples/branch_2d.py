@@ -1,4 +1,6 @@
-"""Follow a branch of equilibria in the reduced volume: the 2D elastica branch.
+"""
+A branch of equilibria in the reduced volume (2D elastica)
+==========================================================
 
     python examples/branch_2d.py          # from any directory; a few seconds
 
@@ -24,5 +26,14 @@ def main(n: int = 48, to: float = 0.85, step: float = -0.05, out=None) -> vo.Bra
     return b
 
 
+def plot(b: vo.Branch) -> None:
+    """The energy diagram: reduced energy against reduced area along the branch."""
+    import matplotlib.pyplot as plt
+    pts = sorted(b.points(), key=lambda r: r["reduced_volume"])
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.plot([r["reduced_volume"] for r in pts], [r["reduced_energy"] for r in pts], "o-")
+    ax.set(xlabel="reduced area", ylabel="E / E_circle", title="2D elastica branch (every point a minimum)")
+
+
 if __name__ == "__main__":
-    main()
+    plot(main())

@@ -1,4 +1,6 @@
-"""Build the CasADi NLP and add a constraint of one's own.
+"""
+Build the CasADi NLP and add a constraint of one's own
+======================================================
 
     python examples/own_constraint.py          # from any directory; about 1 s
 

@@ -1,9 +1,11 @@
-"""Penalty (11) against exact constraints (7)-(8) on one scene.
+"""
+Penalty (11) against exact constraints (7)-(8)
+==============================================
 
     python examples/penalty_vs_exact.py        # from any directory; a few seconds
 
 The penalty solve at M leaves the constraints violated by O(1/M) and its energy below the exact
-one by about |lambda|^2 / M (Theorem 3.2 to first order: at the penalty minimiser lambda = -M c).
+one by about ``|lambda|^2 / M`` (Theorem 3.2 to first order: at the penalty minimiser lambda = -M c).
 """
 
 import vesicle_opt as vo

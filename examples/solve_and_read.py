@@ -1,4 +1,6 @@
-"""Solve a bundled scene and read the certified Result.
+"""
+Solve a bundled scene and read the certified Result
+===================================================
 
     python examples/solve_and_read.py          # from any directory; about 1 s
 
@@ -21,5 +23,18 @@ def main(n: int = 64) -> vo.Result:
     return res
 
 
+def plot(res: vo.Result) -> None:
+    """phi on the grid with its zero level (the membrane), in the box's coordinates."""
+    import matplotlib.pyplot as plt
+    n = res.disc.grid_shape
+    (x0, x1), (y0, y1) = res.disc.box
+    phi = res.phi.reshape(n)
+    fig, ax = plt.subplots(figsize=(4.5, 4))
+    im = ax.imshow(phi.T, origin="lower", extent=(x0, x1, y0, y1), cmap="RdBu_r", vmin=-1, vmax=1)
+    ax.contour(*[res.disc.nodes[:, k].reshape(n) for k in (0, 1)], phi, levels=[0.0], colors="k")
+    ax.set(xlabel="x", ylabel="y", title=f"phi, E = {res.energy:.5f}, reduced volume {res.reduced_volume:.3f}")
+    fig.colorbar(im, ax=ax, label="phi")
+
+
 if __name__ == "__main__":
-    main()
+    plot(main())

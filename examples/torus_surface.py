@@ -1,11 +1,13 @@
-"""The paper's torus (Section 5, Table 1) in 3D, with its phi = 0 surface exported.
+"""
+The paper's torus in 3D and its phi = 0 surface
+===============================================
 
     python examples/torus_surface.py [OUT]     # from any directory; ~10-30 s at 32^3
 
 Solved on a Fourier-spectral grid (backend "auto" picks Newton-Krylov there), written like
 ``vesicle-opt solve`` does: summary.json, phi.vti, phi.png and surface.ply (marching cubes; open it
 in ParaView). The surface's area and volume are printed beside the phase-field values
-3 sqrt(2) B / 4 and (|Omega| + A) / 2 (the latter exceeds the surface's by about
+``3 sqrt(2) B / 4`` and ``(|Omega| + A) / 2`` (the latter exceeds the surface's by about
 (pi^2/12) eps^2 * integral of the mean curvature: the tanh profile's own O(eps^2) offset).
 """
 

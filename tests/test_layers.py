@@ -17,7 +17,7 @@ Bottom to top (a unit is a top-level module or subpackage of ``vesicle_opt``):
     6  flows                 gradient flows (may use a backend's NLP pieces)
     7  api, backends         the front door and its backend table (api -> backends only)
     8  branch                branches of equilibria (continuation over the front door), energy diagrams
-    9  studies               the studies and their registry
+    9  studies, readback     the studies and their registry | output directories read back
    10  cli                   the command line (argparse; the study verb uses the registry)
    11  vesicle_opt           the package's public namespace (__init__); nothing inside imports it
    12  __main__              ``python -m vesicle_opt`` (the CLI's main)
@@ -44,7 +44,7 @@ LAYERS = {
     "flows": 6,
     "api": 7, "backends": 7,
     "branch": 8,
-    "studies": 9, "cli": 10,
+    "studies": 9, "readback": 9, "cli": 10,
     "": 11,  # vesicle_opt/__init__.py
     "__main__": 12,  # python -m vesicle_opt: runs the CLI
 }

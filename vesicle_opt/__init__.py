@@ -13,7 +13,9 @@ backend (``vesicle_opt.nk``); ``build_nlp(scene).as_dict()`` is the raw CasADi N
 ``scene.flow`` with trackers for output, progress, checkpoints and stop criteria
 (``vesicle_opt.flows.trackers``); ``run_study(name, out, quick)`` runs one of the studies
 (``vesicle_opt.studies.STUDIES``); ``branch(scene, param=, to=, step=, out=)`` follows a branch of
-equilibria in the reduced volume or c0 (``vesicle_opt.branch``).
+equilibria in the reduced volume or c0 (``vesicle_opt.branch``). ``write_result(result, out)``
+writes a solve's files as the CLI does, and ``load(dir)`` (``load_result``, ``load_flow``,
+``load_branch``, ``load_study``) reads any verb's output directory back (``vesicle_opt.readback``).
 """
 
 from vesicle_opt.api import solve
@@ -31,7 +33,12 @@ __version__ = package_version()
 # ``flow`` and ``FlowResult`` load the flows package with their first use (PEP 562): a solve does
 # not need it (0.02-0.03 s of every CLI run's start-up, measured). ``branch`` stays eager: its
 # name is also the subpackage's, which an import would rebind on this module.
-_LAZY = {"flow": "vesicle_opt.flows.api", "FlowResult": "vesicle_opt.flows.api"}
+_LAZY = {"flow": "vesicle_opt.flows.api", "FlowResult": "vesicle_opt.flows.api",
+         # output directories read back, and a solve's files written from Python (readback)
+         "load": "vesicle_opt.readback", "load_result": "vesicle_opt.readback",
+         "load_flow": "vesicle_opt.readback", "load_branch": "vesicle_opt.readback",
+         "load_study": "vesicle_opt.readback", "write_result": "vesicle_opt.readback",
+         "FlowRecord": "vesicle_opt.readback", "StudyRecord": "vesicle_opt.readback"}
 
 
 def __getattr__(name: str):
@@ -44,7 +51,8 @@ def __getattr__(name: str):
 
 __all__ = ["__version__", "solve", "branch", "Branch", "flow", "FlowResult", "run_study", "load_scene", "Scene", "build_nlp", "NLP",
            "IpoptOptions", "NewtonKrylovOptions", "Result", "Status", "VesicleError", "InputError",
-           "InfeasibleError", "NotSupported", "SolverError"]
+           "InfeasibleError", "NotSupported", "SolverError", "load", "load_result", "load_flow",
+           "load_branch", "load_study", "write_result", "FlowRecord", "StudyRecord"]
 
 
 def __dir__() -> list[str]:

@@ -37,6 +37,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -149,7 +150,7 @@ def with_reports(result: Result, so, seconds: float = 0.0) -> Result:
     return shape.apply(result)  # the physical shape against the targets (verify.shape)
 
 
-def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | None = None, x0=None,
+def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | None = None, x0: np.ndarray | str | Path | Result | None = None,
           options: IpoptOptions | NewtonKrylovOptions | None = None, throw: bool = False) -> Result:
     """Minimise rigidity * E_h subject to A = alpha, B = beta (or its penalty form); see the module
     docstring. ``backend`` and ``method`` override the scene's ``solver.backend`` / ``solver.method``;
@@ -212,6 +213,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     if chosen != "ipopt" and getattr(result.disc, "fourier", None) is not None:  # which FFTs the solve ran
         lib = "jax" if scene.solver.array == "jax" else resolve_fft(scene.solver.fft)
         result = _replace_extra(result, fft_library=lib)
+    result = dataclasses.replace(result, scene=scene)  # for vo.write_result (its name, scene.resolved.toml)
     if throw and not result.converged:
         raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
                           f"{result.kkt_residual:.3g}, A-alpha {result.volume_residual:.3g}, "

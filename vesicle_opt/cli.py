@@ -33,7 +33,7 @@ from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.io import interrupt, outdir, output, progress, staging
 from vesicle_opt.io.files import package_version
 from vesicle_opt.scene import load as load_scene
-from vesicle_opt.scene import resolved
+from vesicle_opt.scene import bundled, resolved
 from vesicle_opt.scene.ranges import resolution_warning
 from vesicle_opt.studies import DESCRIPTIONS, STUDIES, docstring, run_study, study
 
@@ -73,6 +73,11 @@ def _preflight(scene, out: str | None, path: str | None):
 
 
 def cmd_solve(args) -> int:
+    if args.list:  # the bundled scenes, one line each (the first line of each file's comment)
+        print("\n".join(bundled.describe()))
+        return 0
+    if args.scene is None:
+        raise InputError("scene", "give a scene (a TOML path or a bundled name) or --list")
     sc = load_scene(args.scene, args.set)
     with _preflight(sc, args.out, choose_backend(sc)) as out:
         interrupt.note("during the solve", resume=False)
@@ -268,7 +273,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_verbosity(p)
     sub = p.add_subparsers(dest="verb", required=True, parser_class=_Parser, metavar="{solve,flow,branch,study}")
     s = sub.add_parser("solve", help="solve the equilibrium problem of a scene")
-    s.add_argument("scene", help="scene TOML file or bundled scene name")
+    s.add_argument("scene", nargs="?", help="scene TOML file or bundled scene name (see --list)")
+    s.add_argument("--list", action="store_true", help="print the bundled scenes, one line each")
     s.add_argument("--out", default="out", help="output directory (default: out)")
     s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key (dotted, value parsed as TOML); repeatable")
@@ -305,7 +311,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except BrokenPipeError:  # --help piped into a reader that closed early (`| head`): not an error
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 0
 
     def one_line_warning(message, category, filename, lineno, file=None, line=None):
         print(f"vesicle-opt: warning: {message}", file=sys.stderr)

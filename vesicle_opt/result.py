@@ -77,11 +77,55 @@ class Result:
     lam_g: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
     disc: object = field(default=None, repr=False)  # the discretisation phi lives on (for writers, plots)
+    scene: object = field(default=None, repr=False)  # the Scene solved (``vo.solve``, ``vo.load_result``)
 
     @property
     def reason(self) -> str | None:
         """Why the result is not converged (None when it is)."""
         return self.extra.get("reason")
+
+    # --- the physical and verification quantities of ``extra``, as attributes (read-only views) ---
+    def _num(self, key: str) -> float | None:
+        v = self.extra.get(key)
+        return None if v is None else float(v)
+
+    @property
+    def volume(self) -> float | None:
+        """The enclosed volume (area in 2D) implied by A(phi): V = (|Omega| + A) / 2 (Section 3.1, (4))."""
+        return self._num("volume")
+
+    @property
+    def area(self) -> float | None:
+        """The membrane area (perimeter in 2D) implied by B(phi): S = 3 sqrt(2) B / 4 (Section 3.1, (5))."""
+        return self._num("area")
+
+    @property
+    def reduced_volume(self) -> float | None:
+        """V / ((4 pi / 3) R0^3) with R0 = sqrt(S / 4 pi) in 3D, 4 pi V / S^2 (reduced area) in 2D:
+        1 for the sphere / circle (``geometry.reduced_volume``)."""
+        return self._num("reduced_volume")
+
+    @property
+    def reduced_energy(self) -> float | None:
+        """E / (rigidity E_sphere): E_sphere = 16 sqrt(2) pi / 3 (3D) or 2 sqrt(2) pi / (3 R) for the
+        circle of the same perimeter (2D), the eps -> 0 limit of (3) (``geometry.sphere_energy``)."""
+        return self._num("reduced_energy")
+
+    @property
+    def second_order(self) -> str | None:
+        """``"minimum"``, ``"saddle"`` or ``"not checked"`` (the tangent-Hessian check of ``vo.solve``)."""
+        return self.extra.get("second_order")
+
+    @property
+    def second_order_min_eigenvalue(self) -> float | None:
+        """The least eigenvalue of the reduced Hessian (mu_ref units, symmetry modes excluded);
+        negative at a saddle, None when not checked."""
+        return self._num("second_order_min_eigenvalue")
+
+    @property
+    def topology(self) -> str | None:
+        """The inside's topology of the phi > 0 set (in words, ``verify.topology``: e.g. ``"disk-like"``)."""
+        return self.extra.get("topology")
 
     def summary(self, scene_name: str) -> dict:
         """The summary.json dict; numbers that are not finite are written as null."""

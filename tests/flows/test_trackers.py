@@ -109,11 +109,21 @@ def test_throw_raises_on_a_failed_run():
 
 def test_bad_inputs_are_one_line_input_errors(tmp_path):
     sc = _scene()
-    for kwargs, key in (({"phi0": np.zeros(7)}, "phi0"), ({"resume_from": tmp_path / "missing.npz"}, "resume_from"),
+    for kwargs, key in (({"x0": np.zeros(7)}, "x0"), ({"resume_from": tmp_path / "missing.npz"}, "resume_from"),
                         ({"trackers": [42]}, "trackers")):
         with pytest.raises(vo.InputError, match=key) as info:
             vo.flow(sc, **kwargs)
         assert "\n" not in str(info.value)  # one line
+
+
+def test_phi0_is_a_deprecated_alias_of_x0():
+    sc = _scene()
+    start = vo.flow(sc).phi
+    with pytest.warns(DeprecationWarning, match="x0"):
+        old = vo.flow(sc, phi0=start)
+    np.testing.assert_array_equal(old.phi, vo.flow(sc, x0=start).phi)  # the same run, bit for bit
+    with pytest.raises(vo.InputError, match="x0"):
+        vo.flow(sc, x0=start, phi0=start)
 
 
 def test_a_checkpoint_is_not_resumed_under_another_problem(tmp_path):

@@ -59,6 +59,7 @@ from vesicle_opt.branch.store import Store
 from vesicle_opt.branch.tree import grow
 from vesicle_opt.branch.vesicle import VesicleProblem
 from vesicle_opt.errors import InputError
+from vesicle_opt.scene import resolved
 from vesicle_opt.scene.schema import Scene
 
 
@@ -74,6 +75,15 @@ class Branch:
     stopped: dict  # branch id -> reason
     out: Path | None = None
     parents: dict = dataclasses.field(default_factory=dict)  # branch id -> parent id (None: a root)
+    scene: Scene | None = dataclasses.field(default=None, repr=False)  # the scene the branch started from
+
+    def field(self, point: int) -> dict:
+        """The snapshot of ``point`` (``points/point-NNNN.npz``, the ``io.fields`` layout: phi, nodes,
+        grid_shape, box, p[, mode]); InputError when the run kept no files (``out`` None)."""
+        if self.out is None:
+            raise InputError("out", "this branch was run without out=: no snapshots were kept")
+        from vesicle_opt.io import fields  # numpy only; local to keep the branch package's imports short
+        return fields.read(self.out / "points" / f"point-{point:04d}.npz")
 
     def points(self, branch: int | None = None) -> list[dict]:
         """The accepted (converged) points, of one branch when given."""
@@ -127,7 +137,9 @@ ENDINGS = ("reached", "max_points", "joined", "known", "left the range", "none f
 
 def _meta(scene: Scene, param: str, to: float, step: float, backend, switch: bool, depth: int = 1,
           deflate: int = 0) -> dict:
-    meta = {"scene": scene.name, "scene_data": repr(scene), "param": param, "to": float(to),
+    # scene_data: the resolved scene as a JSON table (``scene.resolved.as_dict``; it was a Python repr
+    # string before the npz format had a version), so ``vo.load_branch`` rebuilds the Scene
+    meta = {"scene": scene.name, "scene_data": resolved.as_dict(scene), "param": param, "to": float(to),
             "step": float(step), "backend": backend, "switch": bool(switch)}
     if depth != 1:  # the keys of older runs, unchanged where the defaults are kept
         meta["depth"] = depth
@@ -137,7 +149,8 @@ def _meta(scene: Scene, param: str, to: float, step: float, backend, switch: boo
 
 
 def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None, step: float | None = None,
-           out=None, *, backend: str | None = None, options=None, max_points: int = 200, switch: bool = True,
+           out: str | Path | None = None, *, backend: str | None = None,
+           options: "IpoptOptions | NewtonKrylovOptions | None" = None, max_points: int = 200, switch: bool = True,
            reference: Callable | None = None, snapshots: bool = True,
            progress: Callable[[dict], None] | None = None, turn: float = arc.Settings.turn,
            depth: int = 1, deflate: int = 0) -> Branch:
@@ -173,7 +186,8 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     problem = VesicleProblem(scene, par, settings, store, backend, options, reference, progress)
     nodes = grow(problem, depth, switch, deflate)
     result = Branch(par.name, float(to), float(step), tuple(store.rows()), {k: n.stopped for k, n in nodes.items()},
-                    None if out is None else Path(out), {k: n.parent for k, n in nodes.items()})
+                    None if out is None else Path(out), {k: n.parent for k, n in nodes.items()}, scene=scene)
+    store.finish(result.stopped)  # branch.json's "stopped": why each branch ended (vo.load_branch reads it)
     if out is not None and snapshots:
         write_diagram(result, Path(out) / "energy_diagram.png")
     return result

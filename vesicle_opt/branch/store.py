@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.errors import InputError
-from vesicle_opt.io import interrupt, state
+from vesicle_opt.io import fields, interrupt, state
 from vesicle_opt.io.files import load_npz, save_npz, write_json
 
 COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy", "reduced_energy",
@@ -45,6 +45,9 @@ ADVICE = "move it away or give another --out (nothing there was changed)"
 
 
 RECENT_BYTES = 64 << 20  # fields kept in memory after a read, oldest out first (16 of 500 k nodes)
+
+
+RESULT_KEYS = ("stopped",)  # keys of branch.json written at the end (not part of what was asked)
 
 
 def _text(v) -> str:
@@ -99,7 +102,8 @@ class Store:
                              f"({exc.strerror or exc})") from None
         meta_path = self.out / "branch.json"
         if meta_path.exists():
-            old = state.read_json(meta_path, ADVICE)  # checked (io.state): garbage is refused, untouched
+            old = {k: v for k, v in state.read_json(meta_path, ADVICE).items()  # checked (io.state)
+                   if k not in RESULT_KEYS}
             if old != meta:
                 diff = sorted(k for k in set(old) | set(meta) if old.get(k) != meta.get(k))
                 raise InputError("--out", f"{self.out} holds a branch run with other {', '.join(diff)}; "
@@ -139,6 +143,15 @@ class Store:
             tmp.write_text(repaired)
             os.replace(tmp, path)
         return [parse(r) for r in rows]
+
+    def finish(self, stopped: dict) -> None:
+        """Record in branch.json why each branch stopped (``{"0": "reached", ...}``)."""
+        if self.out is None:
+            return
+        path = self.out / "branch.json"
+        meta = json.loads(path.read_text())
+        meta["stopped"] = {str(k): v for k, v in stopped.items()}
+        write_json(path, meta)
 
     def rows(self) -> list[dict]:
         return list(self._rows)
@@ -187,10 +200,9 @@ class Store:
                 if mode is not None:
                     self._modes[point] = extra["mode"]
             else:
-                disc = result.disc
-                grid = np.asarray(disc.grid_shape if disc.grid_shape is not None else (), int)
-                save_npz(self.out / "points" / f"point-{point:04d}.npz", phi=result.phi, p=row["target"],
-                         grid_shape=grid, box=np.asarray(disc.box, float), **extra)
+                disc = result.disc  # the npz layout of io.fields (format version)
+                fields.write(self.out / "points" / f"point-{point:04d}.npz", "branch-point", result.phi, disc,
+                             p=row["target"], **extra)
                 if self.snapshots:
                     _write_vtk(self.out / "points" / f"point-{point:04d}.vtu", disc, result.phi)
         self._rows.append(parse({k: _text(row.get(k)) for k in COLUMNS}))

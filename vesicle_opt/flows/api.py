@@ -18,8 +18,13 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, Callable, Sequence
+
+if TYPE_CHECKING:  # annotations only
+    from vesicle_opt.scene import Scene
 
 import numpy as np
 
@@ -38,7 +43,7 @@ from vesicle_opt.flows.lagrange import LagrangeScheme
 from vesicle_opt.flows.penalty import PenaltyScheme
 from vesicle_opt.flows.projection import project
 from vesicle_opt.flows.stepper import FlowState, StepperOptions, run
-from vesicle_opt.flows.trackers import CheckpointTracker, HistoryTracker, as_tracker
+from vesicle_opt.flows.trackers import CheckpointTracker, HistoryTracker, Tracker, as_tracker
 
 SCHEMES = {"penalty": PenaltyScheme, "lagrange": LagrangeScheme, "backward-euler": BackwardEulerScheme}
 
@@ -121,10 +126,12 @@ class FlowResult:
 
     @property
     def energy(self) -> float:
+        """rigidity * E_h of the final field (``observed["energy"]``)."""
         return float(self.observed["energy"])
 
     @property
     def failed(self) -> bool:
+        """True when the run ended FAILED (a step rejected down to flow.dt_min)."""
         return self.status is Status.FAILED
 
 
@@ -148,14 +155,15 @@ def fingerprint(scene) -> str:
     return hashlib.sha256(repr(key).encode()).hexdigest()[:16]
 
 
-def flow(scene, *, trackers=(), x0=None, phi0=None, resume_from: FlowState | str | Path | None = None,
-         throw: bool = False, model: FlowModel | None = None, scheme=None) -> FlowResult:
+def flow(scene: Scene, *, trackers: Sequence[Tracker | Callable] = (), x0: np.ndarray | str | Path | object = None,
+         phi0: np.ndarray | None = None, resume_from: FlowState | str | Path | None = None,
+         throw: bool = False, model: FlowModel | None = None, scheme: object = None) -> FlowResult:
     """Run ``scene.flow`` in memory and return a frozen ``FlowResult``.
 
     trackers: ``flows.trackers`` objects, or callables ``fn(state, row)`` (a True return stops the run).
     x0: the start, the argument name of ``solve`` too: a field, a path to a phi.npz or an earlier
     Result / FlowResult (another periodic grid of the same box is Fourier-resampled,
-    ``model.warm_start``); used as given. phi0: the same for a field (kept for old callers).
+    ``model.warm_start``); used as given. phi0: the deprecated old name of x0 (a DeprecationWarning).
     Default (neither): ``initial_field(scene, model)``; (17) needs it on
     A = alpha, B = beta: ``flows.projection.project``). resume_from: a ``FlowState`` (e.g.
     ``result.state``) or a checkpoint file a ``CheckpointTracker`` wrote; the run continues from it
@@ -171,20 +179,24 @@ def flow(scene, *, trackers=(), x0=None, phi0=None, resume_from: FlowState | str
         if isinstance(tr, CheckpointTracker) and tr.fingerprint is None:
             tr.fingerprint = tag
     start = None
+    if phi0 is not None:  # the old name of x0 (one warm-start argument, as solve's): an alias
+        if x0 is not None:
+            raise InputError("x0", "give x0 only (phi0 is its deprecated old name), not both")
+        warnings.warn("flow(phi0=...) is deprecated; pass the start as x0= (solve's name)",
+                      DeprecationWarning, stacklevel=2)
+        x0 = phi0
     if x0 is not None:
-        if phi0 is not None:
-            raise InputError("x0", "give x0 or phi0 (the same start), not both")
         phi0 = start_field(x0, md.disc, "x0")
     if resume_from is not None:
         if phi0 is not None:
-            raise InputError("phi0", "give phi0 or resume_from, not both")
+            raise InputError("x0", "give x0 or resume_from, not both")
         start = (resume_from if isinstance(resume_from, FlowState)
                  else CheckpointTracker.load(resume_from, tag, md.disc.n_nodes))
         if start is None:
             raise InputError("resume_from", f"no checkpoint at {resume_from}")
         phi_start = _field(md, start.phi, "resume_from")
     else:
-        phi_start = initial_field(scene, md) if phi0 is None else _field(md, phi0, "phi0")
+        phi_start = initial_field(scene, md) if phi0 is None else _field(md, phi0, "x0")
     out = run(scheme, phi_start, stepper_options(scene, scheme), trackers, start=start)
     history = next((tuple(tr.rows) for tr in trackers if isinstance(tr, HistoryTracker) and tr.keep), ())
     result = FlowResult(out.phi, out.t, out.step, out.status, out.message, out.rejections, out.wall_time_s,

@@ -97,7 +97,7 @@ def flow_to_equilibrium(scene, model: FlowModel, *, exact: bool = False, resume_
         scheme.mu = mu.copy()
         tracker = EquilibriumTracker(scene, model, tol=tol, mu=mu)
         res = flow(scene, trackers=[tracker, *trackers], model=model, scheme=scheme, resume_from=state,
-                   phi0=phi0 if state is None else None)
+                   x0=phi0 if state is None else None)
         state, phi0 = res.state, None
         result = tracker.result if tracker.result is not None else tracker.last
         if tracker.result is None:  # the flow ended (steps, failure) before a certified point

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.io import files, interrupt, output
+from vesicle_opt.io import fields, files, interrupt, output
 from vesicle_opt.io import state as state_files
 from vesicle_opt.io.staging import Staging
 from vesicle_opt.scene import resolved
@@ -153,7 +153,7 @@ def write_flow(scene, out: Path, *, restart: bool = False, progress: bool = Fals
                "resumed_from_step": res.resumed_from_step,
                "n_nodes": md.disc.n_nodes, "gamma": md.gamma, "M": md.M, "alpha": md.alpha, "beta": md.beta,
                **{k: float(v) for k, v in res.observed.items()}}
-    np.savez_compressed(out / "phi.npz", phi=phi, nodes=md.disc.nodes, t=res.t)
+    fields.write(out / "phi.npz", "flow", phi, md.disc, compressed=True, t=res.t)  # the npz layout of io.fields
     output.write_vtk(out / "phi.vtu", md.disc, phi)
     if md.disc.grid_shape is not None:
         output.write_field(out, "phi", md.disc, phi)  # phi.vti: the complete periodic grid

@@ -29,6 +29,7 @@ import numpy as np
 
 from vesicle_opt.errors import InputError, StateFileError
 from vesicle_opt.io import progress
+from vesicle_opt.io import fields
 from vesicle_opt.io.files import save_npz
 from vesicle_opt.io.state import read_npz
 from vesicle_opt.flows.stepper import FlowState
@@ -148,7 +149,7 @@ class SnapshotTracker(Tracker):
         return j
 
     def _snapshot(self, j: int, t: float, phi: np.ndarray, E: float | None, step: int) -> None:
-        np.savez_compressed(self.dir / "snapshots" / f"phi_{j:03d}.npz", phi=phi, t=t)
+        fields.write(self.dir / "snapshots" / f"phi_{j:03d}.npz", "flow-snapshot", phi, self.disc, compressed=True, t=t)
         self._last_step = step
         if self.png or self.vtk:
             # matplotlib and meshio only when files are drawn: ``import vesicle_opt`` does not load them

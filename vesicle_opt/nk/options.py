@@ -31,5 +31,6 @@ class NewtonKrylovOptions:
     # stencil, ``nk.setup.fft_equivalent``); False keeps it on the sparse (Chebyshev) path of unstructured meshes
 
     @classmethod
-    def from_scene(cls, scene, **changes) -> "NewtonKrylovOptions":
+    def from_scene(cls, scene: "Scene", **changes) -> "NewtonKrylovOptions":
+        """The scene's ``solver.tol`` and ``solver.max_iter``, with ``changes`` to other fields."""
         return cls(tol=scene.solver.tol, max_iter=scene.solver.max_iter, **changes)

@@ -26,7 +26,7 @@ from vesicle_opt.result import Result
 __all__ = ["NLP", "PenaltyNLP", "IpoptOptions", "build_nlp", "solve_nlp"]
 
 
-def build_nlp(scene, disc=None, check: bool = True) -> NLP:
+def build_nlp(scene: "Scene", disc: "Discretization | None" = None, check: bool = True) -> NLP:
     """The NLP of a scene's ``solver.method``: the exact NLP (6)-(8) for ``exact``, the lifted
     penalty NLP (11) for penalty, continuation and augmented. A ``spectral`` mesh has a dense
     Laplacian and no NLP: refused with :class:`NotSupported` (use the newton-krylov backend)."""

@@ -62,14 +62,26 @@ class NLP:
     f_scale: float  # f = energy / f_scale
     g_scale: np.ndarray  # g[:2] = (A - alpha, B - beta) / g_scale
 
-    def as_dict(self) -> dict:
-        return {"x": self.x, "f": self.f, "g": self.g, "p": self.p}
+    def as_dict(self, *, scaled: bool = True) -> dict:
+        """The NLP as ``{"x", "f", "g", "p"}`` for ``casadi.nlpsol``.
+
+        The objective is scaled: ``f = rigidity * E_h(phi) / f_scale`` (``model.problem.objective_scale``,
+        so that f is O(1) at the start), and so are IPOPT's printed ``objective`` / ``f`` values and
+        ``sol["f"]``: multiply by ``nlp.f_scale`` for the energy (e.g. ``sol["f"]`` 65.70 with
+        f_scale 0.0419 is E = 2.7528). ``scaled=False`` returns ``f * f_scale`` itself (the energy;
+        the penalty NLPs: the penalised energy) for callers that want physical units. The first two
+        rows are scaled too: ``g[:2] = (A - alpha, B - beta) / g_scale``; ``multipliers(lam_g)``
+        turns IPOPT's ``lam_g`` into the physical (lambda_volume, lambda_area)."""
+        f = self.f if scaled else self.f * self.f_scale
+        return {"x": self.x, "f": f, "g": self.g, "p": self.p}
 
     @property
     def n_phi(self) -> int:
+        """The number of phi's entries in x (the mesh's nodes)."""
         return self.disc.n_nodes
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """(phi, w) of an NLP vector x; w (the mixed form's Delta_h phi) None with lumped mass."""
         x = np.asarray(x, float).ravel()
         n = self.n_phi
         return x[:n], (x[n:] if self.disc.consistent else None)

@@ -32,13 +32,14 @@ class IpoptOptions:
     extra: tuple = ()  # further ("ipopt.key", value) pairs; they win over the defaults
 
     @classmethod
-    def from_scene(cls, scene) -> "IpoptOptions":
+    def from_scene(cls, scene: "Scene") -> "IpoptOptions":
         """The scene's tolerances; IPOPT's iteration log on stdout when this module's logger is at
         DEBUG (``vesicle-opt -v``), silent otherwise."""
         level = VERBOSE_PRINT_LEVEL if log.isEnabledFor(logging.DEBUG) else 0
         return cls(tol=scene.solver.tol, max_iter=scene.solver.max_iter, print_level=level)
 
     def as_dict(self) -> dict:
+        """The options as ``casadi.nlpsol`` takes them (``ipopt.*`` keys, ``extra`` last)."""
         opts = {"ipopt.tol": self.tol, "ipopt.constr_viol_tol": self.tol,
                 "ipopt.max_iter": self.max_iter, "ipopt.print_level": self.print_level,
                 "ipopt.sb": "yes", "print_time": False, "ipopt.linear_solver": "mumps",

@@ -45,3 +45,18 @@ def resolve(arg: str | Path) -> tuple[str, str]:
     if str(arg) in (stem, f"{stem}.toml") and stem in names():
         return stem, text(stem)
     raise InputError("scene", f"file not found: {arg} (bundled scenes: {', '.join(names())})")
+
+
+def describe() -> list[str]:
+    """One line per bundled scene: its name and the first sentence of the file's opening comment."""
+    width = max(map(len, names()))
+    lines = []
+    for name in names():
+        head = []
+        for ln in text(name).splitlines():
+            if not ln.startswith("#"):
+                break
+            head.append(ln.lstrip("# ").strip())
+        first = " ".join(head).split(". ")[0].rstrip(".")
+        lines.append(f"{name:<{width}}  {first}")
+    return lines

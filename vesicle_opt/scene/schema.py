@@ -13,7 +13,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 from vesicle_opt import extras
 from vesicle_opt.errors import InputError
@@ -21,6 +21,7 @@ from vesicle_opt.geometry import targets, volume_of_reduced
 from vesicle_opt.scene import ranges
 from vesicle_opt.scene.bundled import resolve as resolve_scene
 from vesicle_opt.scene.ranges import EPS_PER_BOX_MAX, EPS_PER_H_MIN, M_LIMIT, TOL_RANGE
+from vesicle_opt.scene.overrides import override_items, parse_value, replace_targets  # noqa: F401 (parse_value: re-exported)
 from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES, Shape, number, numbers, parse_shape
 
 @dataclass(frozen=True)
@@ -157,7 +158,17 @@ class Scene:
         return 3 if self.domain.axisymmetric else self.domain.dim
 
     def replace(self, **sections) -> "Scene":
+        """A copy with whole sections (or the name) replaced, e.g.
+        ``scene.replace(solver=dataclasses.replace(scene.solver, tol=1e-10))``: a frozen-dataclass
+        ``replace`` of the top level. For single keys by their dotted names use ``with_overrides``."""
         return dataclasses.replace(self, **sections)
+
+    def with_overrides(self, overrides: "Mapping[str, Any] | Sequence[str]") -> "Scene":
+        """A copy with dotted keys set, validated as a scene file is:
+        ``scene.with_overrides({"mesh.n": 64, "constraints.reduced_volume": 0.8})``, or the CLI's
+        ``["mesh.n=64"]`` (``load``); InputError naming the key when a key or value is refused."""
+        from vesicle_opt.scene import resolved  # the writer of the scene's raw table (TOML-free here)
+        return from_dict(apply_overrides(resolved.as_dict(self), overrides), name=self.name)
 
 
 # --- schema: key -> (kind, default, allowed). kind in {float, int, str, shape, box, ints, floats}.
@@ -233,14 +244,6 @@ def _flatten(d: dict, prefix: str = "") -> dict[str, Any]:
     return out
 
 
-def parse_value(text: str) -> Any:
-    """Parse a ``--set`` value as TOML; a bare word that is not TOML is taken as a string."""
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
 def _set_dotted(d: dict, key: str, value: Any) -> None:
     parts = key.split(".")
     for p in parts[:-1]:
@@ -259,18 +262,17 @@ def _known(key: str) -> bool:
     return False
 
 
-def apply_overrides(raw: dict, overrides: list[str] | None) -> dict:
-    """Apply ``KEY=VALUE`` overrides (dotted keys) to a raw scene dict, refusing unknown keys."""
-    for item in overrides or []:
-        if "=" not in item:
-            raise InputError("--set", f"expected KEY=VALUE, got {item!r}")
-        key, text = item.split("=", 1)
-        key = key.strip()
-        if not key:
-            raise InputError("--set", f"expected KEY=VALUE with a key, got {item!r}")
+def apply_overrides(raw: dict, overrides) -> dict:
+    """Apply overrides (``override_items``: a mapping or ``KEY=VALUE`` strings; dotted keys) to a
+    raw scene dict, refusing unknown keys. Setting ``constraints.reduced_volume`` / ``area``
+    replaces a scene's ``alpha`` / ``beta`` / ``target`` (and the other way round), saying so."""
+    items = override_items(overrides)
+    for key, _ in items:
         if not _known(key):
             raise InputError(key or "scene", f"unknown scene key {key!r} (allowed: {', '.join(SCHEMA)})")
-        _set_dotted(raw, key, parse_value(text.strip()))
+    replace_targets(raw, {k for k, _ in items})
+    for key, value in items:
+        _set_dotted(raw, key, value)
     return raw
 
 
@@ -459,9 +461,10 @@ def _flow(val: dict) -> Flow:
     return Flow(**{f.name: val[f"flow.{f.name}"] for f in dataclasses.fields(Flow)})
 
 
-def load(scene: str | Path, overrides: list[str] | None = None) -> Scene:
+def load(scene: str | Path, overrides: Mapping[str, Any] | Sequence[str] | None = None) -> Scene:
     """Read and validate a scene, given as a TOML path or the name of a bundled scene
-    (``scene.bundled``: ``ellipse-2d``), applying ``--set`` style overrides."""
+    (``scene.bundled``: ``ellipse-2d``), applying overrides: a mapping of dotted keys to values
+    (``{"mesh.n": 64}``) or ``--set`` style strings (``["mesh.n=64"]``); InputError otherwise."""
     name, text = resolve_scene(scene)
     try:
         raw = tomllib.loads(text)

@@ -59,7 +59,7 @@ def docstring(name: str) -> str:
     return (study(name).__doc__ or DESCRIPTIONS[str(name).replace("-", "_")]).strip()
 
 
-def run_study(name: str, out, quick: bool = False, **kwargs) -> int:
+def run_study(name: str, out: str | Path, quick: bool = False, **kwargs) -> int:
     """Run a study into the directory ``out``: ``main(out, quick, **kwargs)`` of ``study(name)``
     (some take more keywords, e.g. ``executor=``); returns its status (0: every check passed)."""
     return int(study(name).main(Path(out), quick=quick, **kwargs) or 0)

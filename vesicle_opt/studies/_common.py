@@ -59,6 +59,18 @@ def row(result: Result | dict, scene: str, method: str, n, h, ref: Result | None
     return out
 
 
+def human(value) -> str:
+    """A study's summary value as a short line for people: a dict as ``key value, ...`` (nested
+    ones in parentheses), floats to 6 significant digits, lists comma-separated; not a repr."""
+    if isinstance(value, dict):
+        return ", ".join(f"{k} ({human(v)})" if isinstance(v, dict) else f"{k} {human(v)}" for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return ", ".join(human(v) for v in value)
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):.6g}"
+    return "none" if value is None else str(value)
+
+
 def num(v) -> float:
     try:
         return float(v)

@@ -70,7 +70,7 @@ from vesicle_opt.mesh.base import grid_points
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric
-from vesicle_opt.studies._common import num, plt, savefig, select
+from vesicle_opt.studies._common import human, num, plt, savefig, select
 from vesicle_opt.studies.runner import run_study
 from vesicle_opt.verify.metrics import observed_order
 
@@ -316,6 +316,6 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
     if rows:
         figure(rows, info, out / f"{NAME}.png")
     for name, v in info.items():
-        log.info(f"{NAME}: {name}: {v}")
+        log.info(f"{NAME}: {name}: {human(v)}")
     ok = all(v["points"] >= 2 and v["certified"] == v["points"] for v in info["branches"].values())
     return 0 if ok else 1

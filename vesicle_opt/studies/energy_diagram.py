@@ -52,7 +52,7 @@ from vesicle_opt.mesh.base import grid_points
 from vesicle_opt.mesh.spectral import even_fft_size
 from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.sharp import axisymmetric, elastica
-from vesicle_opt.studies._common import num, select
+from vesicle_opt.studies._common import human, num, select
 from vesicle_opt.studies.runner import run_study
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
@@ -255,6 +255,6 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
             diagram.plot(mine, out / f"{NAME}-{dim}d.png", xlabel="reduced volume",
                          title=f"{dim}D energy diagram (solid: stable, dashed: unstable)")
     for name, v in info.items():
-        log.info(f"{NAME}: {name}: {v}")
+        log.info(f"{NAME}: {name}: {human(v)}")
     ok = all(v["points"] >= 2 and v["certified"] == v["points"] for k, v in info.items() if not k.startswith("crossing_3d"))
     return 0 if ok else 1

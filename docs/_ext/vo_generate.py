@@ -1,0 +1,136 @@
+"""Sphinx extension: the tables of the site that the code holds, written into docs/_generated/ at
+build time so that they cannot drift from it.
+
+* ``scene_keys.md``: every scene key of ``vesicle_opt.scene.schema.SCHEMA`` (kind, default, allowed)
+  and the shape keys of ``scene.shape_spec``;
+* ``npz_keys.md``: the npz layout of ``vesicle_opt.io.fields.KEYS`` and its format version;
+* ``branch_columns.md`` / ``flow_columns.md``: ``branch.store.COLUMNS``, ``flows.run.COLUMNS`` (+ extras);
+* ``solve_files.md`` / ``flow_files.md``: the files and summary.json keys of a real run of each verb
+  (ellipse-2d at 24^2, about a second), with the value each took;
+* ``studies.md``: the study registry with its one-line descriptions;
+* ``bundled_scenes.md``: the bundled scenes with the first line of each file.
+
+Docstrings are shown as written (plain text with the paper's equation numbers, not reStructuredText):
+``autodoc-process-docstring`` turns each into a literal block.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from pathlib import Path
+
+
+def _table(header: list[str], rows: list[list[str]]) -> str:
+    def cell(v) -> str:
+        return str(v).replace("|", "\\|").replace("\n", " ")
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(cell(v) for v in r) + " |" for r in rows]
+    return "\n".join(out) + "\n"
+
+
+def _code(v) -> str:
+    return f"`{v}`" if v not in (None, "") else ""
+
+
+def scene_keys() -> str:
+    from vesicle_opt.scene.schema import SCHEMA, _REQ
+    from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES
+    rows = []
+    for key, (kind, default, allowed) in SCHEMA.items():
+        d = "required" if default is _REQ else _code(json.dumps(default)) if default is not None else "unset"
+        a = ", ".join(f"`{x}`" for x in allowed) if isinstance(allowed, tuple) else allowed
+        rows.append([f"`{key}`", kind, d, a])
+    text = _table(["key", "kind", "default", "allowed"], rows)
+    text += ("\nShape tables (`initial`, `constraints.target`) take `shape`, one of "
+             + ", ".join(f"`{s}`" for s in SHAPES) + ", and the keys " + ", ".join(f"`{k}`" for k in SHAPE_KEYS)
+             + ".\n")
+    return text
+
+
+def npz_keys() -> str:
+    from vesicle_opt.io import fields
+    rows = [[f"`{k}`", when, what] for k, (when, what) in fields.KEYS.items()]
+    return (f"Format version **{fields.FORMAT_VERSION}**; kinds: " + ", ".join(f"`{k}`" for k in fields.KINDS)
+            + ".\n\n" + _table(["key", "in", "meaning"], rows))
+
+
+def columns(cols) -> str:
+    return ", ".join(f"`{c}`" for c in cols) + "\n"
+
+
+def _files(out: Path) -> list[str]:
+    return sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file() and not p.name.startswith("."))
+
+
+def _summary_rows(summary: dict) -> list[list[str]]:
+    def val(v):
+        if isinstance(v, float):
+            return f"{v:.6g}"
+        return json.dumps(v)
+    return [[f"`{k}`", type(v).__name__ if v is not None else "null", f"`{val(v)}`"] for k, v in summary.items()]
+
+
+def runs() -> tuple[str, str]:
+    from vesicle_opt import cli
+    with tempfile.TemporaryDirectory() as tmp:
+        s, f = Path(tmp) / "solve", Path(tmp) / "flow"
+        assert cli.main(["solve", "ellipse-2d", "--set", "mesh.n=24", "--out", str(s), "-q"]) == 0
+        assert cli.main(["flow", "ellipse-2d", "--steps", "2", "--set", "mesh.n=24", "--out", str(f), "-q"]) == 0
+        out = []
+        for d in (s, f):
+            summary = json.loads((d / "summary.json").read_text())
+            text = ("Files (`vesicle-opt " + ("solve" if d is s else "flow --steps 2") + " ellipse-2d --set mesh.n=24`): "
+                    + ", ".join(f"`{x}`" for x in _files(d)) + ".\n\n`summary.json` keys, with the values of that run:\n\n"
+                    + _table(["key", "type", "value (example)"], _summary_rows(summary)))
+            out.append(text)
+    return out[0], out[1]
+
+
+def studies() -> str:
+    from vesicle_opt.studies import DESCRIPTIONS, STUDIES
+    return _table(["study", "what it does"], [[f"`{n}`", DESCRIPTIONS[n]] for n in STUDIES])
+
+
+def bundled() -> str:
+    from vesicle_opt.scene import bundled as b
+    rows = []
+    for name in b.names():
+        head = []
+        for ln in b.text(name).splitlines():
+            if not ln.startswith("#"):
+                break
+            head.append(ln.lstrip("# ").strip())
+        rows.append([f"`{name}`", " ".join(head)])
+    return _table(["scene", "what it is (the file's opening comment)"], rows)
+
+
+def generate(app) -> None:
+    from vesicle_opt.branch.store import COLUMNS
+    from vesicle_opt.flows.run import COLUMNS as FLOW, EXTRA
+    gen = Path(app.srcdir) / "_generated"
+    gen.mkdir(exist_ok=True)
+    solve_files, flow_files = runs()
+    pages = {"scene_keys.md": scene_keys(), "npz_keys.md": npz_keys(), "branch_columns.md": columns(COLUMNS),
+             "flow_columns.md": columns(FLOW) + "\nScheme extras: " + "; ".join(
+                 f"`{k}`: " + (", ".join(f"`{c}`" for c in v) or "none") for k, v in EXTRA.items()) + ".\n",
+             "solve_files.md": solve_files, "flow_files.md": flow_files, "studies.md": studies(),
+             "bundled_scenes.md": bundled()}
+    for name, text in pages.items():
+        path = gen / name
+        if not path.exists() or path.read_text() != text:  # unchanged files keep their time: no rebuild
+            path.write_text(text)
+
+
+def literal_docstring(app, what, name, obj, options, lines) -> None:
+    """The project's docstrings are plain text (formulas with * and _, equation numbers): shown verbatim."""
+    if not lines:
+        return
+    body = [("    " + ln) if ln.strip() else "" for ln in lines]
+    lines[:] = ["::", ""] + body + [""]
+
+
+def setup(app):
+    app.connect("builder-inited", generate)
+    app.connect("autodoc-process-docstring", literal_docstring)
+    return {"parallel_read_safe": True, "version": "1"}

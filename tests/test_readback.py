@@ -1,0 +1,111 @@
+"""Output directories read back (``vo.load`` and friends, ``vesicle_opt.readback``) and the npz layout
+(``io.fields``): each verb's directory round-trips into an object equal to what was written."""
+
+import json
+
+import numpy as np
+import pytest
+
+import vesicle_opt as vo
+from vesicle_opt import cli
+from vesicle_opt.errors import InputError
+from vesicle_opt.io import fields
+
+SMALL = ["mesh.n=32"]  # the ellipse at 32^2: a certified solve in ~0.5 s
+
+
+def test_result_attributes_are_the_summary_values():
+    res = vo.solve(vo.load_scene("ellipse-2d", SMALL))
+    s = res.summary("ellipse-2d")
+    # the properties are views of extra: exactly the numbers summary.json holds
+    for key in ("volume", "area", "reduced_volume", "reduced_energy", "second_order_min_eigenvalue"):
+        assert getattr(res, key) == s[key]
+    assert res.second_order == s["second_order"] and res.topology == s["topology"] == "disk-like"
+    # independent: nu = 4 pi V / S^2 in 2D (geometry's formula, not the summary's number)
+    assert res.reduced_volume == pytest.approx(4 * np.pi * res.volume / res.area**2, rel=1e-14)  # round-off
+
+
+def test_solve_round_trip_cli(tmp_path):
+    assert cli.main(["solve", "ellipse-2d", "--out", str(tmp_path), "--set", SMALL[0], "-q"]) == 0
+    res = vo.load(tmp_path)
+    assert isinstance(res, vo.Result)
+    written = json.loads((tmp_path / "summary.json").read_text())
+    assert res.summary(written["scene"]) == written  # every key back, in its field or in extra
+    assert res.converged and res.outcome is vo.Status.CONVERGED
+    assert res.disc.n_nodes == res.phi.size == 32 * 32
+    assert res.scene == vo.load_scene("ellipse-2d", SMALL)
+    data = fields.read(tmp_path / "phi.npz")
+    assert data["format_version"] == fields.FORMAT_VERSION and data["kind"] == "solve"
+    assert set(data) >= {k for k, (when, _) in fields.KEYS.items() if when == "always"}
+    np.testing.assert_array_equal(data["nodes"], res.disc.nodes)
+
+
+def test_write_result_is_the_cli_output(tmp_path):
+    res = vo.solve(vo.load_scene("ellipse-2d", SMALL))
+    summary = vo.write_result(res, tmp_path / "py")
+    assert {p.name for p in (tmp_path / "py").iterdir()} >= {"summary.json", "phi.npz", "phi.vtu", "phi.vti",
+                                                               "phi.png", "scene.resolved.toml"}
+    back = vo.load_result(tmp_path / "py")
+    np.testing.assert_array_equal(back.phi, res.phi)
+    assert back.energy == res.energy and back.reduced_volume == res.reduced_volume == summary["reduced_volume"]
+    # a loaded result writes again (its disc rebuilt from scene.resolved.toml): the same phi.npz
+    vo.write_result(back, tmp_path / "again")
+    np.testing.assert_array_equal(fields.read(tmp_path / "again" / "phi.npz")["phi"], res.phi)
+    with pytest.raises(InputError, match="scene"):
+        vo.write_result(back.__class__(**{**back.__dict__, "scene": None}), tmp_path / "x")
+
+
+def test_flow_round_trip(tmp_path):
+    assert cli.main(["flow", "ellipse-2d", "--steps", "3", "--out", str(tmp_path), "--set", SMALL[0], "-q"]) == 0
+    rec = vo.load(tmp_path)
+    assert isinstance(rec, vo.FlowRecord)
+    written = json.loads((tmp_path / "summary.json").read_text())
+    assert rec.summary == written and rec.steps == 3 and rec.energy == written["energy"]
+    assert rec.t == pytest.approx(written["t"], rel=0, abs=0)  # the same double, through npz and JSON
+    assert [r["step"] for r in rec.history] == [1, 2, 3]
+    assert rec.history[-1]["energy"] == pytest.approx(rec.energy, rel=1e-15)  # CSV repr round-trips doubles
+    snap = rec.snapshot(0)
+    assert snap["kind"] == "flow-snapshot" and snap["t"] == 0.0 and snap["phi"].shape == rec.phi.shape
+    assert rec.scene.flow.steps == 3
+
+
+def test_branch_round_trip(tmp_path):
+    args = ["branch", "ellipse-2d", "--param", "reduced_volume", "--to", "0.89", "--step", "-0.025",
+            "--out", str(tmp_path), "--set", SMALL[0], "-q"]
+    assert cli.main(args) in (0, 1)
+    meta = json.loads((tmp_path / "branch.json").read_text())
+    assert isinstance(meta["scene_data"], dict) and meta["stopped"]["0"]  # JSON, not a repr string
+    b = vo.load(tmp_path)
+    assert isinstance(b, vo.Branch) and b.stopped[0] == meta["stopped"]["0"]
+    assert b.scene == vo.load_scene("ellipse-2d", SMALL)
+    assert len(b.rows) >= 2 and b.rows[0]["point"] == 0
+    pt = b.points()[-1]
+    snap = b.field(pt["point"])
+    assert snap["kind"] == "branch-point" and snap["p"] == pt["target"]
+    assert snap["nodes"].shape == (32 * 32, 2)
+    # the same run into the same directory resumes (branch.json's 'stopped' is no argument)
+    assert cli.main(args) in (0, 1)
+    assert len(vo.load_branch(tmp_path).rows) == len(b.rows)
+
+
+def test_study_round_trip(tmp_path):
+    (tmp_path / "cases.csv").write_text("n,energy,converged\n32,1.5,true\n64,1.25,false\n")
+    (tmp_path / "summary.json").write_text('{"order": 2.0}')
+    rec = vo.load_study(tmp_path)
+    assert rec.tables["cases"] == ({"n": 32, "energy": 1.5, "converged": True},
+                                   {"n": 64, "energy": 1.25, "converged": False})
+    assert rec.data["summary"] == {"order": 2.0}
+
+
+def test_legacy_npz_and_bad_paths(tmp_path):
+    np.savez(tmp_path / "old.npz", phi=np.ones(4), nodes=np.zeros((4, 2)), t=0.5)
+    old = fields.read(tmp_path / "old.npz")
+    assert old["format_version"] == 0 and old["kind"] == "flow"
+    np.savez(tmp_path / "new.npz", phi=np.ones(4), format_version=fields.FORMAT_VERSION + 1)
+    with pytest.raises(InputError, match="format_version"):
+        fields.read(tmp_path / "new.npz")
+    with pytest.raises(InputError, match="not a directory"):
+        vo.load(tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match="not an output directory"):
+        vo.load(tmp_path / "empty")

@@ -1,0 +1,89 @@
+"""The one ``.npz`` layout of a field (format version 1): ``phi.npz`` of ``solve`` and ``flow``, the
+flow's ``snapshots/phi_JJJ.npz`` and the branch's ``points/point-NNNN.npz``.
+
+Every file holds the keys of ``KEYS`` marked "always"; the others where they apply. ``nodes`` are
+the coordinates of phi's entries in the order of phi (on periodic grids the flattened C-order grid,
+the wrap row/plane excluded), so a field can be read without the scene that made it and resampled
+onto another grid of the same box (``model.warm_start``). ``read`` also accepts the files written
+before the format had a version (``format_version`` 0: solve's ``phi, nodes[, w]``, flow's ``phi,
+nodes, t``, branch points' ``phi, p, grid_shape, box[, mode]``), filling in what it can.
+
+numpy only; atomic writes through ``io.files.save_npz``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from vesicle_opt.errors import InputError
+from vesicle_opt.io.files import save_npz
+
+FORMAT_VERSION = 1
+KINDS = ("solve", "flow", "flow-snapshot", "branch-point")
+
+# key -> (in which files, meaning); the docs' file-format page is generated from this table
+KEYS: dict[str, tuple[str, str]] = {
+    "format_version": ("always", "int, the layout's version (1); files without it are version 0"),
+    "kind": ("always", f"str, which output wrote it: {', '.join(KINDS)}"),
+    "phi": ("always", "float (n_nodes,), the phase field at the nodes (+1 inside, -1 outside)"),
+    "nodes": ("always", "float (n_nodes, dim), the node coordinates, in phi's order"),
+    "grid_shape": ("always", "int (dim,), the periodic or mirror grid's shape; empty (shape (0,)) on a mesh"),
+    "box": ("always", "float (dim, 2), the box [lo, hi] per axis (one mirror cell on mirror grids)"),
+    "w": ("solve, mixed formulations", "float (n_nodes,), the auxiliary field w of the mixed form"),
+    "t": ("flow, flow-snapshot", "float, the flow's time of phi"),
+    "p": ("branch-point", "float, the branch parameter's value at the point (branch.csv's target)"),
+    "mode": ("branch-point at a saddle", "float (n_nodes,), the critical eigenvector (M-normalised)"),
+}
+
+
+def arrays(kind: str, phi: np.ndarray, disc, **extra) -> dict:
+    """The arrays of one file of ``kind`` (module docstring); ``extra``: w, t, p, mode."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+    unknown = set(extra) - set(KEYS)
+    if unknown:
+        raise ValueError(f"keys outside the npz layout: {sorted(unknown)}")
+    grid = np.asarray(disc.grid_shape if disc.grid_shape is not None else (), int)
+    out = {"format_version": np.int64(FORMAT_VERSION), "kind": np.str_(kind),
+           "phi": np.asarray(phi, float), "nodes": np.asarray(disc.nodes, float),
+           "grid_shape": grid, "box": np.asarray(disc.box, float)}
+    out.update({k: np.asarray(v, float) for k, v in extra.items() if v is not None})
+    return out
+
+
+def write(path: Path, kind: str, phi: np.ndarray, disc, *, compressed: bool = False, **extra) -> None:
+    """Write ``arrays(kind, phi, disc, **extra)`` to ``path`` atomically (``io.files.save_npz``);
+    ``compressed``: ``np.savez_compressed`` (the flow's files, as before)."""
+    data = arrays(kind, phi, disc, **extra)
+    if compressed:
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        np.savez_compressed(tmp, **data)
+        tmp.replace(path)
+    else:
+        save_npz(path, **data)
+
+
+def read(path: str | Path) -> dict:
+    """The arrays of a field file as a dict (0-d arrays as Python scalars, ``kind`` a str), with
+    ``format_version`` 0 for files written before the layout had one; InputError naming the path
+    when it is missing or not such a file."""
+    path = Path(path)
+    try:
+        with np.load(path) as z:
+            data = {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
+    except FileNotFoundError:
+        raise InputError("path", f"file not found: {path}") from None
+    except Exception as exc:  # zip errors of a corrupt or foreign file, a directory
+        raise InputError("path", f"{path} is not an .npz file ({type(exc).__name__})") from None
+    if "phi" not in data:
+        raise InputError("path", f"{path} holds no 'phi': not a field written by vesicle-opt")
+    version = int(data.setdefault("format_version", 0))
+    if version > FORMAT_VERSION:
+        raise InputError("path", f"{path} has npz format_version {version}; this vesicle_opt reads "
+                         f"up to {FORMAT_VERSION} (upgrade the package)")
+    if version == 0:
+        data.setdefault("kind", "branch-point" if "p" in data else "flow" if "t" in data else "solve")
+    return data

@@ -1,0 +1,239 @@
+"""Output directories read back into objects, and a solve's result written from Python (a unit
+above ``branch``: it builds Branch, Result and Scene objects).
+
+    import vesicle_opt as vo
+    res = vo.solve(vo.load_scene("ellipse-2d"))
+    vo.write_result(res, "out/ellipse")          # what `vesicle-opt solve ellipse-2d --out out/ellipse` writes
+    back = vo.load("out/ellipse")                # a Result again: back.energy, back.reduced_volume, ...
+
+``load(path)`` reads the directory of any of the four verbs, told apart by their files:
+
+* ``solve``  (``summary.json`` + ``phi.npz`` of kind ``solve``)  -> :class:`~vesicle_opt.result.Result`
+  (``load_result``): every summary key back in its field or in ``extra``, so
+  ``back.summary(name)`` equals summary.json; phi and w from ``phi.npz``; the scene from
+  ``scene.resolved.toml`` and its discretisation rebuilt (``disc=False`` skips that);
+* ``flow``   (``summary.json`` with ``scheme``)                -> :class:`FlowRecord` (``load_flow``);
+* ``branch`` (``branch.json``)                                  -> :class:`~vesicle_opt.branch.Branch`
+  (``load_branch``), its rows parsed from ``branch.csv``, the scene from branch.json's ``scene_data``,
+  ``Branch.field(point)`` the point's snapshot;
+* ``study``  (anything else with CSV files)                     -> :class:`StudyRecord` (``load_study``).
+
+The ``.npz`` files are read by ``io.fields.read`` (its format version checked). A directory that is
+none of these raises InputError naming it.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from vesicle_opt.errors import InputError
+from vesicle_opt.io import fields
+from vesicle_opt.result import Result, Status
+
+# summary.json keys that are Result fields (the rest go to ``extra``, as ``Result.summary`` writes them)
+_FIELDS = ("method", "energy", "volume_residual", "area_residual", "lambda_volume", "lambda_area",
+           "kkt_residual", "status", "success", "converged", "iterations", "wall_time_s",
+           "derivative_time_s", "other_time_s", "n_nodes", "hessian_nnz_per_row", "M", "penalized_energy")
+
+
+@dataclass(frozen=True)
+class FlowRecord:
+    """A ``vesicle-opt flow`` directory read back: the summary, the final field, the history rows
+    (``history.csv`` parsed), the snapshot files and the scene."""
+
+    path: Path
+    summary: dict
+    phi: np.ndarray
+    nodes: np.ndarray
+    t: float
+    history: tuple[dict, ...]
+    snapshots: tuple[Path, ...]
+    scene: object = field(default=None, repr=False)
+
+    @property
+    def energy(self) -> float:
+        """rigidity * E_h of the final field."""
+        return float(self.summary["energy"])
+
+    @property
+    def status(self) -> Status:
+        """How the run ended (T_END, STEADY, MAX_STEPS, STOPPED, FAILED)."""
+        return Status(self.summary["status"])
+
+    @property
+    def steps(self) -> int:
+        """The accepted steps of the run."""
+        return int(self.summary["steps"])
+
+    def snapshot(self, j: int) -> dict:
+        """The arrays of ``snapshots/phi_JJJ.npz`` (``io.fields`` layout): phi, t, nodes, ..."""
+        return fields.read(self.path / "snapshots" / f"phi_{j:03d}.npz")
+
+
+@dataclass(frozen=True)
+class StudyRecord:
+    """A ``vesicle-opt study`` directory read back: each CSV as a tuple of rows (numbers parsed),
+    each JSON file's data, and the figures' paths, keyed by file stem."""
+
+    path: Path
+    tables: dict
+    data: dict
+    figures: tuple[Path, ...]
+
+
+def _number(text: str):
+    if text == "":
+        return None
+    if text in ("true", "True", "false", "False"):
+        return text in ("true", "True")
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def read_csv(path: Path) -> tuple[dict, ...]:
+    """The rows of a CSV file with numbers and booleans parsed ('' -> None)."""
+    with open(path, newline="") as fh:
+        return tuple({k: _number(v) for k, v in row.items()} for row in csv.DictReader(fh))
+
+
+def _json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError("path", f"{path.parent} has no {path.name}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError("path", f"{path} is not valid JSON ({exc})") from None
+
+
+def _scene(path: Path, name: str | None):
+    """The scene of ``scene.resolved.toml`` under the run's own name (None when the file is absent)."""
+    from vesicle_opt.scene import load as load_scene  # the schema: only when a scene is read back
+    toml = path / "scene.resolved.toml"
+    if not toml.exists():
+        return None
+    scene = load_scene(toml)
+    return scene if name is None else scene.replace(name=name)
+
+
+def _dir(path) -> Path:
+    path = Path(path)
+    if not path.is_dir():
+        raise InputError("path", f"{str(path)!r} is not a directory written by vesicle-opt")
+    return path
+
+
+def load_result(path: str | Path, *, disc: bool = True) -> Result:
+    """The :class:`Result` of a ``solve`` directory (module docstring). ``disc=False``: no
+    discretisation rebuilt (``Result.disc`` None; faster for large 3D meshes)."""
+    path = _dir(path)
+    summary = _json(path / "summary.json")
+    if "scheme" in summary:
+        raise InputError("path", f"{path} is a flow directory; use vo.load_flow (or vo.load)")
+    npz = path / "phi.npz"
+    data = fields.read(npz) if npz.exists() else {"phi": np.array([np.nan]), "kind": "solve"}
+    if data["kind"] != "solve":
+        raise InputError("path", f"{npz} holds a {data['kind']!r} field, not a solve's")
+    scene = _scene(path, summary.get("scene"))
+    discretisation = None
+    if disc and scene is not None:
+        from vesicle_opt.mesh import discretize  # the meshes: only when a discretisation is rebuilt
+        discretisation = discretize(scene)
+    nan = float("nan")
+    get = {k: summary.get(k) for k in _FIELDS}
+    extra = {k: v for k, v in summary.items() if k not in _FIELDS and k not in ("scene", "outcome")}
+    return Result(
+        phi=np.asarray(data["phi"], float), w=data.get("w"),
+        energy=nan if get["energy"] is None else get["energy"],
+        volume_residual=nan if get["volume_residual"] is None else get["volume_residual"],
+        area_residual=nan if get["area_residual"] is None else get["area_residual"],
+        lambda_volume=nan if get["lambda_volume"] is None else get["lambda_volume"],
+        lambda_area=nan if get["lambda_area"] is None else get["lambda_area"],
+        kkt_residual=nan if get["kkt_residual"] is None else get["kkt_residual"],
+        status=get["status"], success=bool(get["success"]), converged=bool(get["converged"]),
+        outcome=Status(summary["outcome"]), iterations=int(get["iterations"]),
+        wall_time_s=nan if get["wall_time_s"] is None else get["wall_time_s"],
+        derivative_time_s=get["derivative_time_s"] or 0.0, other_time_s=get["other_time_s"] or 0.0,
+        n_nodes=int(get["n_nodes"]), hessian_nnz_per_row=get["hessian_nnz_per_row"] or 0.0,
+        method=get["method"], M=get["M"], penalized_energy=get["penalized_energy"],
+        extra=extra, disc=discretisation, scene=scene)
+
+
+def load_flow(path: str | Path) -> FlowRecord:
+    """The :class:`FlowRecord` of a ``flow`` directory (module docstring)."""
+    path = _dir(path)
+    summary = _json(path / "summary.json")
+    if "scheme" not in summary:
+        raise InputError("path", f"{path} is not a flow directory (its summary.json has no 'scheme')")
+    data = fields.read(path / "phi.npz")
+    hist = path / "history.csv"
+    return FlowRecord(path, summary, np.asarray(data["phi"], float), np.asarray(data["nodes"], float),
+                      float(data["t"]), read_csv(hist) if hist.exists() else (),
+                      tuple(sorted((path / "snapshots").glob("phi_*.npz"))), _scene(path, summary.get("scene")))
+
+
+def load_branch(path: str | Path) -> "Branch":
+    """The :class:`~vesicle_opt.branch.Branch` of a ``branch`` directory (module docstring); a run
+    that did not finish (killed) has ``stopped`` {0: "unfinished"}."""
+    from vesicle_opt.branch.run import Branch  # the branch package: only when a branch is read back
+    from vesicle_opt.branch.store import parse  # the same reason: with a branch read back only
+    from vesicle_opt.scene.schema import from_dict  # the schema: only when a scene is read back
+    path = _dir(path)
+    meta = _json(path / "branch.json")
+    with open(path / "branch.csv", newline="") as fh:
+        rows = tuple(parse(r) for r in csv.DictReader(fh))
+    stopped = {int(k): v for k, v in meta.get("stopped", {"0": "unfinished"}).items()}
+    data = meta.get("scene_data")
+    scene = from_dict(data, name=meta["scene"]) if isinstance(data, dict) else None
+    return Branch(meta["param"], float(meta["to"]), float(meta["step"]), rows, stopped, path, scene=scene)
+
+
+def load_study(path: str | Path) -> StudyRecord:
+    """The :class:`StudyRecord` of a ``study`` directory: every ``*.csv``, ``*.json`` and ``*.png``
+    directly in it."""
+    path = _dir(path)
+    tables = {p.stem: read_csv(p) for p in sorted(path.glob("*.csv"))}
+    if not tables:
+        raise InputError("path", f"{path} holds no summary.json, branch.json or CSV file: "
+                         "not an output directory of vesicle-opt")
+    data = {p.stem: _json(p) for p in sorted(path.glob("*.json"))}
+    return StudyRecord(path, tables, data, tuple(sorted(path.glob("*.png"))))
+
+
+def load(path: str | Path, **kwargs) -> "Result | FlowRecord | Branch | StudyRecord":
+    """Any verb's output directory as an object: Result (solve), FlowRecord (flow), Branch
+    (branch) or StudyRecord (study); see the module docstring."""
+    path = _dir(path)
+    if (path / "branch.json").exists():
+        return load_branch(path)
+    if (path / "summary.json").exists():
+        summary = _json(path / "summary.json")
+        return load_flow(path) if "scheme" in summary else load_result(path, **kwargs)
+    return load_study(path)
+
+
+def write_result(result: Result, out: str | Path, scene: "Scene | None" = None) -> dict:
+    """Write a solve's files into ``out`` as ``vesicle-opt solve --out`` does (summary.json,
+    phi.npz, the VTK files, phi.png, surface.ply on 3D grids, scene.resolved.toml); returns the
+    summary dict. ``scene``: default ``result.scene`` (set by ``vo.solve``)."""
+    from vesicle_opt.io import output  # the writers (matplotlib, meshio): only when writing
+    from vesicle_opt.scene import resolved  # tomli-w: only when writing
+    scene = scene if scene is not None else result.scene
+    if scene is None:
+        raise InputError("scene", "this Result carries no scene (not from vo.solve): pass scene=")
+    if result.disc is None:
+        raise InputError("result", "this Result carries no discretisation (Result.disc): solve it, or "
+                         "load it with disc=True")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = output.write_result(out, scene, result.disc, result)
+    resolved.write(out / "scene.resolved.toml", scene)
+    return summary
