@@ -28,7 +28,8 @@ Per accepted point the row also holds
   difference of E along the branch, O(Delta p^2) (the trapezoid rule's error; ``Branch.envelope_central``
   gives the three-point form at interior points);
 * ``event`` = ``stability change`` where ``second_order_min_eigenvalue`` (the least eigenvalue of
-  the reduced Hessian, symmetry modes excluded) changes sign from the previous accepted point;
+  the reduced Hessian, symmetry modes excluded) changes sign from the last accepted point whose
+  sign was decided (|mu_min| > ``verdict.TOL_REL``: a flat mode's +-1e-8 is no sign);
   ``Branch.events`` classifies each as a ``fold`` (the parameter turns back within one interval of
   it) or a ``bifurcation``. With ``switch=True`` the run then starts a branch (``branch`` column 1,
   2, ...) from the saddle's field pushed along its critical eigenvector (the front door's
@@ -61,6 +62,7 @@ from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
 from vesicle_opt.scene.schema import Scene
+from vesicle_opt.verify.verdict import TOL_REL
 
 SWITCH_AMPLITUDE = 0.05  # the seed phi_s + a |phi_s|_M mode of a branch switch (mode M-normalised)
 
@@ -261,8 +263,13 @@ class _Run:
             q = prev[-1]
             g, dp = (q["dE_dp"] + row["dE_dp"]) / 2, a.p - q["target"]
             row["envelope_residual"] = abs(res.energy - q["energy"] - g * dp) / abs(g * dp) if g * dp else None
-            mu0, mu1 = q["second_order_min_eigenvalue"], row["second_order_min_eigenvalue"]
-            if mu0 is not None and mu1 is not None and mu0 * mu1 < 0:
+            # signs beyond the verdict's tolerance only (``verify.verdict.TOL_REL``): a flat mode's
+            # +-1e-8 (the rotation on a Fourier grid, "marginal") is no change; the last signed point
+            # is the reference, so minimum -> marginal -> saddle is still seen where the sign flips
+            signed = [r["second_order_min_eigenvalue"] for r in prev
+                      if r["second_order_min_eigenvalue"] is not None and abs(r["second_order_min_eigenvalue"]) > TOL_REL]
+            mu1 = row["second_order_min_eigenvalue"]
+            if signed and mu1 is not None and abs(mu1) > TOL_REL and signed[-1] * mu1 < 0:
                 row["event"] = "stability change"
         if self.reference is not None:
             row["sharp_reduced_energy"] = self.reference(self.par.name, a.p, sc.dim)
