@@ -266,8 +266,8 @@ class _Run:
             # signs beyond the verdict's tolerance only (``verify.verdict.TOL_REL``): a flat mode's
             # +-1e-8 (the rotation on a Fourier grid, "marginal") is no change; the last signed point
             # is the reference, so minimum -> marginal -> saddle is still seen where the sign flips
-            signed = [r["second_order_min_eigenvalue"] for r in prev
-                      if r["second_order_min_eigenvalue"] is not None and abs(r["second_order_min_eigenvalue"]) > TOL_REL]
+            mus = [r["second_order_min_eigenvalue"] for r in prev]
+            signed = [m for m in mus if m is not None and abs(m) > TOL_REL]
             mu1 = row["second_order_min_eigenvalue"]
             if signed and mu1 is not None and abs(mu1) > TOL_REL and signed[-1] * mu1 < 0:
                 row["event"] = "stability change"
