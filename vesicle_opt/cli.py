@@ -97,6 +97,11 @@ def cmd_solve(args) -> int:
               f"Hessian eigenvalue {summary['second_order_min_eigenvalue']:.3g} mu_ref, mass metric, "
               f"{summary.get('second_order_excluded', 'none')} excluded); try another initial shape",
               file=sys.stderr)
+    if result.converged and summary.get("second_order") == "marginal":
+        print(f"vesicle-opt: warning: second order marginal, not a strict minimum: "
+              f"{summary.get('second_order_reason', '')} (rotation_rayleigh "
+              f"{summary.get('rotation_rayleigh', float('nan')):.3g}); a flat direction such as a "
+              f"nearly free rotation in the periodic box", file=sys.stderr)
     if summary.get("wraps"):
         print(f"vesicle-opt: warning: the inside {summary['topology']}: a slab or tube joined to its "
               f"periodic image, not a closed vesicle", file=sys.stderr)

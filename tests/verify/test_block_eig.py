@@ -101,3 +101,27 @@ def test_kato_temple_bound_holds_on_a_diagonal_operator():
     err = block_eig.error_bounds(theta, res)
     assert np.all(np.abs(theta - lam[:2]) <= err)
     assert err[0] < 1e-2 * res[0]  # r^2 / gap with r ~ 2e-3 (lam up to 49), gap ~ 1: far below r
+
+
+def test_dependent_directions_and_restarts_keep_the_result_exact(monkeypatch):
+    """An exact shifted-inverse preconditioner on the subspace converges in a few steps, after which
+    W and P are numerically dependent on X: the SVQB drops directions and the iteration restarts
+    without P (counted here), yet it ends at its floor with the dense reference's values."""
+    A, Q, ref = _problem()
+    Pi = np.eye(A.shape[0]) - Q.T @ Q
+    T = np.linalg.pinv(Pi @ (A + 3 * np.eye(A.shape[0])) @ Pi)  # (A + 3)^{-1} on the subspace
+    drops = []
+    svqb = block_eig._svqb
+
+    def counted(G):
+        C, keep = svqb(G)
+        drops.append(not keep.all())
+        return C, keep
+    monkeypatch.setattr(block_eig, "_svqb", counted)
+    X0 = np.random.default_rng(2).standard_normal((3, A.shape[0]))
+    out = block_eig.lobpcg(lambda U: U @ A, lambda R: R @ T, X0, Q, 200, lambda th, res: False)
+    assert sum(drops) >= 5  # measured 25 of the iteration's Gram matrices had dependent directions
+    assert out.iterations < 100 and out.reason == ""  # measured 43: the floor ends it
+    assert np.all(np.abs(out.values - ref[:3]) <= out.errors)  # measured 1e-14 against bounds 1.6e-12
+    assert np.abs(out.vectors @ Q.T).max() <= 1e-12
+    assert np.allclose(out.vectors @ out.vectors.T, np.eye(3), atol=1e-12)

@@ -36,6 +36,7 @@ from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
 from vesicle_opt.scene.schema import Scene
+from vesicle_opt.verify.verdict import TOL_REL
 
 
 class VesicleProblem(TreeProblem):
@@ -189,8 +190,13 @@ class VesicleProblem(TreeProblem):
             q = prev[-1]
             g, dp = (q["dE_dp"] + row["dE_dp"]) / 2, a.p - q["target"]
             row["envelope_residual"] = abs(res.energy - q["energy"] - g * dp) / abs(g * dp) if g * dp else None
-            mu0, mu1 = q["second_order_min_eigenvalue"], row["second_order_min_eigenvalue"]
-            if mu0 is not None and mu1 is not None and mu0 * mu1 < 0:
+            # signs beyond the verdict's tolerance only (``verify.verdict.TOL_REL``): a flat mode's
+            # +-1e-8 (the rotation on a Fourier grid, "marginal") is no change; the last signed point
+            # is the reference, so minimum -> marginal -> saddle is still seen where the sign flips
+            mus = [r["second_order_min_eigenvalue"] for r in prev]
+            signed = [m for m in mus if m is not None and abs(m) > TOL_REL]
+            mu1 = row["second_order_min_eigenvalue"]
+            if signed and mu1 is not None and abs(mu1) > TOL_REL and signed[-1] * mu1 < 0:
                 row["event"] = "stability change"
         if self.reference is not None:
             row["sharp_reduced_energy"] = self.reference(self.par.name, a.p, sc.dim)

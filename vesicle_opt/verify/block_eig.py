@@ -141,7 +141,7 @@ def _combine(coefs, blocks):
     return out
 
 
-def _ritz(X, AX, Q):
+def _ritz(X, AX):
     """Rayleigh-Ritz in span(X) (orthonormal rows in V): (theta, X, A X) rotated to the Ritz basis."""
     theta, C = np.linalg.eigh(_sym(X @ AX.T))
     return theta, C.T @ X, C.T @ AX
@@ -196,7 +196,7 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
     X, _ = _orthonormal(_project(X0, Q, overwrite=overwrite))
     del X0
     AX = _project(apply_a(X), Q, overwrite=True)
-    theta, X, AX = _ritz(X, AX, Q)
+    theta, X, AX = _ritz(X, AX)
     anorm = float(np.abs(theta).max())
     P = AP = None
     history = []
@@ -253,14 +253,14 @@ def lobpcg(apply_a, apply_t, X0: np.ndarray, Q: np.ndarray | None, max_iter: int
             P = AP = None
         X = _project(X, Q, overwrite=True)
         X, AX = _reorthonormalise(X, AX)
-        theta, X, AX = _ritz(X, AX, Q)
+        theta, X, AX = _ritz(X, AX)
     # the final check, independent of the carried products: X projected and orthonormalised, A
     # applied afresh, Rayleigh-Ritz; the last residual and P, A P are not needed (3k rows less)
     R = P = AP = None
     X = _project(X, Q, overwrite=True)
     X, _ = _orthonormal(X)
     AX = _project(apply_a(X), Q, overwrite=True)
-    theta, X, AX = _ritz(X, AX, Q)
+    theta, X, AX = _ritz(X, AX)
     res = np.linalg.norm(AX - theta[:, None] * X, axis=1)
     anorm = max(anorm, float(np.abs(theta).max()))
     floor = FLOOR * EPS * anorm * np.sqrt(n)

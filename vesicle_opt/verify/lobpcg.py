@@ -40,12 +40,16 @@ constraint gradients, which is not an error and does not vanish. The dense work 
 N x 3k products (``block_eig``: Gram matrices, no orthonormal basis formed), where BLAS threads
 only spin: it runs with one BLAS thread (threadpoolctl).
 
-Excluded modes (reported as ``excluded``): on Fourier grids the translations d_i phi and (with
-``rotations``) the rotations (x_i d_j - x_j d_i) phi, exact symmetries of the continuum, soft on the
-grid; on periodic tensor P1 meshes the spectral translations of ``second_order.translation_modes``,
-as the assembled check; nothing on other meshes (a simplicial mesh breaks both symmetries, so a
-negative rotation there is a genuine discrete saddle). Their Rayleigh quotients on T are reported and
-enter the verdict too. This is a numerical check (a few eigenvalues, iterative), not a proof.
+Excluded modes (reported as ``excluded``; ``verdict``'s docstring says why): on Fourier grids the
+translations d_i phi (the grid's whole-cell shifts are exact symmetries); the rotations
+(x_i d_j - x_j d_i) phi only where a caller asks (``rotations``: studies that compare; the front
+door and the branches keep them, since no grid in a periodic box is rotation-invariant and the
+excluded generator can hide a descent direction). On periodic tensor P1 meshes the spectral
+translations of ``second_order.translation_modes``, as the assembled check; nothing on other
+meshes. The excluded modes' Rayleigh quotients on T are reported and enter the verdict; the
+rotations' are reported beside it (``rotation_rayleigh``). The eigensolver's own final check
+(``block_eig``) can turn the verdict into "not checked" with its reason. This is a numerical check
+(a few eigenvalues, iterative), not a proof.
 """
 
 from __future__ import annotations

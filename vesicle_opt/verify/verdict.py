@@ -10,7 +10,7 @@ the Hessian's scale on an interface mode (E_ref: the sharp circle/sphere energy 
 |Gamma| = 3 sqrt2 beta / 4). ``verify.second_order`` (assembled, shift-invert Lanczos) and
 ``verify.lobpcg`` (matrix-free LOBPCG) compute this same number.
 
-Excluded modes (``excluded_modes``): only the discrete problem's null modes. On periodic grids the
+Excluded modes (``SecondOrder.excluded``): only the discrete problem's null modes. On periodic grids the
 translations d_i phi ("translations"): the discrete energy is exactly invariant under shifts by
 whole cells, and d_i phi is the tangent of the trigonometric interpolant's shifts through them
 (their Rayleigh quotients on T are reported and still enter the rule). Rotations are never excluded:
@@ -54,8 +54,8 @@ TOL_REL = 1e-6  # least eigenvalues measured: saddles -3.2 (FD 64^2), -9.9 (P1 3
 # +4.1e-3 (FD 64^2), +3.4e-4 (torus 32^3): negative means below -1e-6, far from all of them and far
 # above the assembled check's error bounds (~1e-11)
 MARGINAL_ERR = 1e-3  # "marginal" needs an error bound below this (mu_ref units): a thousandth of the
-# Hessian's scale on an interface mode, below every soft mode measured but the grid's rotations
-# (shape modes >= 0.14, FD rotation 4.1e-3); wider bounds say nothing about the sign: undecided
+# Hessian's scale on an interface mode (shape modes measured >= 0.14); a wider bound says nothing
+# about a flat direction's sign: undecided
 NONE, TRANSLATIONS, TRANSLATIONS_ROTATIONS = "none", "translations", "translations, rotations"
 # mirror grids (``mesh.cosine``, spectral with natural boundaries): the check sees only perturbations
 # symmetric in every coordinate plane, so its "minimum" is a minimum within that class, no more
