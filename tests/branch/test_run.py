@@ -232,3 +232,22 @@ def test_deflation_finds_another_certified_point_at_the_start():
     assert abs(other["energy"] - root["energy"]) > 1e-3 * abs(root["energy"])  # another point, not round-off
     assert other["topology"] == root["topology"] == "disk-like"  # one membrane (two far drops are refused)
     assert all(r["converged"] for r in b.points(1))
+
+
+def test_cli_switch_depth_and_deflate_reach_the_run(tmp_path, capsys):
+    """--no-switch, --depth, --deflate are recorded with the run (a resume under others is refused);
+    the defaults keep the older runs' branch.json keys."""
+    import json
+    toml = tmp_path / "s.toml"
+    toml.write_text(_toml(raw_scene()))
+    out = tmp_path / "out"
+    assert _cli(["branch", str(toml), "--out", str(out), "--param", "reduced_volume", "--to", "0.93",
+                 "--step", "-0.02", "--no-switch", "--depth", "0"], capsys)[0] == 0
+    meta = json.loads((out / "branch.json").read_text())
+    assert meta["switch"] is False and meta["depth"] == 0 and "deflate" not in meta
+    code, err = _cli(["branch", str(toml), "--out", str(out), "--param", "reduced_volume", "--to", "0.93",
+                      "--step", "-0.02", "--depth", "2"], capsys)
+    assert code == 2 and len(err) == 1 and "depth" in err[0], err
+    with open(out / "branch.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["branch"] for r in rows] == ["0", "0"] and all(r["parent"] == "" for r in rows)

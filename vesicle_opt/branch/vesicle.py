@@ -238,10 +238,13 @@ class VesicleProblem(TreeProblem):
         res = point.payload
         if m == 0 and res.history.get("second_order_mode") is not None:
             return np.asarray(res.history["second_order_mode"], float)
+        from vesicle_opt.backends import supports
         from vesicle_opt.nk.setup import prepare
         from vesicle_opt.verify import lobpcg
         from vesicle_opt.verify import verdict as V
         sc = self.par.scene_at(self.scene, point.p)
+        if not supports(sc, "newton-krylov"):  # the assembled check keeps its least mode only
+            return None
         setup = self.nk.setup(sc) if self.nk is not None else prepare(sc)
         _, _, vec = lobpcg.reduced_hessian_eigenvalues(sc, res, setup, k=max(lobpcg.K, m + 2),
                                                        rotations=V.excludes_rotations(sc), vectors=True)
