@@ -177,3 +177,13 @@ def test_pitchfork_switched_with_a_fixed_p_corrector_only():
     assert switched[0]["target"] == pytest.approx(0.05, abs=1e-5)  # p* + dp/2, p* located to 1e-5
     assert abs(t.points(1)[1].phi[0] - math.sqrt(switched[0]["target"])) < 1e-12
     assert nodes[2].stopped == "known: branch 1"
+
+
+def test_parabola_vertex_of_a_fold_without_a_free_corrector():
+    """Three points of x^2 = p around the fold at p = 0 (x = 0.3, -0.1, -0.4): the vertex of p(s)
+    (s the chord arclength) is within the parabola's error of the fold: O(h^3) of the chord,
+    here |p| < 0.02 (measured 2.9e-3; the points are 0.1-0.3 apart), and no solve is made."""
+    pts = [events.Point(x * x, np.array([x, 1.0]), x**3 / 3 - x * x * x, (2 * x, 1.0)) for x in (0.3, -0.1, -0.4)]
+    loc = events.locate_fold_parabola(pts, np.ones(2), 1.0)
+    assert loc.kind == events.FOLD and loc.located_by == "parabola" and loc.solves == 0
+    assert abs(loc.p) < 0.02 and loc.p < min(q.p for q in pts)  # below every point: the turn is passed
