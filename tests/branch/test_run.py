@@ -251,3 +251,19 @@ def test_cli_switch_depth_and_deflate_reach_the_run(tmp_path, capsys):
     with open(out / "branch.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert [r["branch"] for r in rows] == ["0", "0"] and all(r["parent"] == "" for r in rows)
+
+
+@pytest.mark.slow
+def test_a_turning_point_in_c0_is_reported_once_as_a_fold(tmp_path):
+    """The nu = 0.8 ellipse at 48^2 (eps 0.4) in c0 turns back at c0 = 0.734765 (measured; the chord
+    location with p free at the one-point blip gave 0.7347652, the parabola 0.7347663): its least
+    eigenvalue touches zero and stays >= 0 within its bound (a symmetric turning point), so the fold
+    is one row located by the parabola, not switched, and the walk comes back on the other sheet."""
+    raw = raw_scene(n=48, eps=0.4, second_order=True, initial={"shape": "ellipse", "semi_axes": [1.6, 0.9]})
+    raw["constraints"]["reduced_volume"] = 0.8
+    b = branch(from_dict(raw, "ellipse-c0"), "c0", to=2.5, step=0.1, max_points=45)
+    folds = b.located(0)
+    assert [r["event"] for r in folds] == ["fold"] and folds[0]["located_by"] == "parabola"
+    assert abs(folds[0]["target"] - 0.734765) < 1e-5  # the two locations agree to 1.1e-6; the walk's zigzag ~5e-6
+    assert list(b.stopped) == [0] and max(r["target"] for r in b.points(0)) < 0.73477
+    assert b.points(0)[-1]["target"] < 0.7 and all(r["converged"] for r in b.points(0))
