@@ -261,9 +261,9 @@ def test_a_turning_point_in_c0_is_reported_once_as_a_fold(tmp_path):
     is one row located by the parabola, not switched, and the walk comes back on the other sheet."""
     raw = raw_scene(n=48, eps=0.4, second_order=True, initial={"shape": "ellipse", "semi_axes": [1.6, 0.9]})
     raw["constraints"]["reduced_volume"] = 0.8
-    b = branch(from_dict(raw, "ellipse-c0"), "c0", to=2.5, step=0.1, max_points=45)
+    b = branch(from_dict(raw, "ellipse-c0"), "c0", to=2.5, step=0.1, max_points=50)
     folds = b.located(0)
     assert [r["event"] for r in folds] == ["fold"] and folds[0]["located_by"] == "parabola"
     assert abs(folds[0]["target"] - 0.734765) < 1e-5  # the two locations agree to 1.1e-6; the walk's zigzag ~5e-6
     assert list(b.stopped) == [0] and max(r["target"] for r in b.points(0)) < 0.73477
-    assert b.points(0)[-1]["target"] < 0.7 and all(r["converged"] for r in b.points(0))
+    assert b.points(0)[-1]["target"] < 0.733 and all(r["converged"] for r in b.points(0))  # back: 300x the zigzag
