@@ -119,6 +119,10 @@ def _cli(args, capsys):
     (["--param", "reduced_volume", "--to", "0.8", "--set", "constraints.alpha=-30.0"], "constraints.alpha"),
     (["--param", "reduced_volume", "--to", "0.8", "--depth", "-1"], "--depth"),
     (["--param", "reduced_volume", "--to", "0.8", "--deflate", "-2"], "--deflate"),
+    (["--param", "c0", "--to", "0.5", "--values", "0.8,0.9"], "--second"),
+    (["--param", "c0", "--to", "0.5", "--second", "c0", "--values", "0.8,0.9"], "--second"),
+    (["--param", "c0", "--to", "0.5", "--second", "reduced_volume", "--values", "0.8"], "--values"),
+    (["--param", "c0", "--to", "0.5", "--second", "reduced_volume", "--values", "0.8,1.2"], "--values"),
 ])
 def test_bad_input_is_one_line_exit_2_before_any_work(tmp_path, capsys, args, flag):
     toml = tmp_path / "s.toml"

@@ -202,3 +202,17 @@ def test_a_one_point_blip_is_no_crossing_and_a_zigzag_is_one_turn():
     assert events.turns(pts) == [3]
     loc = events.locate_fold_parabola(pts[2:5], np.ones(1), 1.0)
     assert abs(loc.p - 0.734765) < 5e-6  # the vertex within the zigzag's amplitude
+
+
+def test_fold_line_by_sweeps_follows_the_closed_form():
+    """E = x^3/3 - (p - q^2) x: in p the fold is at p = q^2 for each q (``branch.lines.fold_line``)."""
+    from vesicle_opt.branch.lines import fold_line
+
+    def diagram_at(q):
+        t = Toy("fold", 1.0 + q * q, -0.5 + q * q, -0.1, np.array([1.0, 1.0]), max_points=40, shift=q * q)
+        tree.grow(t)
+        return t.rows()
+    line = fold_line(diagram_at, [0.0, 0.5, 1.0], "q", "p")
+    assert [r["value"] for r in line] == [0.0, 0.5, 1.0]
+    assert max(abs(r["target"] - r["value"] ** 2) for r in line) < 1e-8  # the chord location, as for one fold
+    assert all(r["located_by"] == "chord" for r in line)
