@@ -246,7 +246,7 @@ class VesicleProblem(TreeProblem):
         sc = self.par.scene_at(self.scene, point.p)
         if not supports(sc, "newton-krylov"):  # the assembled check keeps its least mode only
             return None
-        setup = self.nk.setup(sc) if self.nk is not None else prepare(sc)
+        setup = self.nk.setup(sc) if self.nk is not None else prepare(sc, self.ipopt.fourier if self.ipopt else None)
         _, _, vec = lobpcg.reduced_hessian_eigenvalues(sc, res, setup, k=max(lobpcg.K, m + 2),
                                                        rotations=V.excludes_rotations(sc), vectors=True)
         return np.asarray(vec[:, m], float)
