@@ -29,6 +29,7 @@ from vesicle_opt import resources
 from vesicle_opt.api import solve
 from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import branch as follow_branch
+from vesicle_opt.branch.lines import check_line, sweep
 from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.io import interrupt, outdir, output, progress, staging
 from vesicle_opt.io.files import package_version
@@ -169,12 +170,22 @@ def cmd_branch(args) -> int:
     for flag, v in (("--depth", args.depth), ("--deflate", args.deflate)):  # before any work
         if v < 0:
             raise InputError(flag, f"allowed range: an integer >= 0, got {v!r}")
+    check_line(args.param, args.second, args.values)
     sc = load_scene(args.scene, args.set)
 
     def show(row):
         print(f"point {row['point']} [{row['branch']}] {row['param']} = {row['target']:.6g}: "
               f"converged={row['converged']}, reduced_energy={row.get('reduced_energy')}, "
               f"{row.get('second_order')}, iterations={row['iterations']}", file=sys.stderr)
+    if args.second is not None:
+        with _preflight(sc, args.out, choose_backend(sc)) as out:
+            line = sweep(sc, args.param, args.to, args.step, args.second, args.values, out, progress=show,
+                         switch=args.switch, depth=args.depth, deflate=args.deflate)
+        for r in line:
+            print(f"fold at {r['second']} = {r['value']:.6g}: {r['param']} = {r['target']:.8g}, "
+                  f"reduced_energy = {r['reduced_energy']}, located by {r['located_by']}")
+        print(f"{sc.name}: {len(line)} folds over {len(args.values)} values of {args.second} -> {args.out}/fold_line.csv")
+        return 0
     with _preflight(sc, args.out, choose_backend(sc)) as out:  # memory, --out and its lock first
         b = follow_branch(sc, args.param, args.to, args.step, out, progress=show, switch=args.switch,
                           depth=args.depth, deflate=args.deflate)
@@ -310,6 +321,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="levels of branches switched to, recursively (default 1; 0: the first branch only)")
     b.add_argument("--deflate", type=int, default=0,
                    help="where switching finds no branch, seek up to N other points at the start by deflation")
+    b.add_argument("--second", default=None,
+                   help="a second parameter (reduced_volume or c0): one diagram per --values, and their folds "
+                        "as a line in fold_line.csv")
+    b.add_argument("--values", type=lambda t: [float(x) for x in t.split(",") if x.strip()], default=None,
+                   metavar="Q1,Q2,...", help="the values of --second (comma-separated)")
     _add_verbosity(b)
     b.set_defaults(func=cmd_branch)
     return p

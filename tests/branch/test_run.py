@@ -119,6 +119,10 @@ def _cli(args, capsys):
     (["--param", "reduced_volume", "--to", "0.8", "--set", "constraints.alpha=-30.0"], "constraints.alpha"),
     (["--param", "reduced_volume", "--to", "0.8", "--depth", "-1"], "--depth"),
     (["--param", "reduced_volume", "--to", "0.8", "--deflate", "-2"], "--deflate"),
+    (["--param", "c0", "--to", "0.5", "--values", "0.8,0.9"], "--second"),
+    (["--param", "c0", "--to", "0.5", "--second", "c0", "--values", "0.8,0.9"], "--second"),
+    (["--param", "c0", "--to", "0.5", "--second", "reduced_volume", "--values", "0.8"], "--values"),
+    (["--param", "c0", "--to", "0.5", "--second", "reduced_volume", "--values", "0.8,1.2"], "--values"),
 ])
 def test_bad_input_is_one_line_exit_2_before_any_work(tmp_path, capsys, args, flag):
     toml = tmp_path / "s.toml"
@@ -232,3 +236,38 @@ def test_deflation_finds_another_certified_point_at_the_start():
     assert abs(other["energy"] - root["energy"]) > 1e-3 * abs(root["energy"])  # another point, not round-off
     assert other["topology"] == root["topology"] == "disk-like"  # one membrane (two far drops are refused)
     assert all(r["converged"] for r in b.points(1))
+
+
+def test_cli_switch_depth_and_deflate_reach_the_run(tmp_path, capsys):
+    """--no-switch, --depth, --deflate are recorded with the run (a resume under others is refused);
+    the defaults keep the older runs' branch.json keys."""
+    import json
+    toml = tmp_path / "s.toml"
+    toml.write_text(_toml(raw_scene()))
+    out = tmp_path / "out"
+    assert _cli(["branch", str(toml), "--out", str(out), "--param", "reduced_volume", "--to", "0.93",
+                 "--step", "-0.02", "--no-switch", "--depth", "0"], capsys)[0] == 0
+    meta = json.loads((out / "branch.json").read_text())
+    assert meta["switch"] is False and meta["depth"] == 0 and "deflate" not in meta
+    code, err = _cli(["branch", str(toml), "--out", str(out), "--param", "reduced_volume", "--to", "0.93",
+                      "--step", "-0.02", "--depth", "2"], capsys)
+    assert code == 2 and len(err) == 1 and "depth" in err[0], err
+    with open(out / "branch.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["branch"] for r in rows] == ["0", "0"] and all(r["parent"] == "" for r in rows)
+
+
+@pytest.mark.slow
+def test_a_turning_point_in_c0_is_reported_once_as_a_fold(tmp_path):
+    """The nu = 0.8 ellipse at 48^2 (eps 0.4) in c0 turns back at c0 = 0.734765 (measured; the chord
+    location with p free at the one-point blip gave 0.7347652, the parabola 0.7347663): its least
+    eigenvalue touches zero and stays >= 0 within its bound (a symmetric turning point), so the fold
+    is one row located by the parabola, not switched, and the walk comes back on the other sheet."""
+    raw = raw_scene(n=48, eps=0.4, second_order=True, initial={"shape": "ellipse", "semi_axes": [1.6, 0.9]})
+    raw["constraints"]["reduced_volume"] = 0.8
+    b = branch(from_dict(raw, "ellipse-c0"), "c0", to=2.5, step=0.1, max_points=50)
+    folds = b.located(0)
+    assert [r["event"] for r in folds] == ["fold"] and folds[0]["located_by"] == "parabola"
+    assert abs(folds[0]["target"] - 0.734765) < 1e-5  # the two locations agree to 1.1e-6; the walk's zigzag ~5e-6
+    assert list(b.stopped) == [0] and max(r["target"] for r in b.points(0)) < 0.73477
+    assert b.points(0)[-1]["target"] < 0.733 and all(r["converged"] for r in b.points(0))  # back: 300x the zigzag

@@ -177,3 +177,42 @@ def test_pitchfork_switched_with_a_fixed_p_corrector_only():
     assert switched[0]["target"] == pytest.approx(0.05, abs=1e-5)  # p* + dp/2, p* located to 1e-5
     assert abs(t.points(1)[1].phi[0] - math.sqrt(switched[0]["target"])) < 1e-12
     assert nodes[2].stopped == "known: branch 1"
+
+
+def test_parabola_vertex_of_a_fold_without_a_free_corrector():
+    """Three points of x^2 = p around the fold at p = 0 (x = 0.3, -0.1, -0.4): the vertex of p(s)
+    (s the chord arclength) is within the parabola's error of the fold: O(h^3) of the chord,
+    here |p| < 0.02 (measured 2.9e-3; the points are 0.1-0.3 apart), and no solve is made."""
+    pts = [events.Point(x * x, np.array([x, 1.0]), x**3 / 3 - x * x * x, (2 * x, 1.0)) for x in (0.3, -0.1, -0.4)]
+    loc = events.locate_fold_parabola(pts, np.ones(2), 1.0)
+    assert loc.kind == events.FOLD and loc.located_by == "parabola" and loc.solves == 0
+    assert abs(loc.p) < 0.02 and loc.p < min(q.p for q in pts)  # below every point: the turn is passed
+
+
+def test_a_one_point_blip_is_no_crossing_and_a_zigzag_is_one_turn():
+    """The measured symmetric turning point in c0 (2D ellipse, nu = 0.8, 48^2): the parameter
+    creeps round the top (a zigzag of ~1e-6), one point's least eigenvalue is decidedly negative
+    (-8.4e-7, bound 1.5e-7) between undecided and positive ones: one turn, no crossing."""
+    ps = [0.73437251, 0.73464357, 0.73474587, 0.73476515, 0.73476171, 0.73475984, 0.73476227, 0.73476518,
+          0.73475825, 0.73471667, 0.73459087]
+    mus = [1.3e-3, 4.0e-4, 7.7e-5, 1.6e-6, -2.2e-6, -1.6e-7, -2.7e-6, -8.4e-7, 3.4e-5, 1.7e-4, 5.6e-4]
+    errs = [2.3e-4, 1.9e-4, 7.7e-5, 1.5e-6, 4.9e-3, 4.6e-7, 4.9e-3, 1.5e-7, 2.9e-5, 1.7e-4, 2.0e-4]
+    pts = [events.Point(p, np.zeros(1), 0.0, (mu, 4.7), (e, 1e-3)) for p, mu, e in zip(ps, mus, errs)]
+    assert [q.index for q in pts].count(1) == 1 and events.crossings(pts) == []
+    assert events.turns(pts) == [3]
+    loc = events.locate_fold_parabola(pts[2:5], np.ones(1), 1.0)
+    assert abs(loc.p - 0.734765) < 5e-6  # the vertex within the zigzag's amplitude
+
+
+def test_fold_line_by_sweeps_follows_the_closed_form():
+    """E = x^3/3 - (p - q^2) x: in p the fold is at p = q^2 for each q (``branch.lines.fold_line``)."""
+    from vesicle_opt.branch.lines import fold_line
+
+    def diagram_at(q):
+        t = Toy("fold", 1.0 + q * q, -0.5 + q * q, -0.1, np.array([1.0, 1.0]), max_points=40, shift=q * q)
+        tree.grow(t)
+        return t.rows()
+    line = fold_line(diagram_at, [0.0, 0.5, 1.0], "q", "p")
+    assert [r["value"] for r in line] == [0.0, 0.5, 1.0]
+    assert max(abs(r["target"] - r["value"] ** 2) for r in line) < 1e-8  # the chord location, as for one fold
+    assert all(r["located_by"] == "chord" for r in line)

@@ -30,8 +30,9 @@ PROBLEMS = {
 
 
 class Toy(TreeProblem):
-    def __init__(self, name, start, to, step, x0, symmetric=True, max_points=200, out=None):
-        self.E, self.Fx, self.Hx, self.Fp = PROBLEMS[name]
+    def __init__(self, name, start, to, step, x0, symmetric=True, max_points=200, out=None, shift=0.0):
+        # shift: the problem in p - shift (a second parameter moving the diagram, ``branch.lines``)
+        self.E, self.Fx, self.Hx, self.Fp = ((lambda f: (lambda x, p: f(x, p - shift)))(f) for f in PROBLEMS[name])
         self.store = Store(out, {"toy": name, "to": to, "step": step}, snapshots=False)
         self.disc = SimpleNamespace(grid_shape=None, box=[[0.0, 1.0]])
         self.s = arc.Settings(step=step, to=to, max_points=max_points)

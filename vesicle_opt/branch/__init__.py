@@ -17,7 +17,8 @@
   classified (fold or branch point); ``switch``: the first point of a bifurcating branch and the
   recognition of a known branch (``symmetry``: the grid's images of a field); ``deflation``: other
   roots at the same parameter (Farrell et al. 2015); ``tree``: the recursive diagram, on a
-  ``problem`` (``problem``: the rows side; ``vesicle``: the vesicle's correctors);
+  ``problem`` (``problem``: the rows side; ``vesicle``: the vesicle's correctors); ``lines``: fold
+  lines in a second parameter by sweeps of diagrams;
 * ``crossing``: where two branches cross (cubic splines) and its eps -> 0 extrapolation;
 * ``diagram``: the energy-diagram PNG (matplotlib is imported there only).
 """

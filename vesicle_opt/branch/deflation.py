@@ -26,6 +26,8 @@ from typing import Callable
 
 import numpy as np
 
+from vesicle_opt.branch.corrector import least_squares_multipliers
+
 POWER = 2.0  # q: Farrell et al.'s choice; M ~ |phi - r|^-2 near a known root
 SHIFT = 1.0  # sigma: M -> 1 + ... far from the known roots, so Newton far away is Newton
 NEWTON_STEPS = 60
@@ -73,7 +75,6 @@ def deflated_vesicle(problem, p: float, phi0: np.ndarray, known: list[np.ndarray
     point too, measured at nu = 0.95, 48^2) or an image of a known one is deflated as well and the
     start retried (``RETRIES``). None when every start fails (IPOPT with lumped mass only: elsewhere
     None)."""
-    from vesicle_opt.branch.corrector import least_squares_multipliers
     ip = problem.ipopt
     if ip is None or ip.disc.consistent:
         return None

@@ -34,9 +34,14 @@ def _cut(snapshot: dict) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def plot(series: list[tuple[str, list[dict], Path | None]], path: Path, xlabel: str = "reduced volume",
-         xkey: str = "target", title: str = "") -> None:
-    """``series``: (label, accepted rows of one branch, its snapshot directory or None)."""
+         xkey: str = "target", title: str = "", events: list[dict] = ()) -> None:
+    """``series``: (label, accepted rows of one branch, its snapshot directory or None);
+    ``events``: located event rows (``branch.events``), marked x (branch point) or v (fold)."""
     fig, ax = plt.subplots(figsize=(7.5, 5))
+    for kind, marker in (("branch point", "x"), ("fold", "v")):
+        pts = [(r[xkey], r["reduced_energy"]) for r in events if r.get("event") == kind and r.get("reduced_energy") is not None]
+        if pts:
+            ax.plot(*zip(*pts), marker, color="k", ms=8, label=kind, zorder=5)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, (label, rows, points) in enumerate(series):
         rows = [r for r in rows if r.get("reduced_energy") is not None]

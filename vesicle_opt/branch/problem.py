@@ -111,8 +111,11 @@ class TreeProblem:
     def record_event(self, k: int, detected: int, loc: Located, mode) -> None:
         if loc.point is not None:
             row, res = self.point_row(k, loc.point, "locate")
-        else:
+        else:  # no solve (the parabola's vertex): the reduced energy in the detected point's unit
+            at = self.rows()[detected]
+            unit = at["reduced_energy"] / at["energy"] if at.get("reduced_energy") and at.get("energy") else None
             row, res = {"branch": k, "param": self.param, "target": loc.p, "energy": loc.energy,
+                        "reduced_energy": None if unit is None else loc.energy * unit,
                         "converged": False, "accepted": False, "corrector": "locate"}, None
         row.update({"accepted": False, "event": loc.kind, "detected_at": detected, "critical": loc.critical,
                     "critical_eigenvalue": loc.eigenvalue, "critical_error": loc.error, "solves": loc.solves,

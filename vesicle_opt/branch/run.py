@@ -200,4 +200,4 @@ def write_diagram(b: Branch, path: Path, title: str = "") -> None:
     from vesicle_opt.branch import diagram
     points = None if b.out is None else b.out / "points"
     series = [(f"branch {k}" if k else "branch", b.points(k), points) for k in sorted(b.stopped) if b.points(k)]
-    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title)
+    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title, events=b.located())

@@ -3,8 +3,9 @@
 ``grow(problem, depth, switch, deflate)``, breadth first:
 
 1. the root (branch 0) is walked from the start (``branch.arclength``);
-2. on each walked branch of level d the changes of index (``branch.events``) are located: a row per
-   event (``event`` = ``fold`` or ``branch point``, ``detected_at`` the accepted point after the
+2. on each walked branch of level d the changes of index (``branch.events``) are located, and the
+   turns in p with none (a fold whose critical eigenvalue only touches zero, located by the parabola
+   through the three points around the turn): a row per event (``event`` = ``fold`` or ``branch point``, ``detected_at`` the accepted point after the
    change, the located parameter, energy, critical eigenvalue and its error bound, and
    ``critical_mode``: the snapshot that holds the critical eigenvector);
 3. with ``switch`` and d < ``depth``, each located branch point starts two branches, sigma = +1 and
@@ -75,6 +76,18 @@ def locate(problem, k: int, pts: list[ev.Point], j: int) -> dict:
     return problem.rows()[-1]
 
 
+def locate_turn(problem, k: int, pts: list[ev.Point], j: int) -> dict:
+    """A turning point of branch k at pts[j] where the index does not change (a symmetric turning
+    point, the critical eigenvalue touching zero): the parabola's vertex (``located_by`` parabola)."""
+    detected = pts[j].payload["point"]
+    for r in problem.rows():
+        if r["branch"] == k and r.get("detected_at") == detected and r["corrector"] == "locate":
+            return r
+    loc = ev.locate_fold_parabola(pts[j - 1: j + 2], problem.weights, problem.theta(k))
+    problem.record_event(k, detected, loc, None)
+    return problem.rows()[-1]
+
+
 def _point_of(problem, row: dict) -> ev.Point | None:
     """The located point of an event row, as a Point (None where the location did not solve)."""
     return None if row.get("energy") is None or row["located_by"] in ("parabola",) or \
@@ -100,7 +113,11 @@ def _expand(problem, nodes, queue, next_id, depth, switch) -> int:
         k = queue.pop(0)
         node = nodes[k]
         pts = [q for q in problem.points(k) if q.payload["corrector"] != "branch point"]  # its start: singular
-        located = [locate(problem, k, pts, j) for j in ev.crossings(pts)]  # all, before any switch
+        found = ev.crossings(pts)
+        located = [locate(problem, k, pts, j) for j in found]  # all, before any switch
+        for j in ev.turns(pts):  # a turn in p with no change of index near it: a fold all the same
+            if all(abs(j - c) > 2 for c in found):
+                locate_turn(problem, k, pts, j)
         for row in located:
             if not (switch and node.level < depth and row["event"] == ev.BRANCH_POINT):
                 continue

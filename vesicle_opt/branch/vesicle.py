@@ -24,18 +24,23 @@ from typing import Callable
 import numpy as np
 
 from vesicle_opt.api import solve
-from vesicle_opt.backends import choose_backend
+from vesicle_opt.backends import choose_backend, supports
 from vesicle_opt.branch import arclength as arc
 from vesicle_opt.branch.bordered import Affine, BorderedCorrector
 from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
+from vesicle_opt.branch.deflation import deflated_vesicle
 from vesicle_opt.branch.events import Point
 from vesicle_opt.branch.nk_corrector import NewtonKrylovCorrector
 from vesicle_opt.branch.params import Parameter, explicit_derivative
 from vesicle_opt.branch.problem import TreeProblem
 from vesicle_opt.branch.store import Store
+from vesicle_opt.branch.symmetry import align as symmetric_image
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
+from vesicle_opt.nk.setup import prepare
 from vesicle_opt.scene.schema import Scene
+from vesicle_opt.verify import lobpcg
+from vesicle_opt.verify import verdict as V
 from vesicle_opt.verify.verdict import TOL_REL
 
 
@@ -244,21 +249,19 @@ class VesicleProblem(TreeProblem):
         res = point.payload
         if m == 0 and res.history.get("second_order_mode") is not None:
             return np.asarray(res.history["second_order_mode"], float)
-        from vesicle_opt.nk.setup import prepare
-        from vesicle_opt.verify import lobpcg
-        from vesicle_opt.verify import verdict as V
         sc = self.par.scene_at(self.scene, point.p)
-        setup = self.nk.setup(sc) if self.nk is not None else prepare(sc)
+        if not supports(sc, "newton-krylov"):  # the assembled check keeps its least mode only
+            return None
+        setup = self.nk.setup(sc) if self.nk is not None else prepare(sc, self.ipopt.fourier if self.ipopt else None)
         _, _, vec = lobpcg.reduced_hessian_eigenvalues(sc, res, setup, k=max(lobpcg.K, m + 2),
                                                        rotations=V.excludes_rotations(sc), vectors=True)
         return np.asarray(vec[:, m], float)
 
     def align(self, phi: np.ndarray, ref: np.ndarray) -> np.ndarray:
         """phi's image nearest ref under the grid's symmetries (module docstring)."""
-        from vesicle_opt.branch.symmetry import align
         disc = self.ipopt.disc if self.ipopt is not None else discretize(self.scene)
         periodic = self.scene.domain.boundary == "periodic" and disc.grid_shape is not None
-        return align(phi, ref, disc.grid_shape, disc.box) if periodic else phi
+        return symmetric_image(phi, ref, disc.grid_shape, disc.box) if periodic else phi
 
     def point_row(self, k: int, point: Point, corrector: str) -> tuple[dict, object]:
         res = point.payload
@@ -269,5 +272,4 @@ class VesicleProblem(TreeProblem):
         return row, res
 
     def deflate(self, p: float, phi0: np.ndarray, known: list[np.ndarray]) -> Point | None:
-        from vesicle_opt.branch.deflation import deflated_vesicle
         return deflated_vesicle(self, p, phi0, known)
