@@ -120,6 +120,13 @@ def next_stage(Ms: list[float], k: int, floor: float, tol: float, margin: float 
     return float(cap) if cap >= 1.5 * Ms[k] else None
 
 
+def penalty_retry(M: float, floor: float, tol: float) -> float | None:
+    """The method penalty at an M whose floor reached tol (it cannot be certified at any residual):
+    the M to solve at instead, warm-started, where the floor is tol / 2 (``certifiable_M``); None
+    when the floor is below tol. The result reports ``M_requested`` (the scene's solver.M)."""
+    return None if floor < tol else float(certifiable_M(floor, M, tol))
+
+
 def richardson(Ms, values, order: int) -> float:
     """The value at 1/M = 0 of the polynomial of degree ``order`` in 1/M through the last
     order + 1 points (M_i, v_i): Richardson's extrapolation of Theorem 3.2's expansion
@@ -185,11 +192,22 @@ class DualSecant:
         return new
 
 
+def ramp_schedule(solver, M: float) -> list[float]:
+    """The augmented Lagrangian's warm-up: the continuation schedule's M0 r^k below M (mu = 0), each
+    stage started from the last, so that the first multiplier stage starts near its minimiser (a cold
+    start at M = 1e4 on the default scene took 63 IPOPT iterations; the ramp 10, 100, 1000 takes 25).
+    Their floors also tell the largest certifiable M before any stage runs at M."""
+    return [m for m in schedule(solver.M0, solver.M_factor, solver.M_max) if m < M]
+
+
 def raise_M(M: float, res, prev, floor: float, tol: float, factor: float, M_max: float) -> float:
     """The augmented Lagrangian's penalty for the next stage: x ``factor`` (to M_max) when a relative
-    residual did not drop by ``AL_REDUCTION``, but never where the floor (linear in M) would reach
-    tol / 2; lowered to that certifiable M when the stage's own floor is already there."""
+    residual did not drop by ``AL_REDUCTION``, but never beyond where the floor (linear in M) reaches
+    tol / 2; lowered to there when the stage's own floor is within 3/4 of tol (kept otherwise, so that
+    the secant's Jacobian stays valid)."""
     cap = certifiable_M(floor, M, tol)
+    if floor >= 0.75 * tol:
+        return float(cap)
     if any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
-        M = min(M * factor, M_max)
-    return float(min(M, cap))
+        return float(max(M, min(M * factor, M_max, cap)))
+    return float(M)

@@ -10,12 +10,15 @@ Methods (``solver.method``):
   |B-beta| <= tol beta is the IPOPT backend's test) and the relative dual KKT residual <= tol.
 * ``penalty``: the same inner solver with lam = 0, rho = (M, M) fixed: the paper's E_{M,h} (11) with
   rigidity on E only. The multipliers are the penalty's, lam = -M c (exact at its stationary point).
-* ``continuation``: penalty solves at M_k = M0 r^k up to M_max (``solver.M0``, ``M_factor``,
-  ``M_max``: the schedule of the IPOPT path, ``model.penalty.schedule``), each warm-started from
-  the last; the result is the last stage's, every stage in ``history['stages']``.
-* ``augmented``: the first-order augmented Lagrangian of the IPOPT path: stage k minimises
-  E_{M,h} - mu_k . c, mu_{k+1} = mu_k - M c, M grows by ``M_factor`` (to ``M_max``) when a residual
-  fails to drop by 4, at most ``solver.max_outer`` stages; certified with the exact constraints.
+* ``continuation``: penalty solves at M_k = M0 r^k (``solver.M0``, ``M_factor``, ``M_max``: the
+  schedule of the IPOPT path, ``model.penalty.schedule``), each warm-started from the last, stopped
+  where the next stage's floor would reach tol (``model.penalty.next_stage``); the result is the last
+  stage's, every stage in ``history['stages']``, with the Richardson extrapolation in 1/M and the
+  augmented polish beside it (``nk.stages``, as on IPOPT).
+* ``augmented``: stage k minimises E_{M,h} - mu_k . c; mu moves by Broyden's secant method on c(mu) = 0
+  from the first-order step mu - M c (``model.penalty.DualSecant``), M only where its floor stays below
+  tol (``model.penalty.raise_M``), at most ``solver.max_outer`` stages; certified with the exact
+  constraints.
 
 Translations d_i phi are projected out of every step on Fourier grids (exact null modes of the
 spectral problem up to aliasing). On coarse grids (h ~ eps) several KKT points are close: from the
@@ -29,19 +32,18 @@ Nested iteration (``NewtonKrylovOptions.nested``, the default on Fourier grids):
 level started from the trigonometric interpolant of the last; see ``coarse_levels``.
 
 Reported multipliers of ``exact`` are the least-squares ones of the final phi in the dual metric
-(independent of the iteration), with rigidity * grad E_h = lam_A grad A + lam_B grad B. The result
-records both the dual-norm KKT residual (``extra['kkt_dual']``, the stopping test) and the L2 one
-recomputed by ``verify.certify.build_result`` (``kkt_residual``), which has a round-off floor
-~ eps_mach k_max^4 on Fourier grids (``l2_floor``, ``extra['kkt_floor']``): ``converged`` is the
-one certificate of every backend (the dual test as the solver's success, the constraints for
-exact and augmented, the L2 residual, and the floor below tol).
+(independent of the iteration), with rigidity * grad E_h = lam_A grad A + lam_B grad B. The solver
+stops on the dual-norm KKT residual (``extra['kkt_dual_solver']``); ``verify.certify.build_result``
+recomputes it (``kkt_dual``, the same norm: ``model.metric``) with its floor ~ eps_mach h^-2
+(``kkt_dual_floor``), which decide, and reports the L2 one (``kkt_residual``, floor ~ eps_mach
+k_max^4 on Fourier grids: ``l2_floor``, ``extra['kkt_floor']``) beside them: ``converged`` is the one
+certificate of every backend.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -49,11 +51,12 @@ from threadpoolctl import threadpool_limits
 from vesicle_opt.io import progress
 from vesicle_opt.mesh.spectral import fourier_grid
 from vesicle_opt.model.feasibility import check_feasible
-from vesicle_opt.model.penalty import AL_REDUCTION, DualSecant, extrapolation, next_stage, raise_M, schedule
+from vesicle_opt.model.penalty import extrapolation
 from vesicle_opt.model.problem import constraint_data, initial_guess
 from vesicle_opt.nk.newton_cg import Counters, Objective, hessian_solves, newton_minimize
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import coarse_levels, discretization_path, prepare, resample
+from vesicle_opt.nk.stages import Stage, penalty_stages, timed_stage  # noqa: F401 (nk_jax imports them here)
 from vesicle_opt.result import Result, combine_stages, polish_keys, stage_record
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.verify.certify import build_result, dual_floor_of
@@ -195,89 +198,6 @@ def dual_update(obj, W, c, crel: float, prev_c: float):
     return W
 
 
-@dataclass
-class Stage:
-    """One inner solve of a level: its point, status, multiplier data, dual test and own counts."""
-
-    pt: object
-    status: str
-    M: tuple[float, float] | None  # None for 'exact'
-    mu: tuple[float, float]
-    lam: np.ndarray | None  # the least-squares multipliers of 'exact' (penalty: mu - M c, recomputed)
-    dual: float
-    newton: int
-    wall_s: float
-    deriv_s: float
-    polish: bool = False  # continuation's augmented polish (``penalty_stages``): certified with exact constraints
-
-
-def timed_stage(obj: Objective, solve_inner) -> tuple:
-    cnt = obj.cnt
-    t0, n0, d0 = time.perf_counter(), cnt.newton, cnt.deriv_time
-    out = solve_inner()
-    return out, cnt.newton - n0, time.perf_counter() - t0, cnt.deriv_time - d0
-
-
-def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
-                   minimize=newton_minimize, floor=None) -> list[Stage]:
-    """penalty (one M), continuation (the schedule M0 ... M_max, every stage warm-started from the
-    last, as on IPOPT) or augmented (mu updates; stops at the first stage that converged and holds
-    the constraints to tol, at most solver.max_outer stages). ``minimize``: the inner Newton-CG,
-    ``newton_cg.newton_minimize`` or ``nk_jax.newton.newton_minimize`` (the same loop on devices).
-
-    ``floor(pt, M)``: the certificate's floor of a stage (``verify.certify.dual_floor_of``). Given,
-    continuation stops raising M where the next stage's floor would reach tol
-    (``model.penalty.next_stage``) and ends on the augmented polish (a last Stage with ``polish``:
-    the multipliers extrapolated in 1/M as shifts, ``model.penalty.extrapolation``), and augmented
-    keeps M where its floor stays below tol (``model.penalty.raise_M``); as on IPOPT."""
-    stages: list[Stage] = []
-
-    def run(M, mu, polish=False):
-        obj.lam, obj.rho = np.asarray(mu, float).copy(), np.array([M, M], float)
-        (pt, status), n, wall, deriv = timed_stage(
-            obj, lambda: minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg))
-        stages.append(Stage(pt, status, (M, M), tuple(mu), None, pt.rel, n, wall, deriv, polish))
-        return pt, status
-
-    if method == "augmented":
-        M, mu, prev, secant = float(s.M), np.zeros(2), (math.inf, math.inf), DualSecant()
-        for _ in range(s.max_outer):
-            pt, status = run(M, mu)
-            if not np.all(np.isfinite(pt.phi)):
-                break
-            phi = pt.phi
-            res = (abs(pt.c[0]) / volume, abs(pt.c[1]) / abs(beta))
-            if status == "converged" and res[0] <= tol and res[1] <= tol:
-                break
-            mu = secant.step(mu, pt.c, M)  # first step: lambda = mu - M c, then Broyden
-            M = M if floor is None else raise_M(M, res, prev, floor(pt, M), tol, s.M_factor, s.M_max)
-            if floor is None and any(rn > AL_REDUCTION * rp and rn > tol for rn, rp in zip(res, prev)):
-                M = min(M * s.M_factor, s.M_max)
-            prev = res
-        return stages
-    sched = [float(s.M)] if method == "penalty" else schedule(s.M0, s.M_factor, s.M_max)
-    i, M = 0, sched[0]
-    while M is not None:
-        pt, status = run(M, np.zeros(2))
-        if not np.all(np.isfinite(pt.phi)):
-            break
-        phi = pt.phi
-        nxt = (sched[i + 1] if i + 1 < len(sched) else None) if floor is None else \
-            next_stage(sched, i, floor(pt, M), tol)
-        if nxt is not None and i + 1 < len(sched) and nxt == sched[i + 1]:
-            i += 1
-        elif nxt is not None:
-            sched, i = [M, nxt], 0  # the last stage, at the certifiable M
-        M = nxt
-    if method == "continuation" and floor is not None and stages[-1].status == "converged":
-        ext = extrapolation([{"M": st.M[0], "energy": obj.rig * st.pt.st.E, "lambda_volume": st.pt.mu[0],
-                              "lambda_area": st.pt.mu[1], "converged": st.status == "converged"}
-                             for st in stages])
-        if ext:
-            run(stages[-1].M[0], (ext["lambda_volume_extrapolated"], ext["lambda_area_extrapolated"]), polish=True)
-    return stages
-
-
 def _run_level(scene, disc, phi, cnt, log, tol, opts, W=None, setup=None, lam0=None, nearby=False):
     disc, pf, prec, translations = setup or prepare(scene, disc)
     alpha, beta = constraint_data(scene, disc)
@@ -336,6 +256,8 @@ def pack_run(pack, stages: list[Stage], method: str, cnt, log: list, level_log: 
               "levels": " ".join("x".join(map(str, lv["n"])) for lv in level_log),
               "fine_newton_iterations": level_log[-1]["newton"]}
     if method not in ("continuation", "augmented"):  # one stage: the run's totals are its counts
+        if len(stages) > 1:  # a penalty re-solved at the certifiable M (model.penalty.penalty_retry)
+            totals["M_requested"] = stages[0].M[0]
         return pack(stages[-1], cnt.newton, wall, cnt.deriv_time, hist, totals)
     polish = [st for st in stages if st.polish]
     stages = [st for st in stages if not st.polish]

@@ -23,7 +23,8 @@ import time
 
 import numpy as np
 
-from vesicle_opt.model.penalty import DualSecant, extrapolation, next_stage, raise_M, schedule
+from vesicle_opt.model.penalty import (DualSecant, certifiable_M, extrapolation, next_stage, penalty_retry, raise_M,
+                                       ramp_schedule, schedule)
 from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
 from vesicle_opt.nlp.lifted import PenaltyNLP
 from vesicle_opt.nlp.solve import solve_stage
@@ -126,6 +127,15 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
     secant = DualSecant()
     stages: list[Result] = []
     t0 = time.perf_counter()
+    ramp_its = 0
+    for Mk in ramp_schedule(s, M):  # warm starts up to M (a cold start at M = 1e4 took 63 iterations)
+        r = solve_stage(nlp, solver, nlp.parameters(Mk), x0=x, lam_x0=lam_x, lam_g0=lam_g, tol=tol,
+                        method="augmented", exact_constraints=True)
+        ramp_its += r.iterations
+        if not np.all(np.isfinite(r.x)):
+            break
+        x, lam_x, lam_g = r.x, r.lam_x, r.lam_g
+        M = min(M, certifiable_M(r.extra["kkt_dual_floor"], Mk, tol))
     for k in range(max_outer):
         r = solve_stage(nlp, solver, nlp.parameters(M, mu=mu), x0=x, lam_x0=lam_x, lam_g0=lam_g,
                         tol=tol, method="augmented", exact_constraints=True)
@@ -140,12 +150,14 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
         M = raise_M(M, res, prev, r.extra["kkt_dual_floor"], tol, s.M_factor, s.M_max)
         prev = res
     last = stages[-1]
-    return combine_stages(last, stages, "augmented", time.perf_counter() - t0)
+    return combine_stages(last, stages, "augmented", time.perf_counter() - t0, {"ramp_iterations": ramp_its},
+                          iterations=ramp_its + sum(r.iterations for r in stages))
 
 
 def solve_penalised(nlp: PenaltyNLP, *, x0=None, lam_x0=None, lam_g0=None, solver=None,
                     options: IpoptOptions | None = None) -> Result:
-    """The methods penalty (one solve at solver.M), continuation and augmented on IPOPT."""
+    """The methods penalty (one solve at solver.M; again, warm, at the certifiable M where the floor at
+    solver.M reached tol: ``model.penalty.penalty_retry``), continuation and augmented on IPOPT."""
     s = nlp.scene.solver
     start = {"x0": x0, "lam_x0": lam_x0, "lam_g0": lam_g0}
     if s.method == "continuation":
@@ -154,4 +166,9 @@ def solve_penalised(nlp: PenaltyNLP, *, x0=None, lam_x0=None, lam_g0=None, solve
         return augmented_lagrangian(nlp, options=options, solver=solver, **start)
     options = penalty_options(nlp, options)
     solver = solver or make_solver(nlp, options)
-    return solve_stage(nlp, solver, nlp.parameters(s.M), x0=x0, lam_x0=lam_x0, lam_g0=lam_g0, tol=options.tol)
+    r = solve_stage(nlp, solver, nlp.parameters(s.M), x0=x0, lam_x0=lam_x0, lam_g0=lam_g0, tol=options.tol)
+    M = penalty_retry(s.M, r.extra["kkt_dual_floor"], options.tol) if r.success else None
+    if M is None:
+        return r
+    again = solve_stage(nlp, solver, nlp.parameters(M), x0=r.x, lam_x0=r.lam_x, lam_g0=r.lam_g, tol=options.tol)
+    return combine_stages(again, [r, again], "penalty", r.wall_time_s + again.wall_time_s, {"M_requested": s.M})

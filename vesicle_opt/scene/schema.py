@@ -191,8 +191,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "constraints.area": ("float", None, "> 0 (area in 3D, perimeter in 2D), with constraints.reduced_volume"),
     "initial": ("shape", _REQ, "a shape table"),
     "solver.method": ("str", "exact", ("exact", "penalty", "continuation", "augmented")),
-    "solver.M": ("float", 1e3, f"0 < M <= {M_LIMIT:g}"),  # 1e3: the penalty floor (linear in M,
-    # model.penalty.roundoff_floor) is 1.9e-9 on the default 128^2 scene, below the default tol (1e4: 1.9e-8)
+    "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
     "solver.tol": ("float", 1e-8, f"{TOL_RANGE[0]:g} <= tol <= {TOL_RANGE[1]:g}"),
     "solver.max_iter": ("int", 500, ">= 1"),
     "solver.backend": ("str", "auto", ("ipopt", "newton-krylov", "auto")),
