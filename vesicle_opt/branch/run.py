@@ -240,10 +240,11 @@ class _Run:
                "epsilon": sc.model.epsilon, "n": sc.mesh.n[0],
                "c0": a.p if self.par.name == "c0" else sc.model.c0, "restarted": restarted}
         if res is None:
-            row.update({"outcome": "not_solved", "status": message})
+            row.update({"outcome": "not_solved", "status": message, "reason": message})
             return row, None
         ex = res.extra
-        row.update({k: ex.get(k) for k in ("reduced_volume", "reduced_energy", "second_order",
+        row.update({k: ex.get(k) for k in ("reason", "shape", "shape_volume_gap", "bulk_volume_share",
+                                          "reduced_volume", "reduced_energy", "second_order",
                                           "second_order_min_eigenvalue", "second_order_excluded",
                                           "rotation_rayleigh", "topology", "components",
                                           "h", "alpha", "beta", "volume", "area")})

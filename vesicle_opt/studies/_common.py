@@ -49,7 +49,8 @@ def row(result: Result | dict, scene: str, method: str, n, h, ref: Result | None
            "lambda_volume": get("lambda_volume"), "lambda_area": get("lambda_area"),
            "iterations": get("iterations"), "wall_time_s": get("wall_time_s"), "status": get("status"),
            "penalized_energy": get("penalized_energy"), "kkt_residual": get("kkt_residual"),
-           "converged": get("converged")}
+           "converged": get("converged"), "outcome": str(get("outcome") or ""),
+           "reason": get("reason")}  # outcome and reason: how and why a row failed (studies.runner.failed_line)
     if ref is not None:
         out["error_energy"] = abs(get("energy") - ref.energy) / abs(ref.energy)
         phi = get("phi")
