@@ -41,3 +41,16 @@ class _Fake:
     def parse_args(self, argv):
         import argparse
         return argparse.Namespace(func=self.fn, verbose=0, quiet=False)
+
+
+def test_a_failed_study_row_says_its_outcome_and_certifiable_tol(caplog):
+    """A study row of a round-off floor: the runner's console line and the CSV columns."""
+    from vesicle_opt.studies.runner import failed_line
+    row = {"scene": "ellipse-2d", "method": "penalty", "n": 128, "converged": "False",
+           "outcome": "roundoff_floor", "reason": "round-off floor: stationarity is known only to ~1.2e-07",
+           "certifiable_tol": 2e-7}
+    line = failed_line("penalty_continuation", "c1", row)
+    assert line.startswith("penalty_continuation c1 scene=ellipse-2d method=penalty n=128: roundoff_floor (")
+    assert line.endswith("tol >= 2e-07 can be certified")
+    assert failed_line("s", "c", {**row, "converged": "True", "outcome": "converged"}) is None
+    assert failed_line("s", "c", {"status": "error: ValueError: x"}) == "s c: error: ValueError: x"

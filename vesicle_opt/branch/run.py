@@ -61,6 +61,7 @@ from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
 from vesicle_opt.scene.schema import Scene
+from vesicle_opt.verify.failure import tol_to_certify
 
 SWITCH_AMPLITUDE = 0.05  # the seed phi_s + a |phi_s|_M mode of a branch switch (mode M-normalised)
 
@@ -249,6 +250,7 @@ class _Run:
                                           "rotation_rayleigh", "topology", "components",
                                           "h", "alpha", "beta", "volume", "area")})
         row["wraps"] = None if ex.get("wraps") is None else "".join("xyz"[i] for i in ex["wraps"]) or "none"
+        row["certifiable_tol"] = tol_to_certify(res)  # a round-off floor: the tol that can be certified
         row.update({"energy": res.energy, "lambda_volume": res.lambda_volume, "lambda_area": res.lambda_area,
                     "kkt_residual": res.kkt_residual, "outcome": str(res.outcome), "status": res.status})
         point_scene = self.par.scene_at(sc, a.p)

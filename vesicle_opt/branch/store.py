@@ -28,7 +28,7 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            "accepted", "outcome", "status", "iterations", "solves", "corrector", "arc_condition", "deviation",
            "wall_time_s", "epsilon", "n", "h", "alpha", "beta", "volume", "area", "kkt_residual",
            "arc_step", "arc_theta", "sharp_reduced_energy", "second_order_excluded", "rotation_rayleigh",
-           "restarted", "reason", "shape", "shape_volume_gap", "bulk_volume_share"]
+           "restarted", "reason", "certifiable_tol", "shape", "shape_volume_gap", "bulk_volume_share"]
 
 
 def _text(v) -> str:

@@ -40,7 +40,7 @@ COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual
            "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
            "status"]
 BOOKKEEPING = ["case", "case_rows"]
-FAILURE = ["outcome", "reason"]  # a row that failed says how and why (``failed_line``); after the
+FAILURE = ["outcome", "reason", "certifiable_tol"]  # a row that failed says how and why (``failed_line``); after the
 # bookkeeping columns, so that the rows of a CSV written before them keep their places
 PARENT_POLL_S = 0.5  # a worker notices its parent's death within this (the SIGKILL test allows a few s)
 
@@ -192,6 +192,8 @@ def failed_line(study: str, case: str, row: dict) -> str | None:
         return None
     where = " ".join(f"{k}={row[k]}" for k in ("scene", "method", "n", "target") if row.get(k) not in (None, ""))
     why = f" ({row['reason']})" if row.get("reason") else ""
+    if row.get("certifiable_tol") not in (None, "") and "can be certified" not in why:
+        why += f"; tol >= {float(row['certifiable_tol']):.0e} can be certified"
     return f"{study} {case}{' ' + where if where else ''}: {outcome}{why}"
 
 
