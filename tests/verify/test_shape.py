@@ -140,3 +140,14 @@ def test_cubic_box_prolate_is_not_a_converged_minimum():
     assert r.extra["zero_level_reduced_volume"] > shape.ROUND > r.extra["zero_level_reduced_volume_without_bulk"]
     assert r.extra["shape_volume_gap"] > 0.4
     assert "mirror grid" in r.reason and "fitted" in r.reason
+
+
+def test_annulus_curvature_cancels_and_its_area_is_the_ring():
+    """2D: a ring (one outer curve, one hole): int kappa ds = 2 pi - 2 pi = 0, area pi (R^2 - r^2)."""
+    eps, R, r = 0.15, 2.0, 1.0
+    disc = fd.grid([[-4.0, 4.0]] * 2, (128, 128))
+    rho = np.linalg.norm(disc.nodes, axis=1)
+    phi = np.tanh(np.minimum(R - rho, rho - r) / (math.sqrt(2) * eps))
+    c = _check(disc, phi, eps)
+    assert c.curvature_integral == 0.0
+    assert c.zero_volume == pytest.approx(math.pi * (R**2 - r**2), rel=2e-3)  # the contours' O(h^2), h = 1/16

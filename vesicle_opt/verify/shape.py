@@ -146,7 +146,8 @@ def _zero_level_3d(F: np.ndarray, spacing: np.ndarray) -> tuple[float, float] | 
         return None
     v0, v1, v2 = (verts[faces[:, i]] for i in range(3))
     volume = float(abs(np.einsum("ij,ij->i", v0, np.cross(v1, v2)).sum()) / 6.0)
-    return volume, float(measure.mesh_surface_area(verts, faces)), abs(_total_curvature(verts, faces))
+    # signed towards the outside of the enclosed region (a torus: 4 pi^2 R; a cavity's wall counts negative)
+    return volume, float(measure.mesh_surface_area(verts, faces)), _total_curvature(verts, faces)
 
 
 def _zero_level_2d(F: np.ndarray, spacing: np.ndarray) -> tuple[float, float] | None:
@@ -162,7 +163,8 @@ def _zero_level_2d(F: np.ndarray, spacing: np.ndarray) -> tuple[float, float] | 
         area += signed
         length += float(np.sum(np.hypot(np.diff(x), np.diff(y))))
         turns += 1 if signed > 0 else -1
-    return abs(area), length, 2 * math.pi * abs(turns)
+    # the orientation of the inside's outer curves is that of the total area: holes turn the other way
+    return abs(area), length, 2 * math.pi * turns * (1 if area > 0 else -1)
 
 
 def measure(disc, phi: np.ndarray, epsilon: float, A: float, B: float, wraps=None) -> ShapeCheck:
