@@ -102,7 +102,9 @@ class Solver:
     fft: str = "auto"  # "auto" | "scipy" | "pyfftw": the real FFTs of Fourier grids (mesh.spectral.fft_library;
     # auto: pyFFTW where the optional extra is installed, else scipy)
     max_memory_gb: float | None = None  # the resource guard's limit (vesicle_opt.resources); None: available memory
-    shape_check: bool = True  # a wrong shape (verify.shape: bulk carrying the volume, merged images) is not converged
+    # a wrong shape (verify.shape: bulk carrying the volume, merged images) is not converged; out of the
+    # repr, so the flows' checkpoint fingerprints (flows.api.fingerprint, the repr) stay what they were
+    shape_check: bool = dataclasses.field(default=True, repr=False)
 
     def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
         ranges.check_solver(self)
