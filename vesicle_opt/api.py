@@ -19,7 +19,8 @@ the same reports added here:
 * ``shape`` (``verify.shape``): the phi = 0 surface's volume, corrected by the tanh profile's
   O(eps^2) curvature term, against (|Omega| + A) / 2 (4), the bulk's offset from -1 and the volume
   it carries, merged periodic images: ``ok``, ``bulk_offset`` (a warning line, ``shape_reason``)
-  or ``wrong_shape`` (outcome ``wrong_shape``, not converged, the line its ``reason``).
+  or ``wrong_shape`` (outcome ``wrong_shape``, not converged, the line its ``reason``; with
+  ``solver.shape_check = false`` a warning line only, the result converged).
 
 ``solver.array = 'jax'`` runs the newton-krylov backend's arrays on JAX devices (``nk_jax``); its
 field comes back to the host and is certified, and second-order checked, by the numpy code.
@@ -140,14 +141,16 @@ def _second_order(result: Result, so, seconds: float = 0.0) -> Result:
     return dataclasses.replace(result, history={**result.history, "second_order_mode": so.lowest_mode})
 
 
-def with_reports(result: Result, so, seconds: float = 0.0) -> Result:
+def with_reports(result: Result, so, seconds: float = 0.0, scene: Scene | None = None) -> Result:
     """The second-order keys (``so``: a ``verdict.SecondOrder`` or None: not checked; ``seconds``: the
     check's wall time) and the topology keys every front-door result carries; for callers that run a
     backend's pieces themselves (``vesicle_opt.branch`` reuses one IPOPT solver along a branch) and
-    report the same way."""
+    report the same way. ``scene``: its ``solver.shape_check`` (default true) makes a wrong shape
+    not converged (``verify.shape.apply``)."""
     result = _second_order(result, so, seconds)
     result = _replace_extra(result, **topology.report(result.disc, result.phi))
-    return shape.apply(result)  # the physical shape against the targets (verify.shape)
+    # the physical shape against the targets (verify.shape)
+    return shape.apply(result, enforce=True if scene is None else scene.solver.shape_check)
 
 
 def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | None = None, x0: np.ndarray | str | Path | Result | None = None,
@@ -207,8 +210,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
             t0 = time.perf_counter()
             so = (lobpcg.check(scene, result, setup, rotations=rotations)
                   if check_second_order and result.converged else None)
-    result = with_reports(result, so, seconds=time.perf_counter() - t0)
-    if result.extra.get("shape") == "bulk_offset":
+    result = with_reports(result, so, seconds=time.perf_counter() - t0, scene=scene)
+    if result.extra.get("shape") == "bulk_offset" or (result.extra.get("shape") == "wrong_shape" and result.converged):
         log.warning("%s: %s", scene.name, result.extra["shape_reason"])
     if chosen != "ipopt" and getattr(result.disc, "fourier", None) is not None:  # which FFTs the solve ran
         lib = "jax" if scene.solver.array == "jax" else resolve_fft(scene.solver.fft)

@@ -174,9 +174,11 @@ def cmd_branch(args) -> int:
     sc = load_scene(args.scene, args.set)
 
     def show(row):
+        why = "" if row["converged"] or not row.get("reason") else f" ({row['reason']})"  # the outcome's line
         print(f"point {row['point']} [{row['branch']}] {row['param']} = {row['target']:.6g}: "
-              f"converged={row['converged']}, reduced_energy={row.get('reduced_energy')}, "
-              f"{row.get('second_order')}, iterations={row['iterations']}", file=sys.stderr)
+              f"converged={row['converged']}, outcome={row.get('outcome')}{why}, reduced_energy="
+              f"{row.get('reduced_energy')}, {row.get('second_order')}, iterations={row['iterations']}",
+              file=sys.stderr)
     if args.second is not None:
         with _preflight(sc, args.out, choose_backend(sc)) as out:
             line = sweep(sc, args.param, args.to, args.step, args.second, args.values, out, progress=show,
@@ -190,8 +192,11 @@ def cmd_branch(args) -> int:
         b = follow_branch(sc, args.param, args.to, args.step, out, progress=show, switch=args.switch,
                           depth=args.depth, deflate=args.deflate)
     pts = b.points()
-    print(f"{sc.name}: {len(pts)} points, stopped {b.stopped}, all certified="
-          f"{all(r['converged'] for r in pts)} -> {args.out}/branch.csv")
+    # "all certified" only of a run that has certified points (before: "0 points, ..., all certified=True")
+    verdict = (f"all certified={all(r['converged'] for r in pts)}" if pts else
+               "no certified point" + "".join(f"; last failure: {r.get('outcome')} ({r.get('reason')})"
+                                              for r in b.rows[-1:] if not r["converged"]))
+    print(f"{sc.name}: {len(pts)} points, stopped {b.stopped}, {verdict} -> {args.out}/branch.csv")
     return 0 if b.converged else 1
 
 
@@ -339,7 +344,13 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
     def one_line_warning(message, category, filename, lineno, file=None, line=None):
-        print(f"vesicle-opt: warning: {message}", file=sys.stderr)
+        # the tool's own warnings as its own; a library's named as that library's (matplotlib, ...)
+        ours = Path(filename).resolve().is_relative_to(Path(__file__).resolve().parent)
+        parts = Path(filename).parts
+        site = [i for i, p in enumerate(parts) if p in ("site-packages", "dist-packages")]
+        who = "vesicle-opt" if ours else parts[site[-1] + 1] if site and site[-1] + 1 < len(parts) - 1 else \
+            Path(filename).stem
+        print(f"{who}: {'warning' if ours else category.__name__}: {message}", file=sys.stderr)
 
     warnings.showwarning = one_line_warning
     handler = setup_logging(getattr(args, "verbose", 0), getattr(args, "quiet", False))

@@ -20,12 +20,16 @@ from vesicle_opt.scene.schema import from_dict
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def raw_scene(n=32, eps=0.5, second_order=False, initial=None, c0=0.0):
+# shape_check off: this toy (eps = 0.5, perimeter 8: eps/R0 = 0.4) is a circle whose bulk carries
+# 27-38 % of the volume at every nu (verify.shape: wrong_shape); the tests here check the branch's
+# machinery on its KKT points; test_a_wrong_shape_stops_the_branch the check
+def raw_scene(n=32, eps=0.5, second_order=False, initial=None, c0=0.0, shape_check=False):
     return {"domain": {"box": [[-4.0, 4.0], [-4.0, 4.0]], "boundary": "periodic"},
             "mesh": {"kind": "fd", "n": n}, "model": {"epsilon": eps, "c0": c0},
             "constraints": {"reduced_volume": 0.95, "area": 8.0},
             "initial": initial or {"shape": "ellipse", "semi_axes": [1.45, 1.1]},
-            "solver": {"method": "exact", "tol": 1e-8, "second_order": second_order, "max_iter": 60}}
+            "solver": {"method": "exact", "tol": 1e-8, "second_order": second_order, "max_iter": 60,
+                       "shape_check": shape_check}}
 
 
 def scene(**kw):
@@ -41,6 +45,15 @@ def first_interval_residuals(param, steps, **kw):
         assert all(r["converged"] for r in pts) and b.stopped == {0: "reached"}
         out.append(pts[1]["envelope_residual"])
     return np.array(out)
+
+
+def test_a_wrong_shape_stops_the_branch_and_says_why(tmp_path):
+    """With the check on (the default), the toy's start is a KKT point but a circle whose bulk carries
+    27 % of V (verify.shape): the start fails with outcome wrong_shape, the reason in its row."""
+    b = branch(scene(shape_check=True), "reduced_volume", to=0.91, step=-0.04, out=tmp_path / "w")
+    assert b.points() == [] and b.stopped == {0: "start failed"} and not b.converged
+    row = b.rows[0]
+    assert row["outcome"] == "wrong_shape" and "round" in row["reason"] and row["shape"] == "wrong_shape"
 
 
 def test_envelope_identity_is_second_order_in_the_step():

@@ -131,3 +131,7 @@ def test_flow_with_multiplier_shifts_reaches_the_exact_constraint_equilibrium():
     # point is certified to kkt 2e-13, the solve's to tol 1e-8 in the dual norm)
     assert abs(result.energy / ref.energy - 1) <= 1e-9
     assert abs(result.lambda_volume / ref.lambda_volume - 1) <= 1e-6  # multipliers: first order in the error
+    # the flow's equilibrium gets the front door's shape check (verify.shape): the same verdict and
+    # gap, the two fields 9e-11 apart in energy
+    assert result.extra["shape"] == ref.extra["shape"]
+    assert abs(result.extra["shape_volume_gap"] - ref.extra["shape_volume_gap"]) <= 1e-6

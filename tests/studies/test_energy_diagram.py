@@ -16,8 +16,13 @@ def test_quick_runs_and_writes_its_files(tmp_path):
     el = info["elastica-2d"]
     assert el["points"] == 3 and el["certified"] == 3 and el["stopped"] == "reached", el
     assert el["minimum"] == 3  # the ellipse start lies on the stable elastica branch
-    assert info["symmetric-2d"]["saddle"] >= 1  # the circle start: the symmetric saddle
-    assert code == 0
+    # the circle start at the quick settings (eps = 0.4, 48^2) is a circle whose bulk carries 20 % of
+    # V (its surface's reduced volume 0.999, 0.81 without the bulk): verify.shape refuses it (before:
+    # certified, a "saddle"), and its CSV row says so
+    sym = [r for r in csv.DictReader((tmp_path / "energy_diagram.csv").open()) if r["scene"] == "symmetric-2d"]
+    assert info["symmetric-2d"]["certified"] == 0 and sym[0]["outcome"] == "wrong_shape"
+    assert "round" in sym[0]["reason"]
+    assert code == 1  # a case without two certified points: the study says it failed (before: 0)
     # the envelope identity holds to O(step^2): measured 1.5e-3 at step 0.05 (residual / step^2 ~ 0.6)
     assert el["envelope_residual_max"] < 10 * el["max_step"] ** 2
     assert el["min_image_gap_over_eps"] > 4  # far from the periodic image (measured ~10)

@@ -164,7 +164,7 @@ class IpoptCorrector:
                                                       rotations=V.excludes_rotations(scene)), scene.dim)
             else:  # the front door's assembled check on the point's own (constant) NLP
                 so = second_order.check(build_nlp(scene, self.disc, check=False), res)
-        res = with_reports(res, so, seconds=time.perf_counter() - t0)
+        res = with_reports(res, so, seconds=time.perf_counter() - t0, scene=scene)
         if so is not None:  # the least few, for the branch's index (``branch.events``)
             res = dataclasses.replace(res, extra={**res.extra, **spectrum_extra(so)})
         if so is not None and so.excluded == V.TRANSLATIONS_ROTATIONS:

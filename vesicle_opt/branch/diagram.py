@@ -75,7 +75,8 @@ def plot(series: list[tuple[str, list[dict], Path | None]], path: Path, xlabel: 
     ax.set_xlabel(xlabel)
     ax.set_ylabel("reduced energy E / E_sphere")
     ax.set_title(title or "energy diagram (solid: least reduced-Hessian eigenvalue > 0, dashed: < 0)")
-    ax.legend(fontsize=8, loc="best")
+    if ax.get_legend_handles_labels()[0]:  # no certified point: no labelled line, no legend (nor matplotlib's warning)
+        ax.legend(fontsize=8, loc="best")
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.93)
     fig.canvas.draw()
     for axi in fig.axes[1:]:  # the insets beside their points, in figure coordinates

@@ -138,7 +138,7 @@ class NewtonKrylovCorrector:
         seconds = time.perf_counter() - t0
         if res.converged and res.history.get("dual_model") is not None:
             prev.dual_model = res.history["dual_model"]
-        res = with_reports(res, so, seconds=seconds)
+        res = with_reports(res, so, seconds=seconds, scene=scene)
         extra = {**res.extra, "fft_library": resolve_fft(scene.solver.fft)}
         if used is not None:
             extra["second_order_warm"] = used

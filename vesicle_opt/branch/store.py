@@ -33,14 +33,17 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            # a deflated one), its located events (``branch.events``) and the least few eigenvalues
            "parent", "second_order_eigenvalues", "second_order_errors", "index", "detected_at",
            "critical", "critical_eigenvalue", "critical_error", "critical_mode", "located_by", "bracket",
-           "f", "c0_reduced"]  # f = F/8 pi kappa, c0_reduced = C0 R0 (geometry.literature_units; 3D)
+           "f", "c0_reduced",  # f = F/8 pi kappa, c0_reduced = C0 R0 (geometry.literature_units; 3D)
+           # why a point failed (verify.failure) and the shape check (verify.shape)
+           "reason", "certifiable_tol", "shape", "shape_volume_gap", "bulk_volume_share"]
 
 INTS = ("point", "branch", "iterations", "solves", "components", "n", "parent", "index", "detected_at", "critical")
 BOOLS = ("converged", "accepted", "restarted")
 FLOATS = ("target", "reduced_volume", "c0", "energy", "reduced_energy", "lambda_volume", "lambda_area", "dE_dp",
           "envelope_residual", "second_order_min_eigenvalue", "arc_condition", "deviation", "wall_time_s",
           "epsilon", "h", "alpha", "beta", "volume", "area", "kkt_residual", "arc_step", "arc_theta",
-          "sharp_reduced_energy", "rotation_rayleigh", "critical_eigenvalue", "critical_error", "f", "c0_reduced")
+          "sharp_reduced_energy", "rotation_rayleigh", "critical_eigenvalue", "critical_error", "f", "c0_reduced",
+          "certifiable_tol", "shape_volume_gap", "bulk_volume_share")
 ADVICE = "move it away or give another --out (nothing there was changed)"
 
 

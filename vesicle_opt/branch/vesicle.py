@@ -41,6 +41,7 @@ from vesicle_opt.nk.setup import prepare
 from vesicle_opt.scene.schema import Scene
 from vesicle_opt.verify import lobpcg
 from vesicle_opt.verify import verdict as V
+from vesicle_opt.verify.failure import tol_to_certify
 from vesicle_opt.verify.verdict import TOL_REL
 
 
@@ -174,14 +175,16 @@ class VesicleProblem(TreeProblem):
                "epsilon": sc.model.epsilon, "n": sc.mesh.n[0],
                "c0": a.p if self.par.name == "c0" else sc.model.c0, "restarted": restarted}
         if res is None:
-            row.update({"outcome": "not_solved", "status": message})
+            row.update({"outcome": "not_solved", "status": message, "reason": message})
             return row, None
         ex = res.extra
-        row.update({k: ex.get(k) for k in ("reduced_volume", "reduced_energy", "second_order",
+        row.update({k: ex.get(k) for k in ("reason", "shape", "shape_volume_gap", "bulk_volume_share",
+                                          "reduced_volume", "reduced_energy", "second_order",
                                           "second_order_min_eigenvalue", "second_order_excluded",
                                           "rotation_rayleigh", "topology", "components",
                                           "h", "alpha", "beta", "volume", "area", "f", "c0_reduced")})
         row["wraps"] = None if ex.get("wraps") is None else "".join("xyz"[i] for i in ex["wraps"]) or "none"
+        row["certifiable_tol"] = tol_to_certify(res)  # a round-off floor: the tol that can be certified
         row.update({"energy": res.energy, "lambda_volume": res.lambda_volume, "lambda_area": res.lambda_area,
                     "kkt_residual": res.kkt_residual, "outcome": str(res.outcome), "status": res.status})
         point_scene = self.par.scene_at(sc, a.p)

@@ -26,11 +26,14 @@ constraint residual drops by orders of magnitude per stage, and each later stage
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from vesicle_opt.model import functionals as F
 from vesicle_opt.model.penalty import residuals
 from vesicle_opt.nk.solve import l2_floor
+from vesicle_opt.verify import shape, topology
 from vesicle_opt.verify.certify import build_result
 from vesicle_opt.result import Status
 from vesicle_opt.flows.api import flow, make_scheme
@@ -82,7 +85,8 @@ def flow_to_equilibrium(scene, model: FlowModel, *, exact: bool = False, resume_
     (``exact`` False: one stage) or the exact-constraint one (multiplier shifts between stages).
 
     Returns (result, flow_result, stages): ``result`` the last certificate (a ``Result``; its
-    ``converged`` says whether the equilibrium was certified), ``flow_result`` the last stage's
+    ``converged`` says whether the equilibrium was certified, and a wrong shape is not:
+    ``verify.shape``, with the topology keys), ``flow_result`` the last stage's
     ``FlowResult`` (its ``state`` continues the run), ``stages`` one dict per stage (mu, steps,
     constraint residuals, kkt_residual). Needs the Newton-Krylov (23) scheme (``flows.api.make_scheme``
     with ``flow.scheme = 'backward-euler'`` on FD with solver.backend = 'newton-krylov' or spectral).
@@ -113,4 +117,7 @@ def flow_to_equilibrium(scene, model: FlowModel, *, exact: bool = False, resume_
         if (result.converged and tight) or res.status is Status.FAILED:
             break
         mu = mu - model.M * c  # the first-order multiplier update
+    if result is not None:  # the equilibrium's shape against its targets, as the front door's (verify.shape)
+        topo = topology.report(result.disc, result.phi)
+        result = shape.apply(dataclasses.replace(result, extra={**result.extra, **topo}))
     return result, res, stages

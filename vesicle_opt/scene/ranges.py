@@ -159,8 +159,9 @@ def check_solver(s) -> None:
     check_tol(s.tol)
     for key in ("max_iter", "second_order_max_iter", "max_outer"):
         count(f"solver.{key}", getattr(s, key))
-    if not isinstance(s.second_order, bool):
-        raise InputError("solver.second_order", f"expected true or false, got {s.second_order!r}")
+    for key in ("second_order", "shape_check"):
+        if not isinstance(getattr(s, key), bool):
+            raise InputError(f"solver.{key}", f"expected true or false, got {getattr(s, key)!r}")
     real("solver.max_memory_gb", s.max_memory_gb, positive=True, optional=True)
     check_penalty(s.M, s.M0, s.M_max, s.M_factor)
 

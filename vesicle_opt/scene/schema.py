@@ -111,6 +111,9 @@ class Solver:
     fft: str = "auto"  # "auto" | "scipy" | "pyfftw": the real FFTs of Fourier grids (mesh.spectral.fft_library;
     # auto: pyFFTW where the optional extra is installed, else scipy)
     max_memory_gb: float | None = None  # the resource guard's limit (vesicle_opt.resources); None: available memory
+    # a wrong shape (verify.shape: bulk carrying the volume, merged images) is not converged; out of the
+    # repr, so the flows' checkpoint fingerprints (flows.api.fingerprint, the repr) stay what they were
+    shape_check: bool = dataclasses.field(default=True, repr=False)
 
     def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
         ranges.check_solver(self)
@@ -196,6 +199,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.max_iter": ("int", 500, ">= 1"),
     "solver.backend": ("str", "auto", ("ipopt", "newton-krylov", "auto")),
     "solver.second_order": ("bool", True, "true or false"),
+    "solver.shape_check": ("bool", True, "true or false (false: a wrong shape, verify.shape, is reported, not refused)"),
     "solver.second_order_max_iter": ("int", 300, ">= 1 (LOBPCG iterations per level of the matrix-free check)"),
     "solver.M0": ("float", 10.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
     "solver.M_factor": ("float", 10.0, "> 1"),
@@ -359,6 +363,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     solver = Solver(val["solver.method"], val["solver.M"], val["solver.tol"], val["solver.max_iter"],
                     val["solver.backend"], second_order=val["solver.second_order"],
                     second_order_max_iter=val["solver.second_order_max_iter"], M0=val["solver.M0"],
+                    shape_check=val["solver.shape_check"],
                     M_factor=val["solver.M_factor"], M_max=val["solver.M_max"],
                     max_outer=val["solver.max_outer"], array=val["solver.array"], fft=val["solver.fft"],
                     max_memory_gb=val["solver.max_memory_gb"])

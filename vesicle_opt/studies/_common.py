@@ -14,6 +14,7 @@ from vesicle_opt import scene as scene_mod
 from vesicle_opt.nlp import build_nlp
 from vesicle_opt.result import Result
 from vesicle_opt.verify import topology
+from vesicle_opt.verify.failure import tol_to_certify
 from vesicle_opt.verify.metrics import field_errors
 
 matplotlib.use("Agg")  # before pyplot: the studies write figure files, never open windows
@@ -49,7 +50,10 @@ def row(result: Result | dict, scene: str, method: str, n, h, ref: Result | None
            "lambda_volume": get("lambda_volume"), "lambda_area": get("lambda_area"),
            "iterations": get("iterations"), "wall_time_s": get("wall_time_s"), "status": get("status"),
            "penalized_energy": get("penalized_energy"), "kkt_residual": get("kkt_residual"),
-           "converged": get("converged")}
+           "converged": get("converged"),
+           # how and why a row failed (studies.runner.failed_line), a floor's certifiable tol
+           "outcome": str(get("outcome") or ""), "reason": get("reason"),
+           "certifiable_tol": tol_to_certify(result) if isinstance(result, Result) else result.get("certifiable_tol")}
     if ref is not None:
         out["error_energy"] = abs(get("energy") - ref.energy) / abs(ref.energy)
         phi = get("phi")

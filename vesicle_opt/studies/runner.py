@@ -46,6 +46,8 @@ COLUMNS = ["study", "scene", "method", "n", "h", "M", "energy", "volume_residual
            "lambda_volume", "lambda_area", "error_h1", "error_energy", "iterations", "wall_time_s",
            "status"]
 BOOKKEEPING = ["case", "case_rows"]
+FAILURE = ["outcome", "reason", "certifiable_tol"]  # a row that failed says how and why (``failed_line``); after the
+# bookkeeping columns, so that the rows of a CSV written before them keep their places
 PARENT_POLL_S = 0.5  # a worker notices its parent's death within this (the SIGKILL test allows a few s)
 
 
@@ -89,7 +91,8 @@ class CsvLog:
     def __init__(self, path: Path, extra_columns: Iterable[str] = (), study: str | None = None):
         self.path = Path(path)
         self.study = study
-        self.columns = COLUMNS + [c for c in extra_columns if c not in COLUMNS] + BOOKKEEPING
+        extra = [c for c in extra_columns if c not in COLUMNS]
+        self.columns = COLUMNS + extra + BOOKKEEPING + [c for c in FAILURE if c not in extra]
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._repair()
 
@@ -120,8 +123,9 @@ class CsvLog:
         header, rows, _ = found
         counts: dict[str, int] = {}
         for r in rows:
-            counts[r["case"]] = counts.get(r["case"], 0) + 1
-        keep = [r for r in rows if counts[r["case"]] == int(r["case_rows"])]
+            counts[r.get("case", "")] = counts.get(r.get("case", ""), 0) + 1
+        keep = [r for r in rows if (r.get("case_rows") or "").isdigit()
+                and counts[r["case"]] == int(r["case_rows"])]
         if set(header) != set(self.columns):  # an older layout: keep its columns, add the new ones
             self.columns = header + [c for c in self.columns if c not in header]
         self._rewrite(keep)
@@ -200,6 +204,9 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
                 rows, wall = [{"scene": case.get("scene", ""), "method": case.get("method", ""),
                                "status": f"error: {type(exc).__name__}: {exc}"[:200]}], float("nan")
             log.append(case["case"], [{"study": study, **r} for r in rows])
+            for r in rows:  # a failure said where it happens: on the console beside its CSV row
+                if (line := failed_line(study, case["case"], r)) is not None:
+                    logging.getLogger(__name__).warning("%s", line)
             done += 1
             interrupt.note(f"after {done} of {total} cases of {study}", resume=True)
             bar.set_postfix_str(f"last {case['case']} ({wall:.1f} s)")
@@ -214,6 +221,23 @@ def run_cases(study: str, cases: list[dict], fn: Callable[[dict], list[dict]], c
         if own:
             executor.shutdown(wait=True, cancel_futures=True)
     return log.rows()
+
+
+def failed_line(study: str, case: str, row: dict) -> str | None:
+    """One line for a row that is not a certified result (``converged`` false with an ``outcome``,
+    or a case that raised): the outcome and its reason (for a round-off floor the tol that can be
+    certified, ``verify.certify``); None for a certified row or one that certifies nothing."""
+    status = str(row.get("status") or "")
+    if status.startswith("error: "):
+        return f"{study} {case}: {status}"
+    outcome, converged = row.get("outcome"), row.get("converged")
+    if outcome in (None, "", "converged") or converged in (None, "", True, "True"):
+        return None
+    where = " ".join(f"{k}={row[k]}" for k in ("scene", "method", "n", "target") if row.get(k) not in (None, ""))
+    why = f" ({row['reason']})" if row.get("reason") else ""
+    if row.get("certifiable_tol") not in (None, "") and "can be certified" not in why:
+        why += f"; tol >= {float(row['certifiable_tol']):.0e} can be certified"
+    return f"{study} {case}{' ' + where if where else ''}: {outcome}{why}"
 
 
 def run_study(name: str, case_list: list[dict], fn: Callable[[dict], list[dict]], summary: Callable,

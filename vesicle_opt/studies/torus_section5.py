@@ -92,7 +92,8 @@ EXTRA = ["row", "start", "t", "frame", "penalized_energy", "components", "euler_
          "flow_eq_cpu_s", "flow_eq_vs_torus_start", "torus_start_wall_s", "flow_exact_certified",
          "flow_exact_energy", "flow_exact_kkt_residual", "flow_exact_stages", "flow_exact_steps",
          "flow_exact_wall_s", "exact_torus_start_energy", "exact_torus_start_converged",
-         "flow_exact_vs_exact_torus_start"]
+         "flow_exact_vs_exact_torus_start", "flow_eq_reason", "flow_exact_outcome", "flow_exact_reason",
+         "flow_exact_shape"]
 
 
 def _scene(n: int, t_end: float, disk=DISK, steps: int = 100000, extra=()):
@@ -180,14 +181,22 @@ def case_rows(case: dict) -> list[dict]:
         "flow_exact_wall_s": exact_run.wall_time_s, "exact_torus_start_energy": exact_ref.energy,
         "exact_torus_start_converged": exact_ref.converged,
         "flow_exact_vs_exact_torus_start": None if flow_exact is None else flow_exact.energy / exact_ref.energy - 1,
+        # a flow equilibrium that fails says how and why (its reason names a floor's certifiable tol)
+        "flow_eq_reason": None if flow_eq is None else flow_eq.reason,
+        "flow_exact_outcome": None if flow_exact is None else flow_exact.outcome.value,
+        "flow_exact_reason": None if flow_exact is None else flow_exact.reason,
+        "flow_exact_shape": None if flow_exact is None else flow_exact.extra.get("shape"),
         **topo})
     np.savez_compressed(out / "equilibrium.npz", phi=eq.phi)
     log.info(f"torus_section5: n={n} flow t={s['t']:.3g} steps={s['steps']} E_flow={s['energy']:.6f} "
           f"E_eq={eq.energy:.6f} (paper {PAPER[n]}) path: {' -> '.join(states)}; flow to equilibrium: "
           f"{rows[-1]['flow_eq_outcome']} at step {relax.steps}, E = {rows[-1]['flow_eq_energy']}, "
           f"vs torus start {rows[-1]['flow_eq_vs_torus_start']}, wall {relax.wall_time_s:.1f} s; exact: "
-          f"{rows[-1]['flow_exact_certified']} after {len(exact_stages)} stages, E = {rows[-1]['flow_exact_energy']}, "
+          f"{rows[-1]['flow_exact_outcome']} after {len(exact_stages)} stages, E = {rows[-1]['flow_exact_energy']}, "
           f"vs exact torus start {rows[-1]['flow_exact_vs_exact_torus_start']}")
+    for what in ("flow_eq", "flow_exact"):  # a failed flow equilibrium: its outcome and why, on the console
+        if rows[-1][f"{what}_outcome"] not in (None, "converged"):
+            log.warning(f"torus_section5: n={n} {what}: {rows[-1][f'{what}_outcome']} ({rows[-1][f'{what}_reason']})")
     return rows
 
 

@@ -46,17 +46,14 @@ CURVATURE_COEFFICIENT = math.pi**2 / 12
 # equals the bulk's share (Table-1 torus 0.025-0.040 / 0.030, prolate v = 0.75 0.245 / 0.245 at
 # eps = 0.2, 0.058 / 0.062 at 0.14, 0.008 / 0.010 at 0.1): 2 % is twice the worst bulk-free value
 VOLUME_GAP_MAX = 0.02
-# the phi = 0 surface rounder than asked (its reduced volume above the phase-field one) by more than
-# this, with the gap above, is a wrong shape: a tanh surface is *less* round than its target (the
-# curvature term adds to A: 0.61-0.63 against 0.72 on the Table-1 torus, 0.686 / 0.702 against 0.75
-# on the eps = 0.14 / 0.1 prolates), so only a bulk carrying the volume makes it rounder: the cubic
-# box's sphere 0.998 against 0.75. 0.05 is the isoperimetric slack of the grid error (sphere-3d
-# FEM 16^3: 0.994 for the sphere's 1)
-ROUNDER_MAX = 0.05
-# where no surface is measured (unstructured meshes): a bulk carrying a third of the volume is a
-# wrong shape (between the fitted eps = 0.2 prolate's 0.245, whose surface is the asked shape, and
-# the cubic box's 0.51, whose surface is a sphere)
-BULK_SHARE_MAX = 1 / 3
+# wrong_shape: the phi = 0 surface is round (its reduced volume >= ROUND) where, without the volume
+# the bulk carries, it would not be (V_0 - gap V below ROUND x the round volume of its area): the
+# bulk took the volume the vesicle had to lose and left it free to be a sphere / circle. ROUND: the
+# grid's isoperimetric slack, measured 0.994-0.9997 on round results (sphere-3d FEM 16^3 0.994,
+# circle-2d 0.9997, sphere 48^3 0.999). Measured: the cubic box 0.998 (0.60 without the bulk), the
+# 2D branch tests' eps = 0.5 ellipse in an 8^2 box 0.996 at every nu; not: the fitted eps = 0.2
+# prolate 0.744, the 32^2 eps = 0.4 ellipse 0.892 (bulk_offset)
+ROUND = 0.99
 
 
 @dataclass(frozen=True)
@@ -67,6 +64,7 @@ class ShapeCheck:
     phase_field_volume: float  # (|Omega| + A) / 2
     reduced_volume: float  # the phase-field one (of A and B), the target's at a certified point
     epsilon: float = 0.0
+    dim: int = 3
     zero_volume: float | None = None  # enclosed by phi = 0 (None: no closed level set measured)
     zero_area: float | None = None  # its area (perimeter in 2D)
     curvature_integral: float | None = None  # int_Gamma kappa dA of that level set
@@ -78,7 +76,16 @@ class ShapeCheck:
         return {"bulk_offset": self.bulk_offset_out, "bulk_offset_inside": self.bulk_offset_in,
                 "bulk_volume_share": self.bulk_volume_share, "zero_level_volume": self.zero_volume,
                 "zero_level_area": self.zero_area, "zero_level_curvature": self.curvature_integral,
-                "zero_level_reduced_volume": self.zero_reduced_volume, "shape_volume_gap": self.volume_gap}
+                "zero_level_reduced_volume": self.zero_reduced_volume, "shape_volume_gap": self.volume_gap,
+                "zero_level_reduced_volume_without_bulk": self.without_bulk}
+
+    @property
+    def without_bulk(self) -> float | None:
+        """The phi = 0 surface's reduced volume less the volume the bulk carries (gap V)."""
+        if self.volume_gap is None or not self.zero_area:
+            return None
+        return geometry.reduced_volume(self.zero_volume - self.volume_gap * self.phase_field_volume,
+                                       self.zero_area, self.dim)
 
 
 def _grid(disc, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -139,7 +146,8 @@ def _zero_level_3d(F: np.ndarray, spacing: np.ndarray) -> tuple[float, float] | 
         return None
     v0, v1, v2 = (verts[faces[:, i]] for i in range(3))
     volume = float(abs(np.einsum("ij,ij->i", v0, np.cross(v1, v2)).sum()) / 6.0)
-    return volume, float(measure.mesh_surface_area(verts, faces)), abs(_total_curvature(verts, faces))
+    # signed towards the outside of the enclosed region (a torus: 4 pi^2 R; a cavity's wall counts negative)
+    return volume, float(measure.mesh_surface_area(verts, faces)), _total_curvature(verts, faces)
 
 
 def _zero_level_2d(F: np.ndarray, spacing: np.ndarray) -> tuple[float, float] | None:
@@ -155,7 +163,8 @@ def _zero_level_2d(F: np.ndarray, spacing: np.ndarray) -> tuple[float, float] | 
         area += signed
         length += float(np.sum(np.hypot(np.diff(x), np.diff(y))))
         turns += 1 if signed > 0 else -1
-    return abs(area), length, 2 * math.pi * abs(turns)
+    # the orientation of the inside's outer curves is that of the total area: holes turn the other way
+    return abs(area), length, 2 * math.pi * turns * (1 if area > 0 else -1)
 
 
 def measure(disc, phi: np.ndarray, epsilon: float, A: float, B: float, wraps=None) -> ShapeCheck:
@@ -169,7 +178,7 @@ def measure(disc, phi: np.ndarray, epsilon: float, A: float, B: float, wraps=Non
     out_vol = mirror * float(w[phi < 0].sum())
     share = (d_out * out_vol - d_in * (disc.volume - out_vol)) / 2 / V if V > 0 else math.inf
     nu = geometry.reduced_volume(V, geometry.surface_area(B), disc.dim) if V > 0 and B > 0 else math.nan
-    check = ShapeCheck(d_out, d_in, share, V, nu, epsilon, wraps=None if wraps is None else tuple(wraps))
+    check = ShapeCheck(d_out, d_in, share, V, nu, epsilon, disc.dim, wraps=None if wraps is None else tuple(wraps))
     grid = _grid(disc, phi)
     if grid is None or grid[0].ndim not in (2, 3) or not grid[0].min() < 0 < grid[0].max():
         return check
@@ -194,29 +203,32 @@ def judge(check: ShapeCheck) -> tuple[str, str | None]:
         return "wrong_shape", (f"wrong shape: the vesicle is joined to its periodic image along axes "
                                f"{list(check.wraps)} (a slab or tube, not a closed vesicle); use a larger "
                                f"box, or the mirror grid for a mirror-symmetric shape")
+    share = check.volume_gap if check.volume_gap is not None else check.bulk_volume_share
+    if abs(share) <= VOLUME_GAP_MAX:
+        return "ok", None
     bulk = (f"outer bulk at phi = -1 - {check.bulk_offset_out:.3g}, carrying {check.bulk_volume_share:.0%} "
             f"of the volume constraint")
     if check.volume_gap is None:
-        if check.bulk_volume_share > BULK_SHARE_MAX:
-            return "wrong_shape", f"wrong shape: {bulk}; {_CHANGE}"
-        return "ok", None
-    if abs(check.volume_gap) <= VOLUME_GAP_MAX:
-        return "ok", None
-    corrected = check.zero_volume + CURVATURE_COEFFICIENT * check.epsilon**2 * check.curvature_integral
-    what = (f"the phi = 0 surface encloses {check.zero_volume:.4g}, {corrected:.4g} with the tanh profile's "
-            f"O(eps^2) curvature term: {check.volume_gap:+.0%} off the phase-field volume "
-            f"{check.phase_field_volume:.4g} ({bulk})")
-    rounder = check.zero_reduced_volume - check.reduced_volume
-    if check.volume_gap > 0 and rounder > ROUNDER_MAX:
-        return "wrong_shape", (f"wrong shape: {what}; its reduced volume is {check.zero_reduced_volume:.3f}, "
-                               f"not the {check.reduced_volume:.3f} asked; {_CHANGE}")
+        what = bulk
+    else:
+        corrected = check.zero_volume + CURVATURE_COEFFICIENT * check.epsilon**2 * check.curvature_integral
+        what = (f"the phi = 0 surface encloses {check.zero_volume:.4g}, {corrected:.4g} with the tanh profile's "
+                f"O(eps^2) curvature term: {check.volume_gap:+.0%} off the phase-field volume "
+                f"{check.phase_field_volume:.4g} ({bulk})")
+    if check.zero_reduced_volume is not None and check.zero_reduced_volume >= ROUND:
+        without = check.without_bulk
+        if without < ROUND:
+            return "wrong_shape", (f"wrong shape: {what}; the phi = 0 surface is round (reduced volume "
+                                   f"{check.zero_reduced_volume:.3f}), {without:.3f} without the volume the bulk "
+                                   f"carries: not the shape asked; {_CHANGE}")
     return "bulk_offset", f"bulk offset: {what}; the shape is the one asked only up to that share; {_CHANGE}"
 
 
-def apply(result: Result) -> Result:
+def apply(result: Result, enforce: bool = True) -> Result:
     """``result`` with the shape keys in ``extra`` (``ShapeCheck.report``, ``shape`` = the verdict of
     :func:`judge`, ``shape_reason`` its line); a converged result of a wrong shape is not converged:
-    outcome ``wrong_shape``, its line the ``reason``. Reads the field, its discretisation and the
+    outcome ``wrong_shape``, its line the ``reason`` (``enforce`` False, the scene's
+    ``solver.shape_check = false``: reported only). Reads the field, its discretisation and the
     certified A, B, eps of ``extra`` (``verify.certify.build_result``), and ``wraps`` (topology)."""
     ex = result.extra
     if result.disc is None or "epsilon" not in ex or not np.all(np.isfinite(result.phi)):
@@ -227,7 +239,7 @@ def apply(result: Result) -> Result:
     extra = {**ex, **check.report(), "shape": verdict}
     if line is not None:
         extra["shape_reason"] = line
-    if verdict == "wrong_shape" and result.converged:
+    if verdict == "wrong_shape" and result.converged and enforce:
         return dataclasses.replace(result, converged=False, outcome=Status.WRONG_SHAPE,
                                    extra={**extra, "reason": line})
     return dataclasses.replace(result, extra=extra)
