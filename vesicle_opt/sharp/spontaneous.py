@@ -26,6 +26,12 @@ with odd modes; spectral convergence in N; and ``budded_limit``, the two spheres
 neck (1/r1 + 1/r2 = c0, r1^2 + r2^2 = 1, v = r1^3 + r2^3, f = (1 - c0 r1/2)^2 + (1 - c0 r2/2)^2),
 which bounds the pear branch.
 
+Not yet here: starts for the stomatocyte and pear branches. From the cup-shaped starts tried
+(psi - s = b sin s ((1 - cos s)/2)^p, b = 5, 6) SLSQP went back to the oblate (same f to 1e-15) or
+left the shapes (area <= 0: reported not converged, NaN, never returned as a solution); at c0 = 2.4
+kicked prolates stayed up-down symmetric down to v = 0.725. A branch-switching start (the
+asymmetric eigenvector of the symmetric branch) is the next step.
+
 numpy and scipy only.
 """
 
@@ -166,10 +172,15 @@ def solve(v: float, c0: float, start: np.ndarray, n_modes: int | None = None, m:
 
     cons = [{"type": "eq", "fun": lambda x: ev(x)[0][1] - v, "jac": lambda x: ev(x)[1][1][None, :]},
             {"type": "eq", "fun": lambda x: ev(x)[0][2], "jac": lambda x: ev(x)[1][2][None, :]}]
-    opt = optimize.minimize(lambda x: ev(x)[0][0], a0, jac=lambda x: ev(x)[1][0], constraints=cons,
-                            method="SLSQP", options={"ftol": 1e-15, "maxiter": 2000})
+    with np.errstate(invalid="ignore", divide="ignore"):  # a trial step may leave the shapes: NaN, refused
+        opt = optimize.minimize(lambda x: ev(x)[0][0], a0, jac=lambda x: ev(x)[1][0], constraints=cons,
+                                method="SLSQP", options={"ftol": 1e-15, "maxiter": 2000})
     a = opt.x
-    (f, vv, close), (gf, gv, gc) = ev(a)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        (f, vv, close), (gf, gv, gc) = ev(a)
+    if not all(np.all(np.isfinite(q)) for q in (f, vv, close, gf, gv, gc)):  # left the shapes (area <= 0)
+        nan = float("nan")
+        return Shape(nan, nan, float(c0), a, (nan, nan), nan, False)
     C = np.column_stack([gv, gc])
     lam, *_ = np.linalg.lstsq(C, gf, rcond=None)
     scale = np.linalg.norm(gf) + np.abs(lam) @ np.linalg.norm(C, axis=0)
