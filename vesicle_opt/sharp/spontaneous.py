@@ -24,7 +24,8 @@ Checks (``tests/sharp/test_spontaneous.py``): the sphere's closed form for every
 up-down symmetric prolate and oblate of ``sharp.axisymmetric`` (an independent code) from a start
 with odd modes; spectral convergence in N; and ``budded_limit``, the two spheres joined by an ideal
 neck (1/r1 + 1/r2 = c0, r1^2 + r2^2 = 1, v = r1^3 + r2^3, f = (1 - c0 r1/2)^2 + (1 - c0 r2/2)^2),
-which bounds the pear branch.
+which bounds the pear branch; at c0 = 2.4 the up-down symmetric branch passes the published
+pear/prolate crossing (v, f) = (0.746, 0.107) (f = 0.106768 here).
 
 Not yet here: starts for the stomatocyte and pear branches. From the cup-shaped starts tried
 (psi - s = b sin s ((1 - cos s)/2)^p, b = 5, 6) SLSQP went back to the oblate (same f to 1e-15) or
