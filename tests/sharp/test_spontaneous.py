@@ -92,3 +92,39 @@ def test_symmetric_branch_at_c0_2_4_meets_the_published_pear_crossing():
         a[0::2] = 0.0
     assert sol.f == pytest.approx(0.107, abs=0.01)  # the figure-reading error
     assert sol.asymmetry < 1e-6  # stayed on the symmetric branch (measured ~1e-8)
+
+
+@pytest.mark.slow  # ~20 s: two branches of a few SLSQP solves each
+def test_pear_branch_crosses_the_symmetric_one_at_the_published_point():
+    """At c0 = 2.4 an up-down asymmetric branch (pears: a neck of radius ~0.12 R0, the odd coefficients
+    summing to ~1), reached at v = 0.72 from the symmetric shape kicked along sin(3 s) by 0.3, lies
+    below the symmetric branch there (0.0717 against 0.0886) and crosses it between v = 0.740
+    (-1.5e-3) and 0.746 (+4.1e-3): linearly interpolated at (0.7416, 0.1043), against the published
+    (0.746, 0.107) within the figure-reading error (+-0.005 in v, +-0.01 in f)."""
+    c0 = 2.4
+    ref = A.solve(0.9, "prolate", second_order=False)
+    sym = np.zeros(24)
+    sym[1:16:2] = ref.a[:8]
+    f_sym = {}
+    for v in (0.9, 0.85, 0.8, 0.746, 0.74, 0.72):
+        sol = S.solve(v, c0, sym)
+        assert sol.converged
+        sym = sol.a.copy()
+        sym[0::2] = 0.0
+        f_sym[v] = sol.f
+    kicked = sym.copy()
+    kicked[2] = 0.3
+    f_pear = {}
+    for v in (0.72, 0.73, 0.74, 0.746):
+        sol = S.solve(v, c0, kicked)
+        assert sol.converged and sol.asymmetry > 0.5  # a pear, not the symmetric shape (measured ~1.0)
+        r, _ = sol.meridian()
+        assert r[10:-10].min() > 0.05  # a neck, not a pinch-off (measured 0.116 .. 0.122)
+        kicked = sol.a
+        f_pear[v] = sol.f
+    assert f_pear[0.72] < f_sym[0.72] - 0.01  # the pear is the lower state below the crossing
+    d0, d1 = f_pear[0.74] - f_sym[0.74], f_pear[0.746] - f_sym[0.746]
+    assert d0 < 0 < d1
+    v_star = 0.74 + 0.006 * (-d0) / (d1 - d0)
+    f_star = f_sym[0.74] + (f_sym[0.746] - f_sym[0.74]) * (v_star - 0.74) / 0.006
+    assert v_star == pytest.approx(0.746, abs=0.005) and f_star == pytest.approx(0.107, abs=0.01)

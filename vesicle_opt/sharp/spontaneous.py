@@ -27,11 +27,13 @@ neck (1/r1 + 1/r2 = c0, r1^2 + r2^2 = 1, v = r1^3 + r2^3, f = (1 - c0 r1/2)^2 + 
 which bounds the pear branch; at c0 = 2.4 the up-down symmetric branch passes the published
 pear/prolate crossing (v, f) = (0.746, 0.107) (f = 0.106768 here).
 
-Not yet here: starts for the stomatocyte and pear branches. From the cup-shaped starts tried
+The pear branch at c0 = 2.4 is reached at v = 0.72 from the symmetric shape kicked along sin(3 s)
+(amplitude 0.3; small kicks decay: the symmetric branch is stable to odd modes there, least odd
+eigenvalue +0.12 at v = 0.725); it crosses the symmetric branch at (0.7416, 0.1043) (linear
+interpolation between v = 0.740 and 0.746), the published (0.746, 0.107) within its reading error.
+Not yet here: a start for the stomatocyte branch. From the cup-shaped starts tried
 (psi - s = b sin s ((1 - cos s)/2)^p, b = 5, 6) SLSQP went back to the oblate (same f to 1e-15) or
-left the shapes (area <= 0: reported not converged, NaN, never returned as a solution); at c0 = 2.4
-kicked prolates stayed up-down symmetric down to v = 0.725. A branch-switching start (the
-asymmetric eigenvector of the symmetric branch) is the next step.
+left the shapes (area <= 0: reported not converged, NaN, never returned as a solution).
 
 numpy and scipy only.
 """
