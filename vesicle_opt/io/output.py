@@ -70,7 +70,8 @@ def figure_spec(disc, phi: np.ndarray, title: str = "") -> dict:
                     "hi": (box[0][1], box[1][1]), "title": title}
         vals = disc.unfold @ phi if disc.unfold is not None else phi
         return {"kind": "triangles", "x": disc.mesh.p[0], "y": disc.mesh.p[1], "triangles": disc.mesh.t.T,
-                "values": np.asarray(vals, float), "title": title}
+                "values": np.asarray(vals, float), "title": title,
+                "axis_names": ("r", "z") if disc.axisymmetric else ("x", "y")}
     if disc.grid_shape is not None:
         F = _grid_field(disc, phi)
         mid = [k // 2 for k in disc.grid_shape]

@@ -53,8 +53,9 @@ def _draw_triangles(path, spec: dict) -> None:
     image = ax.tripcolor(tri, spec["values"], cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
     ax.tricontour(tri, spec["values"], levels=[0.0], colors="k")
     ax.set_aspect("equal")
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
+    xlabel, ylabel = spec.get("axis_names", ("x", "y"))  # the meridian half-plane: r, z
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     ax.set_title(spec["title"], fontsize=9)
     fig.colorbar(image, ax=ax, shrink=0.8, label="phi (+1 inside, -1 outside)")
     fig.tight_layout()

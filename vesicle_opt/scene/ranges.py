@@ -35,7 +35,7 @@ EPS_PER_H_MIN, EPS_PER_BOX_MAX = 0.1, 0.5
 EPS_PER_H_RECOMMENDED = 2.0  # the README's resolution table: ε/h = 1 is 7.3 % off, 0.5 another shape
 CHOICES = {
     "domain.boundary": ("periodic", "natural"),
-    "mesh.kind": ("fem-p1", "fd", "spectral"),
+    "mesh.kind": ("fem-p1", "fd", "spectral", "axisymmetric"),
     "mesh.mass": ("lumped", "consistent"),
     "mesh.quadrature": ("nodal", "gauss"),
     "solver.method": ("exact", "penalty", "continuation", "augmented"),

@@ -19,10 +19,11 @@ from vesicle_opt import extras
 from vesicle_opt.errors import InputError
 from vesicle_opt.geometry import targets, volume_of_reduced
 from vesicle_opt.scene import ranges
+from vesicle_opt.scene.axisymmetric import check_box, parse_axisymmetric_shape
 from vesicle_opt.scene.bundled import resolve as resolve_scene
 from vesicle_opt.scene.ranges import EPS_PER_BOX_MAX, EPS_PER_H_MIN, M_LIMIT, TOL_RANGE
 from vesicle_opt.scene.overrides import override_items, parse_value, replace_targets  # noqa: F401 (parse_value: re-exported)
-from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES, Shape, number, numbers, parse_shape
+from vesicle_opt.scene.shape_spec import SHAPE_KEYS, SHAPES, Shape, number, numbers
 
 @dataclass(frozen=True)
 class Domain:
@@ -315,7 +316,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     box = tuple(numbers("domain.box", p, 2) for p in box_raw)
     if any(hi <= lo for lo, hi in box):
         raise InputError("domain.box", f"each pair needs lo < hi, got {[list(p) for p in box]}")
-    _check_axisymmetric_box(val, box)
+    check_box(val, box)
     dim = len(box)
     n_raw = val["mesh.n"]
     n = (n_raw,) * dim if isinstance(n_raw, int) and not isinstance(n_raw, bool) else n_raw
@@ -344,7 +345,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
     model = Model(val["model.epsilon"], val["model.c0"], val["model.rigidity"])
     target = None
     if val["constraints.target"] is not None:
-        target = _parse_shape("constraints.target", val["constraints.target"], dim, axisym)
+        target = parse_axisymmetric_shape("constraints.target", val["constraints.target"], dim, axisym)
     alpha, beta = val["constraints.alpha"], val["constraints.beta"]
     nu, area = val["constraints.reduced_volume"], val["constraints.area"]
     if nu is not None or area is not None:
@@ -356,7 +357,7 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
         raise InputError("constraints.alpha",
                          f"must lie in (-|Omega|, |Omega|) = ({-domain.volume:.6g}, {domain.volume:.6g}), got {alpha!r}")
     constraints = Constraints(alpha, beta, target, nu, area)
-    initial = _parse_shape("initial", val["initial"], dim, axisym)
+    initial = parse_axisymmetric_shape("initial", val["initial"], dim, axisym)
     _check_penalty(val)
     _check_array(val)
     _check_fft(val)
@@ -368,44 +369,6 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
                     max_outer=val["solver.max_outer"], array=val["solver.array"], fft=val["solver.fft"],
                     max_memory_gb=val["solver.max_memory_gb"])
     return Scene(name, domain, mesh, model, constraints, initial, solver, _flow(val))
-
-
-def _check_axisymmetric_box(val: dict, box) -> None:
-    """mesh.kind 'axisymmetric' (``mesh.axisymmetric``): the box is the meridian half-plane
-    [[0, R], [z0, z1]] (r from the axis, then z) with natural boundaries; checked before any work."""
-    if val["mesh.kind"] != "axisymmetric":
-        return
-    if len(box) != 2:
-        raise InputError("domain.box", f"mesh.kind 'axisymmetric' takes the meridian half-plane [[0, R], "
-                         f"[z0, z1]] (2 pairs: r, then z), got {len(box)} pairs")
-    if box[0][0] != 0.0:
-        raise InputError("domain.box", f"an axisymmetric box must start at r = 0 (the axis): [[0, R], "
-                         f"[z0, z1]], got r from {box[0][0]!r}")
-    if val["domain.boundary"] != "natural":
-        raise InputError("domain.boundary", "mesh.kind 'axisymmetric' needs 'natural' (the axis and the "
-                         f"cylinder's walls are natural boundaries), got {val['domain.boundary']!r}")
-
-
-def _parse_shape(key: str, spec, dim: int, axisym: bool) -> Shape:
-    """``parse_shape``; on the meridian half-plane the shape is 3D and symmetric about the z axis
-    (its centre on the axis, an ellipsoid's x and y semi-axes equal): a 2D shape or one off the
-    axis is refused in one line."""
-    if not axisym:
-        return parse_shape(key, spec, dim)
-    if isinstance(spec, dict):
-        for k in ("center", "semi_axes"):
-            if isinstance(spec.get(k), (list, tuple)) and len(spec[k]) == 2:
-                raise InputError(f"{key}.{k}", f"an axisymmetric scene is 3D (the vesicle revolved about "
-                                 f"the z axis; the box is its meridian): give {k} as 3 numbers, got "
-                                 f"{list(spec[k])} (a 2D scene)")
-    shape = parse_shape(key, spec, 3)
-    if shape.center is not None and (shape.center[0] != 0.0 or shape.center[1] != 0.0):
-        raise InputError(f"{key}.center", f"must lie on the axis of an axisymmetric scene, [0, 0, z], "
-                         f"got {list(shape.center)}")
-    if shape.semi_axes is not None and shape.semi_axes[0] != shape.semi_axes[1]:
-        raise InputError(f"{key}.semi_axes", f"must be symmetric about the z axis (x and y semi-axes "
-                         f"equal) in an axisymmetric scene, got {list(shape.semi_axes)}")
-    return shape
 
 
 def _check_array(val: dict) -> None:
