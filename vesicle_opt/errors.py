@@ -57,4 +57,5 @@ class StateFileError(InputError):
 
     def __init__(self, path, message: str, key: str = "--out"):
         self.path = str(path)
-        super().__init__(key, f"{self.path}: {message}")
+        text = f"{self.path}: {message}".replace("\r", "\\r").replace("\n", "\\n")  # one line, whatever the file held
+        super().__init__(key, text)

@@ -60,6 +60,7 @@ from vesicle_opt.branch.params import Parameter, check_end, check_range, explici
 from vesicle_opt.branch.store import Store
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
+from vesicle_opt.scene.argument import require_scene
 from vesicle_opt.scene.schema import Scene
 
 SWITCH_AMPLITUDE = 0.05  # the seed phi_s + a |phi_s|_M mode of a branch switch (mode M-normalised)
@@ -297,6 +298,7 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     when it holds the same run. ``turn``: |t_p| below which the pseudo-arclength corrector runs
     (``branch.arclength``; above 1: every step after the first). Bad input raises InputError (naming
     the flag) before any solve."""
+    require_scene(scene)
     if to is None:
         raise InputError("--to", "missing: the end value of the parameter")
     par = parameter(scene, param)
