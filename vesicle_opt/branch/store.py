@@ -114,7 +114,7 @@ class Store:
         cut off (the file rewritten without it), anything else refused before any work."""
         path = self.csv_path
         found = state.read_csv(path, lambda h: None if h == COLUMNS else f"{len(h)} columns, the first "
-                               f"{h[0][:30]!r}", self._check_row, ADVICE)
+                               f"{(h or [''])[0][:30]!r}", self._check_row, ADVICE)
         if found is None:
             path.write_text(",".join(COLUMNS) + "\n")
             return []
