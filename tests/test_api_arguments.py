@@ -100,3 +100,10 @@ def test_a_path_over_the_name_limit_is_one_line_exit_2(argv, key, tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and err[0].startswith(f"vesicle-opt: error: {key}:"), err
     assert "name too long" in err[0].lower()
+
+
+@pytest.mark.parametrize("call", ["load_scene", "solve x0", "branch param", "run_study name"])
+def test_a_value_with_a_newline_is_refused_in_one_line(call):
+    """Found by the 10 000-example run: the value echoed in the message broke it over two lines."""
+    exc = _named(lambda: CALLS[call]("a\nb\r"))
+    assert exc is not None and "a\\nb\\r" in str(exc)

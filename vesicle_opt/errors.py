@@ -20,7 +20,8 @@ class InputError(VesicleError, ValueError):
 
     def __init__(self, key: str, message: str):
         self.key = key
-        super().__init__(f"{key}: {message}")
+        # one line whatever the user's value or a damaged file held (a name with a newline, a CSV field)
+        super().__init__(f"{key}: {message}".replace("\r", "\\r").replace("\n", "\\n"))
 
 
 class InfeasibleError(InputError):
@@ -57,5 +58,4 @@ class StateFileError(InputError):
 
     def __init__(self, path, message: str, key: str = "--out"):
         self.path = str(path)
-        text = f"{self.path}: {message}".replace("\r", "\\r").replace("\n", "\\n")  # one line, whatever the file held
-        super().__init__(key, text)
+        super().__init__(key, f"{self.path}: {message}")
