@@ -176,7 +176,8 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
         chosen = choose_backend(scene, backend)
         resources.check(scene, chosen)  # the memory estimate, before anything is built
     else:
-        raise TypeError(f"solve takes a Scene or an NLP of build_nlp, got {type(problem).__name__}")
+        raise InputError("problem", f"solve takes a Scene (vesicle_opt.load_scene) or an NLP of build_nlp, "
+                         f"got {type(problem).__name__}")
     if (coarse := resolution_warning(scene)) is not None:  # eps / h below the recommended 2: before the solve
         log.warning("%s", coarse)
     check_second_order = scene.solver.method in EXACT_METHODS and scene.solver.second_order

@@ -370,6 +370,11 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # stdout piped into a reader that closed early (`| head`): not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return 0
+    except OSError as exc:  # the disk failed during the run (what is checked before work is exit 2 above)
+        where = f" ({exc.filename})" if exc.filename else ""
+        print(f"vesicle-opt: error: cannot write{where}: {exc.strerror or exc}; the run stopped there "
+              f"(a flow or branch resumes from its files, a study from its CSV)", file=sys.stderr)
+        return 1
     finally:  # main() called in-process (tests, scripts) leaves no handler, level or bar switched on
         logging.getLogger("vesicle_opt").removeHandler(handler)
         logging.getLogger("vesicle_opt").setLevel(logging.NOTSET)

@@ -20,7 +20,8 @@ class InputError(VesicleError, ValueError):
 
     def __init__(self, key: str, message: str):
         self.key = key
-        super().__init__(f"{key}: {message}")
+        # one line whatever the user's value or a damaged file held (a name with a newline, a CSV field)
+        super().__init__(f"{key}: {message}".replace("\r", "\\r").replace("\n", "\\n"))
 
 
 class InfeasibleError(InputError):

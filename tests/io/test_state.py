@@ -64,6 +64,7 @@ def test_a_torn_last_line_of_branch_csv_is_cut_and_the_rest_kept(tmp_path):
     lambda t: t.replace("\n2,0,", "\n7,0,"),  # a point out of order (another run's rows spliced in)
     lambda t: t.replace("true", "maybe", 1),
     lambda t: "a,b,c\n1,2,3\n",  # another file's columns
+    lambda t: '"' + t[t.index("\n"):],  # a quote opening a field over every line (found by the slow fuzz)
 ])
 def test_a_damaged_branch_csv_is_refused_and_left_untouched(tmp_path, damage):
     (tmp_path / "branch.csv").write_text(damage(branch_csv(3)))

@@ -102,10 +102,20 @@ def parameter(base: Scene, name: str) -> Parameter:
     return Parameter(name, float(start), alpha, beta, base.dim, vol)
 
 
+def _number(value, key: str) -> float:
+    """``value`` as a float, or an InputError naming ``key`` (a str, list or None given to the API)."""
+    if isinstance(value, (bool, str, bytes)) or value is None:
+        raise InputError(key, f"expected a number, got {type(value).__name__} {str(value)[:40]!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise InputError(key, f"expected a number, got {type(value).__name__}") from None
+
+
 def check_range(par: Parameter, to: float, step: float | None) -> float:
     """The step (default: a 25th of the range), after checking ``--to`` and ``--step``: the reduced
     volume lies in (0, 1]; the step is nonzero and points from the start towards ``to``."""
-    to = float(to)
+    to = _number(to, "--to")
     if not math.isfinite(to):
         raise InputError("--to", f"must be a finite number, got {to!r}")
     if par.name == "reduced_volume" and not 0 < to <= 1:
@@ -119,7 +129,7 @@ def check_range(par: Parameter, to: float, step: float | None) -> float:
     direction = math.copysign(1.0, to - par.start)
     if step is None:
         return (to - par.start) / 25
-    step = float(step)
+    step = _number(step, "--step")
     if not math.isfinite(step) or step == 0 or math.copysign(1.0, step) != direction:
         sign = "> 0" if direction > 0 else "< 0"
         raise InputError("--step", f"allowed range {sign} (from {par.name} = {par.start:.6g} towards "

@@ -60,6 +60,7 @@ from vesicle_opt.branch.tree import grow
 from vesicle_opt.branch.vesicle import VesicleProblem
 from vesicle_opt.errors import InputError
 from vesicle_opt.scene import resolved
+from vesicle_opt.scene.argument import require_scene
 from vesicle_opt.scene.schema import Scene
 
 
@@ -162,6 +163,7 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     branches leaving located branch points, recursively to ``depth`` levels; ``deflate``: up to this
     many other points at the start by deflation where switching found none (``branch.tree``). Bad
     input raises InputError (naming the flag) before any solve."""
+    require_scene(scene)
     if to is None:
         raise InputError("--to", "missing: the end value of the parameter")
     par = parameter(scene, param)

@@ -135,8 +135,8 @@ class Store:
         """The rows of branch.csv, read through the checked loader (``io.state``): a torn last line
         cut off (the file rewritten without it), anything else refused before any work."""
         path = self.csv_path
-        found = state.read_csv(path, lambda h: None if h == COLUMNS else f"{len(h)} columns, "
-                               f"{', '.join(h[:3])[:60]}...", self._check_row, ADVICE)
+        found = state.read_csv(path, lambda h: None if h == COLUMNS else f"{len(h)} columns, the first "
+                               f"{(h or [''])[0][:30]!r}", self._check_row, ADVICE)
         if found is None:
             path.write_text(",".join(COLUMNS) + "\n")
             return []

@@ -35,6 +35,7 @@ from vesicle_opt.mesh.base import require_lumped
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.model.warm_start import load_warm_start, start_field
 from vesicle_opt.result import Status
+from vesicle_opt.scene.argument import require_scene
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.flows.backward_euler import BackwardEulerScheme
 from vesicle_opt.flows.backward_euler_nk import STEP_TOL, BackwardEulerNKScheme
@@ -170,6 +171,7 @@ def flow(scene: Scene, *, trackers: Sequence[Tracker | Callable] = (), x0: np.nd
     bit-for-bit. throw: raise ``SolverError`` (carrying the result) when the run failed.
     model: a ``build_model(scene)`` to reuse (e.g. the one a tracker evaluates energies with).
     scheme: a ``make_scheme(scene, model)`` to reuse (e.g. one whose multiplier shift a caller sets)."""
+    require_scene(scene)
     check_supported(scene)
     md = model if model is not None else build_model(scene)
     scheme = scheme if scheme is not None else make_scheme(scene, md)

@@ -2,7 +2,9 @@
 
 ``check(path)`` refuses, with a one-line ``InputError`` naming ``--out``, a path that is a regular
 file, lies below a file, cannot be created, or is not writable (probed by creating and removing a
-file in it, so it is right for any file system and user, root included). ``locked(path)`` holds
+file in it, so it is right for any file system and user, root included); any OSError on the way
+(a name over the file system's limit, a read-only file system, no space left, permission denied)
+is such a line, naming the path. ``locked(path)`` holds
 an exclusive lock (``filelock``: ``flock`` on POSIX, released by the kernel when the process ends,
 SIGKILL included) on ``DIR/.vesicle-opt.lock`` for the whole run; a second run into the same
 directory is refused at once with one line instead of interleaving its files with the first's.
@@ -24,14 +26,16 @@ LOCK_NAME = ".vesicle-opt.lock"
 
 def check(arg: str | Path, key: str = "--out") -> Path:
     """The output directory, created and probed for writing now (module docstring)."""
+    if not isinstance(arg, (str, os.PathLike)) or not str(arg):
+        raise InputError(key, f"expected a directory path, got {type(arg).__name__} {str(arg)[:40]!r}")
     path = Path(arg)
-    for parent in [path, *path.parents]:  # the first existing ancestor must be a directory
-        if parent.exists() or parent.is_symlink():
-            if not parent.is_dir():
-                what = "is a file" if parent == path else f"lies below the file {str(parent)!r}"
-                raise InputError(key, f"cannot use {str(arg)!r} as the output directory: it {what}")
-            break
     try:
+        for parent in [path, *path.parents]:  # the first existing ancestor must be a directory
+            if parent.exists() or parent.is_symlink():
+                if not parent.is_dir():
+                    what = "is a file" if parent == path else f"lies below the file {str(parent)!r}"
+                    raise InputError(key, f"cannot use {str(arg)!r} as the output directory: it {what}")
+                break
         path.mkdir(parents=True, exist_ok=True)
         fd, probe = tempfile.mkstemp(prefix=".probe-", dir=path)
         os.close(fd)

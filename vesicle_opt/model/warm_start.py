@@ -96,6 +96,8 @@ def start_field(x0, disc, key: str = "x0") -> np.ndarray | None:
     src = getattr(x0, "disc", None) or getattr(getattr(x0, "model", None), "disc", None)
     if hasattr(x0, "phi") and src is not None:
         return carry(x0.phi, src.nodes, disc, key, "the earlier result")
-    if hasattr(x0, "phi"):
-        return np.asarray(x0.phi, float).ravel()
-    return np.asarray(x0, float).ravel()
+    try:
+        return np.asarray(x0.phi if hasattr(x0, "phi") else x0, float).ravel()
+    except (TypeError, ValueError):
+        raise InputError(key, f"expected a field (array of nodal values), a phi.npz path or a Result, got "
+                         f"{type(x0).__name__}") from None

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 
 from vesicle_opt.errors import NotSupported
+from vesicle_opt.scene.argument import require_scene
 from vesicle_opt.nlp.continuation import solve_penalised
 from vesicle_opt.nlp.exact import NLP, build_exact
 from vesicle_opt.nlp.ipopt import IpoptOptions
@@ -30,6 +31,7 @@ def build_nlp(scene: "Scene", disc: "Discretization | None" = None, check: bool 
     """The NLP of a scene's ``solver.method``: the exact NLP (6)-(8) for ``exact``, the lifted
     penalty NLP (11) for penalty, continuation and augmented. A ``spectral`` mesh has a dense
     Laplacian and no NLP: refused with :class:`NotSupported` (use the newton-krylov backend)."""
+    require_scene(scene)
     if scene.mesh.kind == "spectral":
         raise NotSupported("mesh.kind", "'spectral' has a dense Laplacian and no CasADi NLP; "
                            "build_nlp supports 'fem-p1' and 'fd' (solve spectral scenes with "

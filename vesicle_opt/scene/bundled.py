@@ -7,6 +7,7 @@ They are package data, read through ``importlib.resources``, so ``load_scene("el
 from __future__ import annotations
 
 from importlib import resources
+import os
 from pathlib import Path
 
 from vesicle_opt.errors import InputError
@@ -32,15 +33,20 @@ def text(name: str) -> str:
 
 def resolve(arg: str | Path) -> tuple[str, str]:
     """(name, TOML text) of a scene given as a path or as the name of a bundled scene."""
+    if not isinstance(arg, (str, os.PathLike)):
+        raise InputError("scene", f"expected a scene TOML path or a bundled scene name, got "
+                         f"{type(arg).__name__} ({', '.join(names())})")
     p = Path(arg)
-    if p.is_dir():
-        raise InputError("scene", f"{arg} is a directory; give a scene TOML file or a bundled name "
-                         f"({', '.join(names())})")
-    if p.is_file():
-        try:
+    try:
+        if p.is_dir():
+            raise InputError("scene", f"{arg} is a directory; give a scene TOML file or a bundled name "
+                             f"({', '.join(names())})")
+        if p.is_file():
             return p.stem, p.read_text()
-        except UnicodeDecodeError as exc:
-            raise InputError("scene", f"{arg} is not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError("scene", f"{arg} is not valid TOML: {exc}") from None
+    except OSError as exc:  # a name too long, permission denied, an I/O error: one line, before any work
+        raise InputError("scene", f"cannot read {str(arg)!r} ({exc.strerror or exc})") from None
     stem = p.name[:-5] if p.name.endswith(".toml") else p.name
     if str(arg) in (stem, f"{stem}.toml") and stem in names():
         return stem, text(stem)

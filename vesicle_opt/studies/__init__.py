@@ -18,6 +18,7 @@ from pathlib import Path
 from types import ModuleType
 
 from vesicle_opt.errors import InputError
+from vesicle_opt.io import outdir
 
 # one line each for ``vesicle-opt study --list`` (the module docstring is the long form: ``study NAME --help``)
 DESCRIPTIONS = {
@@ -61,5 +62,10 @@ def docstring(name: str) -> str:
 
 def run_study(name: str, out: str | Path, quick: bool = False, **kwargs) -> int:
     """Run a study into the directory ``out``: ``main(out, quick, **kwargs)`` of ``study(name)``
-    (some take more keywords, e.g. ``executor=``); returns its status (0: every check passed)."""
-    return int(study(name).main(Path(out), quick=quick, **kwargs) or 0)
+    (some take more keywords, e.g. ``executor=``); returns its status (0: every check passed).
+    An ``out`` that cannot be a directory (``io.outdir.check``) is an InputError (key ``out``)
+    before any work."""
+    mod = study(name)  # an unknown name is refused before the directory is made
+    if not isinstance(quick, bool):
+        raise InputError("quick", f"expected True or False, got {type(quick).__name__}")
+    return int(mod.main(outdir.check(out, "out"), quick=quick, **kwargs) or 0)
