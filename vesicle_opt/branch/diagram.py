@@ -28,8 +28,12 @@ def _cut(snapshot: dict) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     phi = np.asarray(snapshot["phi"], float).reshape(grid)
     box = np.asarray(snapshot["box"], float)
+    if int(snapshot.get("mirror_cells", 1)) > 1:  # one mirror cell: the whole vesicle, centred
+        for axis in range(phi.ndim):
+            phi = np.concatenate([np.flip(phi, axis=axis), phi], axis=axis)
+        box = np.column_stack([2 * box[:, 0] - box[:, 1], box[:, 1]])
     if len(grid) == 3:
-        return phi[:, grid[1] // 2, :], box[[0, 2]]  # the y = mid plane: x (long axis) against z
+        return phi[:, phi.shape[1] // 2, :], box[[0, 2]]  # the y = mid plane: x (long axis) against z
     return phi, box
 
 
