@@ -26,6 +26,7 @@ from vesicle_opt import resources
 from vesicle_opt.api import solve
 from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import branch as follow_branch
+from vesicle_opt.branch.reference import reference as sharp_reference
 from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.io import outdir, output, progress
 from vesicle_opt.io.files import package_version
@@ -141,13 +142,14 @@ def cmd_branch(args) -> int:
     """``vesicle-opt branch SCENE --param reduced_volume|c0 --to VALUE [--step DS] [--out DIR]``:
     one line per point on stderr, branch.csv and the snapshots in --out (resumed after a kill)."""
     sc = load_scene(args.scene, args.set)
+    sharp = None if args.sharp is None else sharp_reference(args.sharp, sc, args.param)  # checked first
 
     def show(row):
         print(f"point {row['point']} [{row['branch']}] {row['param']} = {row['target']:.6g}: "
               f"converged={row['converged']}, reduced_energy={row.get('reduced_energy')}, "
               f"{row.get('second_order')}, iterations={row['iterations']}", file=sys.stderr)
     with _preflight(sc, args.out, choose_backend(sc)) as out:  # memory, --out and its lock first
-        b = follow_branch(sc, args.param, args.to, args.step, out, progress=show)
+        b = follow_branch(sc, args.param, args.to, args.step, out, progress=show, reference=sharp)
     pts = b.points()
     print(f"{sc.name}: {len(pts)} points, stopped {b.stopped}, all certified="
           f"{all(r['converged'] for r in pts)} -> {args.out}/branch.csv")
@@ -272,6 +274,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--to", required=True, type=float, help="end value (reduced_volume in (0, 1])")
     b.add_argument("--step", type=float, help="first parameter step, signed towards --to (default: range/25)")
     b.add_argument("--out", default="out", help="output directory, resumed when it holds the same run")
+    b.add_argument("--sharp", nargs="?", const="auto", choices=("auto", "elastica", "prolate", "oblate"),
+                   help="fill sharp_reduced_energy with the eps -> 0 reference (alone: auto, from the scene)")
     b.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key (dotted, value parsed as TOML); repeatable")
     _add_verbosity(b)

@@ -323,6 +323,7 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     if turn != arc.Settings.turn:
         meta["turn"] = float(turn)
     store = Store(None if out is None else Path(out), meta, snapshots)
+    step = store.meta["step"]  # an extension of a finished run (further --to) keeps its first step
     # the step control's target in the corrector's own iterations (Newton steps on Newton-Krylov)
     target = NK_TARGET_ITERATIONS if choose_backend(scene, backend) == "newton-krylov" else \
         arc.Settings.target_iterations
