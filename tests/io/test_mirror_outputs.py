@@ -70,3 +70,17 @@ def test_npz_records_the_mirror_cells(tmp_path):
     section, box = _cut(snap)
     assert section.shape == (40, 40) and section.max() > 0.9  # the inset cuts the vesicle
     np.testing.assert_allclose(box, [[-2.0, 2.0], [-2.0, 2.0]])
+
+
+@pytest.mark.parametrize("dim, xlabel, ylabel", [(2, "reduced area", "E / E_circle"), (3, "reduced volume", "E / E_sphere")])
+def test_diagram_labels_follow_the_dimension(tmp_path, monkeypatch, dim, xlabel, ylabel):
+    from vesicle_opt.branch import diagram
+    figs = []
+    monkeypatch.setattr(diagram.plt, "close", figs.append)  # keep the figure to read its labels
+    rows = [{"target": v, "reduced_energy": e, "second_order_min_eigenvalue": m, "point": k}
+            for k, (v, e, m) in enumerate([(0.9, 1.2, 0.1), (0.85, 1.4, 0.1), (0.8, 1.7, -0.1)])]
+    diagram.plot([("branch", rows, None)], tmp_path / "d.png", dim=dim)
+    ax = figs[0].axes[0]
+    assert ax.get_xlabel() == xlabel and ylabel in ax.get_ylabel()
+    styles = [ln.get_linestyle() for ln in ax.get_lines() if len(ln.get_xdata()) == 2]
+    assert styles == ["-", "--"]  # stable segment solid, the one into the saddle dashed

@@ -38,8 +38,13 @@ def _cut(snapshot: dict) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def plot(series: list[tuple[str, list[dict], Path | None]], path: Path, xlabel: str = "reduced volume",
-         xkey: str = "target", title: str = "") -> None:
-    """``series``: (label, accepted rows of one branch, its snapshot directory or None)."""
+         xkey: str = "target", title: str = "", dim: int = 3) -> None:
+    """``series``: (label, accepted rows of one branch, its snapshot directory or None). The one
+    legend convention of the package's figures: solid stable, dashed unstable; in 2D the axis
+    says reduced area and E / E_circle (the circle of the same perimeter), in 3D reduced volume
+    and E / E_sphere."""
+    if dim == 2 and xlabel == "reduced volume":
+        xlabel = "reduced area"
     fig, ax = plt.subplots(figsize=(7.5, 5))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, (label, rows, points) in enumerate(series):
@@ -72,7 +77,7 @@ def plot(series: list[tuple[str, list[dict], Path | None]], path: Path, xlabel: 
             axi.set_yticks([])
             axi._anchor_data = (x[j], y[j])
     ax.set_xlabel(xlabel)
-    ax.set_ylabel("reduced energy E / E_sphere")
+    ax.set_ylabel("reduced energy E / E_circle" if dim == 2 else "reduced energy E / E_sphere")
     ax.set_title(title or "energy diagram (solid: least reduced-Hessian eigenvalue > 0, dashed: < 0)")
     ax.legend(fontsize=8, loc="best")
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.93)

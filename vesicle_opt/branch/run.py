@@ -349,7 +349,8 @@ def write_diagram(b: Branch, path: Path, title: str = "") -> None:
     from vesicle_opt.branch import diagram
     points = None if b.out is None else b.out / "points"
     series = [(f"branch {k}" if k else "branch", b.points(k), points) for k in sorted(b.stopped)]
-    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title)
+    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title,
+                 dim=b.scene.dim if b.scene is not None else 3)
 
 
 def _result(par, to, step, store, stopped, out, scene=None) -> Branch:
