@@ -13,6 +13,7 @@ numpy only; atomic writes through ``io.files.save_npz``.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -60,11 +61,12 @@ def write(path: Path, kind: str, phi: np.ndarray, disc, *, compressed: bool = Fa
     """Write ``arrays(kind, phi, disc, **extra)`` to ``path`` atomically (``io.files.save_npz``);
     ``compressed``: ``np.savez_compressed`` (the flow's files, as before)."""
     data = arrays(kind, phi, disc, **extra)
-    if compressed:
+    if compressed:  # a hidden temporary name: globs of phi_*.npz never see a half-written file
         path = Path(path)
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(tmp, **data)
-        tmp.replace(path)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **data)
+        os.replace(tmp, path)
     else:
         save_npz(path, **data)
 
