@@ -53,6 +53,7 @@ sphinx_gallery_conf = {
     # executed at build time: the quick examples only (the 3D torus takes tens of seconds)
     "filename_pattern": r"/(solve_and_read|own_constraint|flow_with_tracker|branch_2d|penalty_vs_exact)\.py$",
     "ignore_pattern": r"__init__\.py",
+    "within_subsection_order": "vo_generate.TourOrder",  # the tour's order, simplest first
     "abort_on_example_error": True,
     "download_all_examples": False,
     "remove_config_comments": True,

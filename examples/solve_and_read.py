@@ -5,8 +5,9 @@ Solve a bundled scene and read the certified Result
     python examples/solve_and_read.py          # from any directory; about 1 s
 
 The ellipse-2d scene on a 64^2 FD grid with exact constraints (IPOPT). The printed numbers are
-the certificate of README "What a result guarantees": converged, the KKT residual, the
-second-order verdict and the physical volume, area and reduced volume (Section 3.1).
+the certificate (see "What a result guarantees" in the theory page): converged, the KKT residual,
+the second-order verdict and the physical volume, area and reduced volume (Section 3.1), all
+attributes of the Result (``vo.write_result`` writes them to summary.json, ``vo.load`` reads them back).
 """
 
 import vesicle_opt as vo
@@ -15,11 +16,10 @@ import vesicle_opt as vo
 def main(n: int = 64) -> vo.Result:
     scene = vo.load_scene("ellipse-2d", [f"mesh.n={n}"])   # a bundled scene by name (or a TOML path)
     res = vo.solve(scene)                                    # backend "auto": IPOPT for 2D
-    s = res.summary(scene.name)                              # what summary.json holds
     print(f"converged={res.converged} outcome={res.outcome.value} energy={res.energy:.10g}")
     print(f"lambda_volume={res.lambda_volume:.6g} lambda_area={res.lambda_area:.6g} kkt={res.kkt_residual:.2e}")
-    print(f"second order: {res.extra['second_order']}, topology: {res.extra['topology']}")
-    print(f"volume={s['volume']:.6g} area={s['area']:.6g} reduced_volume={s['reduced_volume']:.4f}")
+    print(f"second order: {res.second_order}, topology: {res.topology}")   # the certificate's verdicts
+    print(f"volume={res.volume:.6g} area={res.area:.6g} reduced_volume={res.reduced_volume:.4f}")
     return res
 
 

@@ -109,3 +109,31 @@ def test_legacy_npz_and_bad_paths(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(InputError, match="not an output directory"):
         vo.load(tmp_path / "empty")
+
+
+def test_cli_branch_sharp_refuses_what_it_cannot_cover(tmp_path, capsys):
+    assert cli.main(["branch", "curvature-3d", "--param", "reduced_volume", "--to", "0.7",
+                     "--out", str(tmp_path), "--sharp"]) == 2
+    assert "--sharp" in capsys.readouterr().err  # c0 = 0.5: no reference; before any solve
+    assert not (tmp_path / "branch.csv").exists()
+
+
+def test_a_finished_branch_extends_with_a_further_to_and_sharp_fills_its_column(tmp_path):
+    from vesicle_opt.sharp import elastica
+    base = ["branch", "elastica-2d", "--param", "reduced_volume", "--set", "mesh.n=48", "--out", str(tmp_path),
+            "--sharp", "-q"]
+    assert cli.main([*base, "--to", "0.78", "--step", "-0.02"]) == 0
+    first = vo.load_branch(tmp_path)
+    assert first.stopped == {0: "reached"}
+    assert cli.main([*base, "--to", "0.76"]) == 0  # no --step: the stored first step is kept
+    ext = vo.load_branch(tmp_path)
+    assert ext.to == 0.76 and ext.stopped == {0: "reached"}
+    assert ext.rows[: len(first.rows)] == first.rows  # nothing recomputed or rewritten
+    assert [r["target"] for r in ext.points()][-1] == 0.76 and len(ext.points()) > len(first.points())
+    # the other direction is another run: refused, nothing changed
+    assert cli.main([*base, "--to", "0.9"]) == 2
+    assert vo.load_branch(tmp_path).rows == ext.rows
+    # --sharp: the column is the sharp elastica's own number at each target (sharp.elastica, no phase field)
+    pts = ext.points()
+    assert all(r["sharp_reduced_energy"] is not None for r in pts)
+    assert pts[-1]["sharp_reduced_energy"] == pytest.approx(elastica.solve(pts[-1]["target"]).reduced_energy, rel=1e-12)

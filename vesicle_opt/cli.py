@@ -30,6 +30,7 @@ from vesicle_opt.api import solve
 from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import branch as follow_branch
 from vesicle_opt.branch.lines import check_line, sweep
+from vesicle_opt.branch.reference import reference as sharp_reference
 from vesicle_opt.errors import InputError, VesicleError
 from vesicle_opt.io import interrupt, outdir, output, progress, staging
 from vesicle_opt.io.files import package_version
@@ -172,6 +173,7 @@ def cmd_branch(args) -> int:
             raise InputError(flag, f"allowed range: an integer >= 0, got {v!r}")
     check_line(args.param, args.second, args.values)
     sc = load_scene(args.scene, args.set)
+    sharp = None if args.sharp is None else sharp_reference(args.sharp, sc, args.param)  # checked first
 
     def show(row):
         why = "" if row["converged"] or not row.get("reason") else f" ({row['reason']})"  # the outcome's line
@@ -190,7 +192,7 @@ def cmd_branch(args) -> int:
         return 0
     with _preflight(sc, args.out, choose_backend(sc)) as out:  # memory, --out and its lock first
         b = follow_branch(sc, args.param, args.to, args.step, out, progress=show, switch=args.switch,
-                          depth=args.depth, deflate=args.deflate)
+                          depth=args.depth, deflate=args.deflate, reference=sharp)
     pts = b.points()
     # "all certified" only of a run that has certified points (before: "0 points, ..., all certified=True")
     verdict = (f"all certified={all(r['converged'] for r in pts)}" if pts else
@@ -318,6 +320,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--to", required=True, type=float, help="end value (reduced_volume in (0, 1])")
     b.add_argument("--step", type=float, help="first parameter step, signed towards --to (default: range/25)")
     b.add_argument("--out", default="out", help="output directory, resumed when it holds the same run")
+    b.add_argument("--sharp", nargs="?", const="auto", choices=("auto", "elastica", "prolate", "oblate"),
+                   help="fill sharp_reduced_energy with the eps -> 0 reference (alone: auto, from the scene)")
     b.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key (dotted, value parsed as TOML); repeatable")
     b.add_argument("--switch", action=argparse.BooleanOptionalAction, default=True,

@@ -8,7 +8,8 @@ build time so that they cannot drift from it.
 * ``solve_files.md`` / ``flow_files.md``: the files and summary.json keys of a real run of each verb
   (ellipse-2d at 24^2, about a second), with the value each took;
 * ``studies.md``: the study registry with its one-line descriptions;
-* ``bundled_scenes.md``: the bundled scenes with the first line of each file.
+* ``bundled_scenes.md``: the bundled scenes with the first line of each file;
+* ``cli_help.md``: ``vesicle-opt --help`` and every verb's, as argparse prints them.
 
 Docstrings are shown as written (plain text with the paper's equation numbers, not reStructuredText):
 ``autodoc-process-docstring`` turns each into a literal block.
@@ -87,6 +88,18 @@ def runs() -> tuple[str, str]:
     return out[0], out[1]
 
 
+def cli_help() -> str:
+    """``vesicle-opt --help`` and each verb's ``--help``, as argparse prints them."""
+    import os
+    from vesicle_opt.cli import build_parser
+    os.environ["COLUMNS"] = "100"  # argparse wraps at the terminal's width: the same text everywhere
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    parts = [("vesicle-opt --help", parser.format_help())]
+    parts += [(f"vesicle-opt {verb} --help", p.format_help()) for verb, p in sub.choices.items()]
+    return "".join(f"## `{cmd}`\n\n```text\n{text.rstrip()}\n```\n\n" for cmd, text in parts)
+
+
 def studies() -> str:
     from vesicle_opt.studies import DESCRIPTIONS, STUDIES
     return _table(["study", "what it does"], [[f"`{n}`", DESCRIPTIONS[n]] for n in STUDIES])
@@ -115,11 +128,28 @@ def generate(app) -> None:
              "flow_columns.md": columns(FLOW) + "\nScheme extras: " + "; ".join(
                  f"`{k}`: " + (", ".join(f"`{c}`" for c in v) or "none") for k, v in EXTRA.items()) + ".\n",
              "solve_files.md": solve_files, "flow_files.md": flow_files, "studies.md": studies(),
-             "bundled_scenes.md": bundled()}
+             "bundled_scenes.md": bundled(), "cli_help.md": cli_help()}
     for name, text in pages.items():
         path = gen / name
         if not path.exists() or path.read_text() != text:  # unchanged files keep their time: no rebuild
             path.write_text(text)
+
+
+class TourOrder:
+    """The gallery's order: the tour's (getting started), simplest first; others after, by name."""
+
+    ORDER = ("solve_and_read", "own_constraint", "penalty_vs_exact", "flow_with_tracker", "branch_2d",
+             "torus_surface")
+
+    def __init__(self, src_dir: str):
+        self.src_dir = src_dir
+
+    def __call__(self, filename: str):
+        stem = Path(filename).stem
+        return (self.ORDER.index(stem) if stem in self.ORDER else len(self.ORDER), stem)
+
+    def __repr__(self) -> str:  # sphinx-gallery keys its cache on the repr
+        return f"<{type(self).__name__}>"
 
 
 def literal_docstring(app, what, name, obj, options, lines) -> None:

@@ -28,15 +28,24 @@ def _cut(snapshot: dict) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     phi = np.asarray(snapshot["phi"], float).reshape(grid)
     box = np.asarray(snapshot["box"], float)
+    if int(snapshot.get("mirror_cells", 1)) > 1:  # one mirror cell: the whole vesicle, centred
+        for axis in range(phi.ndim):
+            phi = np.concatenate([np.flip(phi, axis=axis), phi], axis=axis)
+        box = np.column_stack([2 * box[:, 0] - box[:, 1], box[:, 1]])
     if len(grid) == 3:
-        return phi[:, grid[1] // 2, :], box[[0, 2]]  # the y = mid plane: x (long axis) against z
+        return phi[:, phi.shape[1] // 2, :], box[[0, 2]]  # the y = mid plane: x (long axis) against z
     return phi, box
 
 
 def plot(series: list[tuple[str, list[dict], Path | None]], path: Path, xlabel: str = "reduced volume",
-         xkey: str = "target", title: str = "", events: list[dict] = ()) -> None:
+         xkey: str = "target", title: str = "", events: list[dict] = (), dim: int = 3) -> None:
     """``series``: (label, accepted rows of one branch, its snapshot directory or None);
-    ``events``: located event rows (``branch.events``), marked x (branch point) or v (fold)."""
+    ``events``: located event rows (``branch.events``), marked x (branch point) or v (fold). The one
+    legend convention of the package's figures: solid stable, dashed unstable; in 2D the axis
+    says reduced area and E / E_circle (the circle of the same perimeter), in 3D reduced volume
+    and E / E_sphere."""
+    if dim == 2 and xlabel == "reduced volume":
+        xlabel = "reduced area"
     fig, ax = plt.subplots(figsize=(7.5, 5))
     for kind, marker in (("branch point", "x"), ("fold", "v")):
         pts = [(r[xkey], r["reduced_energy"]) for r in events if r.get("event") == kind and r.get("reduced_energy") is not None]
@@ -73,7 +82,7 @@ def plot(series: list[tuple[str, list[dict], Path | None]], path: Path, xlabel: 
             axi.set_yticks([])
             axi._anchor_data = (x[j], y[j])
     ax.set_xlabel(xlabel)
-    ax.set_ylabel("reduced energy E / E_sphere")
+    ax.set_ylabel("reduced energy E / E_circle" if dim == 2 else "reduced energy E / E_sphere")
     ax.set_title(title or "energy diagram (solid: least reduced-Hessian eigenvalue > 0, dashed: < 0)")
     if ax.get_legend_handles_labels()[0]:  # no certified point: no labelled line, no legend (nor matplotlib's warning)
         ax.legend(fontsize=8, loc="best")

@@ -180,6 +180,7 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     if turn != arc.Settings.turn:
         meta["turn"] = float(turn)
     store = Store(None if out is None else Path(out), meta, snapshots)
+    step = store.meta["step"]  # an extension of a finished run (further --to) keeps its first step
     # the step control's target in the corrector's own iterations (Newton steps on Newton-Krylov)
     target = NK_TARGET_ITERATIONS if choose_backend(scene, backend) == "newton-krylov" else \
         arc.Settings.target_iterations
@@ -202,4 +203,5 @@ def write_diagram(b: Branch, path: Path, title: str = "") -> None:
     from vesicle_opt.branch import diagram
     points = None if b.out is None else b.out / "points"
     series = [(f"branch {k}" if k else "branch", b.points(k), points) for k in sorted(b.stopped) if b.points(k)]
-    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title, events=b.located())
+    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title, events=b.located(),
+                 dim=b.scene.dim if b.scene is not None else 3)

@@ -2,7 +2,8 @@
 
 Layout of ``out``: ``branch.json`` (what was asked: scene, parameter, end, step; a resume under
 other arguments is refused, so nothing computed is overwritten), ``branch.csv`` (one row per
-attempt, appended and fsynced as each finishes), ``points/point-NNNN.npz`` (phi, the parameter, the
+attempt, appended and fsynced as each finishes; a rerun with ``--to`` further in the same
+direction extends the run from its last point, ``extends``), ``points/point-NNNN.npz`` (phi, the parameter, the
 grid) and ``points/point-NNNN.vtu`` (ParaView), written *before* their row: a row in the file always
 has its snapshot. A kill leaves at most a torn last line, which the resume cuts off, so no row is
 lost or written twice; snapshots without a row are overwritten by the rerun.
@@ -53,6 +54,13 @@ RECENT_BYTES = 64 << 20  # fields kept in memory after a read, oldest out first 
 RESULT_KEYS = ("stopped",)  # keys of branch.json written at the end (not part of what was asked)
 
 
+def extends(old: dict, new: dict) -> bool:
+    """``new`` asks for the run ``old`` (branch.json) with ``to`` further in the same direction
+    (the sign of the first step); its own step may differ (its default depends on ``to``)."""
+    same = all(old.get(k) == new.get(k) for k in set(old) | set(new) if k not in ("to", "step"))
+    return same and (float(new["to"]) - float(old["to"])) * float(old["step"]) > 0
+
+
 def _text(v) -> str:
     if v is None:
         return ""
@@ -96,6 +104,7 @@ class Store:
         self._fields: dict[int, np.ndarray] = {}
         self._modes: dict[int, np.ndarray] = {}
         self._recent: dict[int, np.ndarray] = {}  # fields read back (the tree rereads them)
+        self.meta = meta
         if self.out is None:
             return
         try:
@@ -104,15 +113,20 @@ class Store:
             raise InputError("--out", f"cannot use {str(out)!r} as the output directory "
                              f"({exc.strerror or exc})") from None
         meta_path = self.out / "branch.json"
+        old = None  # the stored run's arguments (none: a new run)
         if meta_path.exists():
             old = {k: v for k, v in state.read_json(meta_path, ADVICE).items()  # checked (io.state)
                    if k not in RESULT_KEYS}
-            if old != meta:
+            if old != meta and extends(old, meta):  # --to further on: the same branch goes on
+                meta = {**meta, "step": old["step"]}  # with its own first step (step control unchanged)
+            elif old != meta:
                 diff = sorted(k for k in set(old) | set(meta) if old.get(k) != meta.get(k))
                 raise InputError("--out", f"{self.out} holds a branch run with other {', '.join(diff)}; "
-                                 "give another directory (nothing there was changed)")
-        self._rows = self._repair()  # checked before branch.json is written for a new run
-        if not meta_path.exists():
+                                 "give another directory, or a --to further in the same direction "
+                                 "(nothing there was changed)")
+        self.meta = meta  # what this run does (an extension keeps the stored first step)
+        self._rows = self._repair()  # checked before branch.json is written (a new run, or an extension)
+        if not meta_path.exists() or old != meta:
             write_json(meta_path, meta)
         self._note()
 

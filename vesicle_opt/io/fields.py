@@ -13,6 +13,7 @@ numpy only; atomic writes through ``io.files.save_npz``.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +32,8 @@ KEYS: dict[str, tuple[str, str]] = {
     "nodes": ("always", "float (n_nodes, dim), the node coordinates, in phi's order"),
     "grid_shape": ("always", "int (dim,), the periodic or mirror grid's shape; empty (shape (0,)) on a mesh"),
     "box": ("always", "float (dim, 2), the box [lo, hi] per axis (one mirror cell on mirror grids)"),
+    "mirror_cells": ("always", "int, 2^dim on a mirror grid (phi is one mirror cell of the vesicle, "
+                     "centred at the corner lo), else 1"),
     "w": ("solve, mixed formulations", "float (n_nodes,), the auxiliary field w of the mixed form"),
     "t": ("flow, flow-snapshot", "float, the flow's time of phi"),
     "p": ("branch-point", "float, the branch parameter's value at the point (branch.csv's target)"),
@@ -48,7 +51,8 @@ def arrays(kind: str, phi: np.ndarray, disc, **extra) -> dict:
     grid = np.asarray(disc.grid_shape if disc.grid_shape is not None else (), int)
     out = {"format_version": np.int64(FORMAT_VERSION), "kind": np.str_(kind),
            "phi": np.asarray(phi, float), "nodes": np.asarray(disc.nodes, float),
-           "grid_shape": grid, "box": np.asarray(disc.box, float)}
+           "grid_shape": grid, "box": np.asarray(disc.box, float),
+           "mirror_cells": np.int64(2**disc.dim if getattr(disc, "kind", None) == "cosine" else 1)}
     out.update({k: np.asarray(v, float) for k, v in extra.items() if v is not None})
     return out
 
@@ -57,11 +61,12 @@ def write(path: Path, kind: str, phi: np.ndarray, disc, *, compressed: bool = Fa
     """Write ``arrays(kind, phi, disc, **extra)`` to ``path`` atomically (``io.files.save_npz``);
     ``compressed``: ``np.savez_compressed`` (the flow's files, as before)."""
     data = arrays(kind, phi, disc, **extra)
-    if compressed:
+    if compressed:  # a hidden temporary name: globs of phi_*.npz never see a half-written file
         path = Path(path)
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(tmp, **data)
-        tmp.replace(path)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **data)
+        os.replace(tmp, path)
     else:
         save_npz(path, **data)
 
@@ -86,4 +91,5 @@ def read(path: str | Path) -> dict:
                          f"up to {FORMAT_VERSION} (upgrade the package)")
     if version == 0:
         data.setdefault("kind", "branch-point" if "p" in data else "flow" if "t" in data else "solve")
+        data.setdefault("mirror_cells", 1)  # unknown then; the field's own cell
     return data

@@ -52,31 +52,44 @@ def write_field(out: Path, stem: str, disc, phi: np.ndarray) -> str:
     return f"{stem}.vtu"
 
 
-def _coords(disc, axis: int) -> np.ndarray:
-    lo, hi = disc.box[axis]
-    return np.linspace(lo, hi, disc.grid_shape[axis], endpoint=False)
+def _coords(box, shape, axis: int) -> np.ndarray:
+    lo, hi = box[axis]
+    return np.linspace(lo, hi, shape[axis], endpoint=False)
 
 
 AXES = "xyz"
 
 
+def _drawn_grid(disc, phi: np.ndarray) -> tuple[np.ndarray, tuple]:
+    """(field, box its nodes lo + j (hi - lo) / n span) of a grid as drawn: on a mirror grid the
+    whole vesicle, reflected into the doubled box at its cell-centred nodes (``vtk.unfold``), so
+    that the central cuts pass through the vesicle's centre (the box's corner lo)."""
+    F = _grid_field(disc, phi)
+    if not vtk.mirrored(disc):
+        return F, disc.box
+    h = [(hi - lo) / k for (lo, hi), k in zip(disc.box, disc.grid_shape)]
+    return vtk.unfold(F), tuple((2 * lo - hi + d / 2, hi + d / 2) for (lo, hi), d in zip(disc.box, h))
+
+
 def figure_spec(disc, phi: np.ndarray, title: str = "") -> dict:
     """What ``png.draw`` draws for phi, as plain arrays and strings (the mesh-dependent part, apart
-    from the drawing): 2D, the field (grids) or its triangles (meshes); 3D, the three central cuts."""
+    from the drawing): 2D, the field (grids) or its triangles (meshes); 3D, the three central cuts
+    (mirror grids: of the whole vesicle, ``_drawn_grid``)."""
     box = disc.box
     if disc.mesh_dim == 2:  # the meridian half-plane of an axisymmetric scene too (r, z)
         if disc.grid_shape is not None:
-            return {"kind": "image", "field": _grid_field(disc, phi), "lo": (box[0][0], box[1][0]),
+            F, box = _drawn_grid(disc, phi)
+            return {"kind": "image", "field": F, "lo": (box[0][0], box[1][0]),
                     "hi": (box[0][1], box[1][1]), "title": title}
         vals = disc.unfold @ phi if disc.unfold is not None else phi
         return {"kind": "triangles", "x": disc.mesh.p[0], "y": disc.mesh.p[1], "triangles": disc.mesh.t.T,
                 "values": np.asarray(vals, float), "title": title,
                 "axis_names": ("r", "z") if disc.axisymmetric else ("x", "y")}
     if disc.grid_shape is not None:
-        F = _grid_field(disc, phi)
-        mid = [k // 2 for k in disc.grid_shape]
+        F, box = _drawn_grid(disc, phi)
+        mid = [k // 2 for k in F.shape]
         cuts = [F[mid[0], :, :], F[:, mid[1], :], F[:, :, mid[2]]]
-        at = [_coords(disc, d)[mid[d]] for d in range(3)]
+        at = [_coords(box, F.shape, d)[mid[d]] for d in range(3)]
     else:
         cuts = [_sample_cut(disc, phi, axis) for axis in range(3)]
         at = [0.5 * (box[d][0] + box[d][1]) for d in range(3)]

@@ -3,7 +3,10 @@ meshio) and ParaView time series (``.pvd``).
 
 A periodic grid of n cells per side stores n nodes per side (x_i = lo + i h, i < n); node n is
 node 0 again. ``wrapped`` appends that last row/plane, so the written image covers the whole box
-[lo, hi] (a viewer otherwise shows a missing strip of one cell at the far edges). ImageData orders
+[lo, hi] (a viewer otherwise shows a missing strip of one cell at the far edges). A mirror grid
+(``mesh.cosine``: one mirror cell of a symmetric vesicle) is written as the whole vesicle: the
+field reflected into the doubled box at its cell-centred nodes (``mirrored``, ``unfold``), so
+ParaView needs no Reflect filter. ImageData orders
 points x fastest; the grid field F[i, j, k] (first index along x) is written in Fortran order.
 The ``.vti`` and ``.pvd`` files are VTK's XML formats: meshio writes unstructured meshes but no
 ImageData, so these two small writers are here. The ``.vtu`` of a grid (its cells as
@@ -39,17 +42,36 @@ def quoteattr(value: str) -> str:
     return '"' + escape(value, quote=True) + '"'
 
 
+def mirrored(disc) -> bool:
+    """A mirror grid (``mesh.cosine``: spectral with natural boundaries), whose box is one mirror
+    cell of the whole vesicle: its files show the field reflected into the doubled box."""
+    return getattr(disc, "kind", None) == "cosine"
+
+
+def unfold(F: np.ndarray) -> np.ndarray:
+    """A mirror grid's field reflected into the doubled box (as ``mesh.cosine.unfold``): per axis
+    its mirror image about the face lo put before it, shape 2 n."""
+    for axis in range(F.ndim):
+        F = np.concatenate([np.flip(F, axis=axis), F], axis=axis)
+    return F
+
+
 def wrapped(disc, phi: np.ndarray) -> np.ndarray:
-    """The grid field with its periodic copy appended along every axis (shape n_i + 1)."""
+    """The grid field with its periodic copy appended along every axis (shape n_i + 1); on a
+    mirror grid the whole vesicle's field (``unfold``, period 2 n) so completed (shape 2 n_i + 1)."""
     F = np.asarray(phi, float).reshape(disc.grid_shape)
+    if mirrored(disc):
+        F = unfold(F)
     return np.pad(F, [(0, 1)] * F.ndim, mode="wrap")
 
 
 def grid_geometry(disc) -> tuple[np.ndarray, np.ndarray]:
-    """(origin, spacing) of a periodic grid: the box's lower corner and h = (hi - lo) / n per axis."""
+    """(origin, spacing) of a periodic grid: the box's lower corner and h = (hi - lo) / n per axis;
+    of a mirror grid's ``wrapped`` field: its cell-centred nodes 2 lo - hi + h/2 + j h."""
     lo = np.array([b[0] for b in disc.box], float)
     hi = np.array([b[1] for b in disc.box], float)
-    return lo, (hi - lo) / np.array(disc.grid_shape, float)
+    h = (hi - lo) / np.array(disc.grid_shape, float)
+    return (2 * lo - hi + h / 2, h) if mirrored(disc) else (lo, h)
 
 
 def _atomic_text(path: Path, text: str) -> None:
@@ -122,7 +144,7 @@ def read_vti(path: Path) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]
 def grid_cells(disc) -> tuple[np.ndarray, np.ndarray]:
     """(points, cells) of a periodic grid completed by its wrap row/plane: (n+1)^d points (3D
     coordinates), n^d quads (2D) or hexahedra (3D) as rows of point indices in VTK's corner order."""
-    shape = tuple(k + 1 for k in disc.grid_shape)
+    shape = tuple((2 * k if mirrored(disc) else k) + 1 for k in disc.grid_shape)
     origin, spacing = grid_geometry(disc)
     axes = [origin[d] + spacing[d] * np.arange(k) for d, k in enumerate(shape)]
     points = np.stack(np.meshgrid(*axes, indexing="ij", copy=False), axis=-1).reshape(-1, disc.dim)  # written once

@@ -53,7 +53,7 @@ def _callback_class():
                 self.bar = progress.bar(self.label, unit="iterations")
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             viol = float(np.max(np.abs(g))) if g.size else 0.0
-            self.bar.set_postfix_str(f"f = {float(arg[ca.nlpsol_out().index('f')]):.10g}, |g|max = {viol:.1e}",
+            self.bar.set_postfix_str(f"f_scaled = {float(arg[ca.nlpsol_out().index('f')]):.10g}, |g|max = {viol:.1e}",  # E = f nlp.f_scale
                                      refresh=False)
             self.bar.update(0 if first else 1)
             return [0]

@@ -46,16 +46,20 @@ def override_items(overrides: Mapping[str, Any] | Sequence[str] | None) -> list[
     return items
 
 
-# the two ways of giving the constraint targets (``schema._physical_targets``): setting one way by an
-# override drops the other way's keys from the scene, with one INFO line
+# the two ways of giving the constraint targets (``schema._physical_targets``): setting one way
+# completely by overrides (a complete set below) drops the other way's keys from the scene, with one
+# INFO line; a partial one (alpha alone) is left to the schema's "not both" refusal
 _TARGET_WAYS = (("constraints.reduced_volume", "constraints.area"),
                 ("constraints.alpha", "constraints.beta", "constraints.target"))
+_COMPLETE = ({"constraints.reduced_volume", "constraints.area"}, {"constraints.alpha", "constraints.beta"},
+             {"constraints.target"})
 
 
 def replace_targets(raw: dict, keys: set[str]) -> None:
-    """Drop from ``raw`` the target keys of the other way than the one ``keys`` (overridden) use."""
+    """Drop from ``raw`` the target keys of the other way than the one ``keys`` (overridden) give
+    completely."""
     for way, other in (_TARGET_WAYS, _TARGET_WAYS[::-1]):
-        if keys & set(way):
+        if any(c <= keys and c <= set(way) for c in _COMPLETE):
             dropped = [k for k in other if k not in keys and k.split(".")[1] in raw.get("constraints", {})]
             for k in dropped:
                 del raw["constraints"][k.split(".")[1]]

@@ -278,15 +278,16 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
 
 
 def figure(rows: list[dict], info: dict, path: Path) -> None:
-    """The energy diagram near the crossing: reduced energy against v per eps (prolate solid, oblate
-    dashed; the certified closed vesicles of the branch's own form, ``good_points``), the sharp
-    branches (black) and each crossing (x), the sharp one (star)."""
+    """The energy diagram near the crossing: reduced energy against v per eps (prolate circles,
+    oblate squares, solid lines: the certified closed vesicles of the branch's own form,
+    ``good_points``; dashed means unstable in every figure of the package, and none is here), the
+    sharp branches (prolate black, oblate grey) and each crossing (x), the sharp one (star)."""
     pyplot = plt()
     fig, ax = pyplot.subplots(figsize=(6.4, 4.6))
     eps_all = sorted({num(r["epsilon"]) for r in rows}, reverse=True)
     colours = pyplot.cm.viridis(np.linspace(0.0, 0.85, max(1, len(eps_all))))
     for colour, eps in zip(colours, eps_all):
-        for shape, style in (("prolate", "o-"), ("oblate", "s--")):
+        for shape, style in (("prolate", "o-"), ("oblate", "s-")):
             good = sorted(good_points([r for r in rows if num(r["epsilon"]) == eps and r.get("branch_form") == shape],
                                       shape), key=lambda r: num(r["reduced_volume"]))
             if good:
@@ -295,10 +296,10 @@ def figure(rows: list[dict], info: dict, path: Path) -> None:
         x = info.get("crossing_eps", {}).get(f"{eps:g}")
         if x:
             ax.plot(x["reduced_volume"], x["reduced_energy"], "x", color=colour, ms=8)
-    for shape, style in (("prolate", "-"), ("oblate", "--")):
+    for shape, colour in (("prolate", "k"), ("oblate", "0.55")):
         pts = sorted((float(v), d["reduced_energy"]) for v, d in info.get("sharp_branches", {}).get(shape, {}).items())
         if pts:
-            ax.plot(*zip(*pts), style, color="k", lw=1.5, label=f"{shape}, sharp")
+            ax.plot(*zip(*pts), "-", color=colour, lw=1.5, label=f"{shape}, sharp")
     xs = info.get("crossing_sharp")
     if xs:
         ax.plot(xs["reduced_volume"], xs["reduced_energy"], "*", color="k", ms=11, label="sharp crossing")

@@ -252,7 +252,7 @@ def main(out: Path, quick: bool = False, executor=None, workers: int = 1) -> int
     for dim in (2, 3):
         mine = [s for s, c in zip(series, case_list) if c["dim"] == dim]
         if mine:
-            diagram.plot(mine, out / f"{NAME}-{dim}d.png", xlabel="reduced volume",
+            diagram.plot(mine, out / f"{NAME}-{dim}d.png", xlabel="reduced volume", dim=dim,
                          title=f"{dim}D energy diagram (solid: stable, dashed: unstable)")
     for name, v in info.items():
         log.info(f"{NAME}: {name}: {human(v)}")

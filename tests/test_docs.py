@@ -1,0 +1,41 @@
+"""The documentation site's sources (the build itself runs in .ci/run with -W): every example is a
+gallery page (an RST title in its docstring) and pinned by tests/test_examples.py, the quick ones
+are executed by the gallery, and the user guide's toctree takes every docs/guide page."""
+
+import ast
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
+
+
+def _conf() -> dict:
+    tree = ast.parse((ROOT / "docs" / "conf.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "sphinx_gallery_conf":
+            return ast.literal_eval(node.value)
+    raise AssertionError("no sphinx_gallery_conf in docs/conf.py")
+
+
+def test_every_example_is_a_titled_gallery_page_pinned_by_a_test():
+    tests = (ROOT / "tests" / "test_examples.py").read_text()
+    assert EXAMPLES
+    for path in EXAMPLES:
+        doc = ast.get_docstring(ast.parse(path.read_text()), clean=False).strip().splitlines()
+        assert len(doc) >= 2 and set(doc[1]) == {"="} and len(doc[1]) == len(doc[0]), path.name  # RST title
+        assert f'_load("{path.stem}")' in tests, f"{path.name} is not pinned by tests/test_examples.py"
+
+
+def test_the_gallery_executes_the_quick_examples_only():
+    pattern = re.compile(_conf()["filename_pattern"])
+    executed = {p.stem for p in EXAMPLES if pattern.search("/" + p.name)}
+    assert executed == {p.stem for p in EXAMPLES} - {"torus_surface"}  # the 3D torus: tens of seconds
+
+
+def test_the_user_guide_globs_its_pages():
+    index = (ROOT / "docs" / "index.md").read_text()
+    assert ":glob:" in index and "guide/*" in index
+    for page in (ROOT / "docs" / "guide").glob("*.md"):
+        first = page.read_text().lstrip().splitlines()[0]
+        assert first.startswith("# "), page.name  # one top-level heading: its title in the toctree
