@@ -66,7 +66,11 @@ log = logging.getLogger(__name__)  # one INFO line per phase of a solve (the CLI
 
 
 def _log_start(scene, chosen: str, backend: str | None, n_nodes: int) -> None:
-    """The INFO line of a solve's start: scene, method, backend and why (``backends.reason``)."""
+    """The INFO line of a solve's start: scene, method, backend and why (``backends.reason``), after
+    every refusal; before it, a warning where eps / h is below the recommended resolution
+    (``scene.ranges.resolution_warning``)."""
+    if (coarse := resolution_warning(scene)) is not None:
+        log.warning("%s", coarse)
     log.info("%s: method %s on %s (%s), %d nodes", scene.name, scene.solver.method, chosen,
              reason(scene, chosen, backend), n_nodes)
 
@@ -178,8 +182,6 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     else:
         raise InputError("problem", f"solve takes a Scene (vesicle_opt.load_scene) or an NLP of build_nlp, "
                          f"got {type(problem).__name__}")
-    if (coarse := resolution_warning(scene)) is not None:  # eps / h below the recommended 2: before the solve
-        log.warning("%s", coarse)
     check_second_order = scene.solver.method in EXACT_METHODS and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)

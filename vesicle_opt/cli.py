@@ -150,9 +150,9 @@ def cmd_flow(args) -> int:
         overrides.append('flow.stepping="adaptive"')
     sc = load_scene(args.scene, overrides)
     check_flow_supported(sc)  # the flows' own refusals, before the directory is touched
-    if (coarse := resolution_warning(sc)) is not None:  # eps / h below the recommended 2, before the flow
-        logging.getLogger("vesicle_opt.cli").warning("%s", coarse)
     with _preflight(sc, args.out, "flow") as out:
+        if (coarse := resolution_warning(sc)) is not None:  # eps / h below the recommended 2: after the
+            logging.getLogger("vesicle_opt.cli").warning("%s", coarse)  # refusals, before the flow
         run = write_flow(sc, out, restart=args.restart, progress=not getattr(args, "quiet", False))
     s = run.summary
     print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "

@@ -24,7 +24,10 @@ def _scene(boundary: str, EPS=FULL[0], N=FULL[1], L=FULL[2]):
     raw = {"domain": {"box": box, "boundary": boundary}, "mesh": {"kind": "spectral", "n": n},
            "model": {"epsilon": EPS}, "constraints": {"reduced_volume": 0.8, "area": 4 * math.pi},
            "initial": {"shape": "ellipsoid", "semi_axes": [1.5, 0.75, 0.75], "center": [0.0, 0.0, 0.0]},
-           "solver": {"method": "exact", "tol": 1e-9, "backend": "newton-krylov"}}
+           # shape_check off: at eps = 0.3 the bulk carries 54 % of V and the surface is a sphere (0.997;
+           # verify.shape: wrong_shape), at 0.25 33 % (bulk_offset); the identity below holds for any
+           # KKT point, and the shape check's own measures are compared across the two grids
+           "solver": {"method": "exact", "tol": 1e-9, "backend": "newton-krylov", "shape_check": False}}
     return from_dict(raw, boundary)
 
 
@@ -46,6 +49,10 @@ def test_octant_solve_equals_the_doubled_periodic_solve(grid):
     assert octant.extra["second_order"] == "minimum" and full.extra["second_order"] == "minimum"
     assert octant.extra["topology"] == full.extra["topology"] == "sphere-like (genus 0)"
     assert octant.extra["mesh_kind"] == "cosine"
+    # the shape check reads the octant unfolded into the doubled box: the same verdict, and the same
+    # gap and surface up to the marching cubes' cell-centred nodes against the box's (same nodes here)
+    assert octant.extra["shape"] == full.extra["shape"] != "ok"
+    assert octant.extra["shape_volume_gap"] == pytest.approx(full.extra["shape_volume_gap"], abs=1e-6)
 
 
 def test_mirror_scene_targets_are_the_full_shape_and_round_trip():
