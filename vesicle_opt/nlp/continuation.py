@@ -93,7 +93,8 @@ def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: Ipo
     info = {"failed_stages": failed, **extrapolation([stage_record(r) for r in stages])}
     if polish and "lambda_volume_extrapolated" in info and stages[-1].converged:
         info.update(polish_stage(nlp, solver, stages[-1], info, options.tol))
-    return combine_stages(stages[-1], stages, "continuation", time.perf_counter() - t0, info)
+    its = sum(r.iterations for r in stages) + info.get("polish_iterations", 0)  # the run's, as on NK
+    return combine_stages(stages[-1], stages, "continuation", time.perf_counter() - t0, info, iterations=its)
 
 
 def polish_stage(nlp: PenaltyNLP, solver, last: Result, ext: dict, tol: float) -> dict:
