@@ -128,3 +128,35 @@ def test_penalty_floor_against_the_nlps_own_round_off_and_injected_penalties(rng
     assert all(r.success for r in stages)
     assert all(1 / 100 <= q <= 1 for q in ratios), ratios  # measured 0.016 ... 0.30 (48^2, 64^2)
     assert stages[-1].extra["kkt_dual"] > 10 * stages[0].extra["kkt_dual"]  # noise ~ M (measured 136x)
+
+
+def test_richardson_is_exact_on_its_polynomials_and_next_stage_stops_at_the_floor():
+    from vesicle_opt.model.penalty import next_stage, penalty_retry, richardson
+    Ms = [1e2, 1e3, 2.7e3]
+    for order in (1, 2):  # v(M) = 3 + a/M + ... of degree `order` in 1/M: extrapolated exactly (round-off)
+        vals = [3.0 + 0.7 / M + (0.0 if order == 1 else -5.0 / M**2) for M in Ms]
+        assert richardson(Ms, vals, order) == pytest.approx(3.0, rel=1e-13)
+    # the floor is linear in M: at 1e3 a floor of 1e-9 allows 5e3 (tol/2 = 5e-9), so 1e4 is replaced by it
+    assert next_stage([10.0, 1e2, 1e3, 1e4], 2, 1e-9, 1e-8) == pytest.approx(5e3)
+    assert next_stage([10.0, 1e2, 1e3, 1e4], 1, 1e-10, 1e-8) == 1e3  # next one below the cap: as scheduled
+    assert next_stage([10.0, 1e2, 1e3, 1e4], 2, 4e-9, 1e-8) is None  # cap 1.25e3 < 1.5 M: stop here
+    assert penalty_retry(1e4, 2e-8, 1e-8) == pytest.approx(2.5e3) and penalty_retry(1e3, 2e-9, 1e-8) is None
+
+
+def test_dual_secant_reaches_the_root_of_a_linear_dual_in_few_steps():
+    """c(mu) = J (mu - mu*) with a non-diagonal J (the AL's dual, linearised): the first step is the
+    first-order mu - M c; Broyden then converges superlinearly, far faster than the first-order
+    iteration (whose rate here is |1 - M J| ~ 0.5)."""
+    from vesicle_opt.model.penalty import DualSecant
+    J = np.array([[2e-3, 5e-4], [3e-4, 1e-3]])
+    star = np.array([0.4, -0.9])
+    M = 500.0
+    sec, mu, first, mu1 = DualSecant(), np.zeros(2), None, np.zeros(2)
+    for k in range(8):
+        mu = sec.step(mu, J @ (mu - star), M)
+        mu1 = mu1 - M * (J @ (mu1 - star))
+        if k == 0:
+            first = mu.copy()
+    np.testing.assert_allclose(first, -M * (J @ (-star)))  # the first step is the classical update
+    assert np.linalg.norm(mu - star) <= 1e-12  # Broyden on 2 x 2 linear: exact after ~2n steps
+    assert np.linalg.norm(mu1 - star) > 1e-3  # first-order after 8 steps: still far

@@ -4,12 +4,20 @@ Both drive the lifted penalty NLP of ``nlp.lifted`` (E_{M,h} of (11), M a CasADi
 the IPOPT solver is built once and every stage is warm-started from the previous one: primal x,
 lam_g, lam_x, and IPOPT's ``warm_start_init_point`` (options in ``WARM_OPTIONS``).
 
-* ``continuation`` (Theorem 3.2, 3.4): penalty stages at M0, M0 r, ..., M_max; the penalty's
-  bias is O(1/M): A - alpha ~ -lambda_A / M.
-* ``augmented_lagrangian``: the natural fix of that bias. Stage k minimises E_{M,h} - mu_k (A - alpha, B - beta)
-  and updates mu_{k+1} = mu_k - M (A - alpha, B - beta) (first-order multiplier update, in the
-  exact solve's convention); M grows by r only when a residual fails to drop by 4. Stops when the
-  exact solve's feasibility test holds, so its ``converged`` means what the exact solve's does.
+* ``continuation`` (Theorem 3.2, 3.4): penalty stages at M0, M0 r, ... while the next stage's
+  round-off floor (linear in M) stays below tol, then one at the certifiable M where M_max lies
+  beyond it (``model.penalty.next_stage``), so the last stage is certified; the penalty's bias is
+  O(1/M): A - alpha ~ -lambda_A / M, and the Richardson extrapolation in 1/M of energy and
+  multipliers (``model.penalty.extrapolation``) is reported beside the last stage, which then gets
+  the augmented polish (``polish_stage``: one stage with the extrapolated multipliers as shifts).
+* ``augmented_lagrangian``: the natural fix of that bias. A warm ramp at mu = 0 through the
+  schedule below M (``model.penalty.ramp_schedule``), then stages minimising
+  E_{M,h} - mu_k (A - alpha, B - beta) with mu moved by Broyden's secant method on c(mu) = 0 from the
+  first-order update mu - M (A - alpha, B - beta) (``model.penalty.DualSecant``); M is kept where its
+  floor stays below tol (``model.penalty.raise_M``). Stops when the exact solve's feasibility test
+  holds, so its ``converged`` means what the exact solve's does.
+* ``penalty`` (``solve_penalised``): one stage at solver.M, again at the certifiable M where the
+  floor at solver.M reached tol (``model.penalty.penalty_retry``; ``M_requested`` reported).
 
 Every stage is recorded in ``result.history['stages']`` (M, energies, residuals, multiplier
 estimates, iterations, wall time, status); ``stage_callback(k, result)`` sees each one as it ends.
@@ -93,7 +101,8 @@ def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: Ipo
     info = {"failed_stages": failed, **extrapolation([stage_record(r) for r in stages])}
     if polish and "lambda_volume_extrapolated" in info and stages[-1].converged:
         info.update(polish_stage(nlp, solver, stages[-1], info, options.tol))
-    return combine_stages(stages[-1], stages, "continuation", time.perf_counter() - t0, info)
+    its = sum(r.iterations for r in stages) + info.get("polish_iterations", 0)  # the run's, as on NK
+    return combine_stages(stages[-1], stages, "continuation", time.perf_counter() - t0, info, iterations=its)
 
 
 def polish_stage(nlp: PenaltyNLP, solver, last: Result, ext: dict, tol: float) -> dict:
