@@ -47,6 +47,26 @@ def test_summary_crossing_of_two_known_branches():
     assert s["sharp_crossing_at_these_points"]["v"] == pytest.approx(0.6, abs=1e-12)
 
 
+def test_shape_of_tells_prolate_oblate_and_cup():
+    """The form of three fields: tanh ellipsoids (semi-axes 0.7, 0.7, 1.4 and 1.2, 1.2, 0.5) and the tanh
+    profile of a cup (psi - s = 5 sin s ((1 - cos s)/2)^3 of ``sharp.spontaneous``'s parametrisation:
+    one pole turned inwards to the other's side)."""
+    from vesicle_opt.scene.shape_spec import Shape
+    from vesicle_opt.scene.shapes import phase_field
+    from vesicle_opt.sharp import spontaneous as S
+    d = ax.p1(((0.0, 2.0), (-2.0, 2.0)), (80, 160))
+    for semi, form in (((0.7, 0.7, 1.4), "prolate"), ((1.2, 1.2, 0.5), "oblate")):
+        phi = phase_field(Shape("ellipsoid", semi_axes=semi), *d.scene_points(), 0.05)
+        assert P.shape_of(d, phi) == form
+    g = S.Geometry(24)
+    y = 5.0 * np.sin(g.s) * ((1 - np.cos(g.s)) / 2) ** 3
+    a = np.array([2 / g.m * np.sum(y * np.sin(j * g.s)) for j in range(1, 25)])
+    r, z, _, _ = g.shape(a)
+    half = g.m // 2 + 1
+    r, z = np.maximum(r[:half].real, 0.0), z[:half].real
+    assert P.shape_of(d, phase_field_of(r, z - (z.max() + z.min()) / 2, d.nodes, 0.03)) == "cup"
+
+
 @pytest.mark.slow  # 20-45 s: four meridian solves and the sharp branches
 def test_quick_run(tmp_path):
     assert P.main(tmp_path, quick=True) == 0
@@ -54,6 +74,7 @@ def test_quick_run(tmp_path):
         rows = list(csv.DictReader(fh))
     assert len(rows) == 4 and all(r["converged"] == "True" for r in rows)
     assert {r["seed"] for r in rows} == {"sharp shape", "previous point"}
+    assert [r["shape"] for r in rows] == ["prolate", "prolate", "oblate", "oblate"]  # stayed on their forms
     assert all(abs(float(r["reduced_volume"]) - float(r["target_v"])) < 1e-7 for r in rows)  # exact constraints
     assert all(float(r["c0_reduced"]) == 0.0 for r in rows)
     # the O(eps) gap to the sharp f at eps = 0.1, h = eps/2: measured +0.18, +0.24 (prolate), -0.03, +0.02 (oblate)

@@ -36,7 +36,7 @@ import numpy as np
 
 from vesicle_opt.api import solve
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
-from vesicle_opt.io.meridian import phase_field_of
+from vesicle_opt.io.meridian import meridian_curves, phase_field_of
 from vesicle_opt.mesh import discretize
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp
@@ -50,7 +50,8 @@ BRANCHES = ("prolate", "oblate")
 WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
 FULL = {"epsilons": (0.1, 0.070711, 0.05), "eps_over_h": 3.0, "vs": (0.75, 0.7, 0.65, 0.6, 0.55), "n_modes": 16}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "vs": (0.7, 0.65), "n_modes": 8}
-COLUMNS = ["branch", "c0", "target_v", "epsilon", "n", "h", "f", "c0_reduced", "reduced_volume", "sharp_f",
+CUP = 0.1  # a pole dimple deeper than the other by this fraction of the height: a cup (stomatocyte)
+COLUMNS = ["branch", "shape", "c0", "target_v", "epsilon", "n", "h", "f", "c0_reduced", "reduced_volume", "sharp_f",
            "f_minus_sharp", "converged", "second_order", "second_order_min_eigenvalue", "topology",
            "kkt_residual", "iterations", "wall_time_s", "seed", "status"]
 
@@ -59,6 +60,23 @@ def cases(quick: bool) -> list[dict]:
     cfg = QUICK if quick else FULL
     return [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "eps_over_h": cfg["eps_over_h"],
              "vs": list(cfg["vs"]), "n_modes": cfg["n_modes"]} for b in BRANCHES for eps in cfg["epsilons"]]
+
+
+def shape_of(disc, phi) -> str:
+    """The state's form from its meridian curve (``io.meridian``): "cup" when one pole's dimple (its
+    depth below the curve's extreme z on its side) exceeds the other's by ``CUP`` of the height
+    (a stomatocyte; an oblate's dimples are equal), else "prolate" (height > width) or "oblate";
+    "other" unless the curve is one, from pole to pole."""
+    curves = meridian_curves(disc, phi)
+    if len(curves) != 1 or curves[0][0][0] > 0 or curves[0][-1][0] > 0:
+        return "other"
+    r, z = curves[0][:, 0], curves[0][:, 1]
+    height = float(z.max() - z.min())
+    poles = sorted((z[0], z[-1]))
+    dimples = (poles[0] - float(z.min()), float(z.max()) - poles[1])
+    if abs(dimples[0] - dimples[1]) > CUP * height:
+        return "cup"
+    return "prolate" if height > 2 * float(r.max()) else "oblate"
 
 
 def _box(meridians, eps: float) -> list[list[float]]:
@@ -89,7 +107,7 @@ def run(case: dict) -> list[dict]:
             res = solve(sc, x0=start)
         ex = res.extra
         f = ex.get("f", math.nan)
-        rows.append({"branch": which, "c0": 0.0, "target_v": v, "epsilon": eps, "n": "x".join(map(str, n)),
+        rows.append({"branch": which, "shape": shape_of(res.disc, res.phi) if res.converged else None, "c0": 0.0, "target_v": v, "epsilon": eps, "n": "x".join(map(str, n)),
                      "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
                      "c0_reduced": ex.get("c0_reduced"), "reduced_volume": ex.get("reduced_volume"),
                      "sharp_f": ref.reduced_energy, "f_minus_sharp": f - ref.reduced_energy,
@@ -111,8 +129,9 @@ def _num(v) -> float:
 
 
 def summarise(rows: list[dict]) -> dict:
-    """Per eps the prolate/oblate crossing in (v, f) of certified points, and its eps -> 0 limit."""
-    ok = [r for r in rows if str(r.get("converged")) == "True"]
+    """Per eps the prolate/oblate crossing in (v, f) of certified points of their branch's form (a
+    walk that left its form, e.g. an oblate turned cup, is not used), and its eps -> 0 limit."""
+    ok = [r for r in rows if str(r.get("converged")) == "True" and r.get("shape", r["branch"]) == r["branch"]]
     per_eps = {}
     for eps in sorted({_num(r["epsilon"]) for r in ok}, reverse=True):
         sel = {b: sorted([r for r in ok if _num(r["epsilon"]) == eps and r["branch"] == b],
