@@ -130,3 +130,25 @@ def write_meridian(path: Path, curves) -> None:
     for i, curve in enumerate(curves):
         rows.extend(f"{i},{r:.17g},{z:.17g}" for r, z in curve)
     Path(path).write_text("\n".join(rows) + "\n")
+
+
+def phase_field_of(r, z, nodes: np.ndarray, epsilon: float) -> np.ndarray:
+    """phi = tanh(d / (sqrt(2) eps)) on meridian ``nodes`` (r, z) of the closed curve through (r, z)
+    (a meridian from the axis to the axis, e.g. a sharp reference's), d the distance to the polyline
+    (to its vertices: pass a fine one), positive inside: the start the study ``phase_diagram`` seeds
+    its branches with (the inside test is the even-odd rule for rays in +r, which never meet the closing segment on
+    the axis)."""
+    from scipy.spatial import cKDTree  # third-party, lazy: only seeds need it
+
+    pr, pz = np.asarray(r, float), np.asarray(z, float)  # the closing segment on the axis is never right of a node
+    x, y = nodes[:, 0], nodes[:, 1]
+    inside = np.zeros(len(nodes), bool)
+    for k in range(len(pr) - 1):  # even-odd rule: a ray in +r from each node crosses the edge k?
+        r0, z0, r1, z1 = pr[k], pz[k], pr[k + 1], pz[k + 1]
+        if z0 == z1:
+            continue
+        between = (y >= min(z0, z1)) & (y < max(z0, z1))
+        r_cross = r0 + (y - z0) * (r1 - r0) / (z1 - z0)
+        inside ^= between & (x < r_cross)
+    dist, _ = cKDTree(np.column_stack([r, z])).query(nodes)
+    return np.tanh(np.where(inside, dist, -dist) / (np.sqrt(2.0) * epsilon))

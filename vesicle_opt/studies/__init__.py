@@ -34,6 +34,7 @@ DESCRIPTIONS = {
     "energy_diagram": "branches of equilibria in reduced volume: 2D elastica, 3D prolate/oblate, their crossing",
     "flow_vs_nlp": "flows (17), (18), (23) against the NLP: time to reach the equilibrium",
     "h_refinement": "Theorem 3.3 / Corollary 3.2: convergence of the minimisers as h -> 0",
+    "phase_diagram": "spontaneous-curvature diagram on the meridian: c0 = 0 prolate/oblate per eps, crossing, eps -> 0",
     "penalty_continuation": "Theorem 3.2: penalty minimisers approach the constrained one as M -> inf",
     "penalty_vs_exact": "work-precision: exact, penalty, continuation, augmented, SCP baseline",
     "sharp_limit": "the eps -> 0 limit: 2D reduced energies at eps, eps/2, eps/4 against the sharp elastica",

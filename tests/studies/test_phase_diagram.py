@@ -1,0 +1,84 @@
+"""The study ``phase_diagram`` (meridian half-plane, c0 = 0): its summary's crossing on rows of known
+branches (fast), and the quick run end to end (slow: ~20 s)."""
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from vesicle_opt.io.meridian import phase_field_of
+from vesicle_opt.mesh import axisymmetric as ax
+from vesicle_opt.studies import phase_diagram as P
+
+
+def test_seed_is_the_tanh_profile_of_the_curve():
+    """phase_field_of a half circle (the unit sphere's meridian, 2001 vertices) against the closed form
+    tanh((1 - rho) / (sqrt2 eps)): the distance to the vertices errs by <= half their spacing (8e-4),
+    times the profile's slope 1/(sqrt2 eps) = 7.1: measured 3.7e-3."""
+    d = ax.p1(((0.0, 2.0), (-2.0, 2.0)), (40, 80))
+    t = np.linspace(0, np.pi, 2001)
+    phi = phase_field_of(np.sin(t), np.cos(t), d.nodes, 0.1)
+    exact = np.tanh((1 - np.hypot(*d.nodes.T)) / (math.sqrt(2) * 0.1))
+    assert np.abs(phi - exact).max() < 6e-3
+
+
+def test_summary_crossing_of_two_known_branches():
+    """Straight branches f = 1 + (0.7 - v) and f = 1.05 + 0.5 (0.7 - v) + eps^2 cross at
+    v = 0.6 - 2 eps^2, f = 1.1 + 2 eps^2: the summary finds each crossing (spline root, exact on lines)
+    and extrapolates them to (0.6, 1.1) (p = 2 Richardson, exact on eps^2); the sharp crossing through
+    the same points (eps-free lines) is (0.6, 1.1)."""
+    rows = []
+    for eps in (0.1, 0.07, 0.05):
+        for v in (0.75, 0.7, 0.65, 0.6, 0.55):
+            lines = (("prolate", 1 + (0.7 - v), 1 + (0.7 - v)),
+                     ("oblate", 1.05 + 0.5 * (0.7 - v) + eps**2, 1.05 + 0.5 * (0.7 - v)))
+            for b, f, f_sharp in lines:
+                rows.append({"branch": b, "epsilon": eps, "target_v": v, "reduced_volume": v, "f": f,
+                             "sharp_f": f_sharp, "converged": "True"})
+    s = P.summarise(rows)
+    for e, x in s["crossings"].items():
+        eps = float(e)
+        assert x["v"] == pytest.approx(0.6 - 2 * eps**2, abs=1e-12)  # round-off of brentq's xtol
+        assert x["f"] == pytest.approx(1.1 + 2 * eps**2, abs=1e-12)
+    assert s["extrapolated"]["reduced_volume_p2"] == pytest.approx(0.6, abs=1e-9)  # round-off amplified by 1/(1-r^2)
+    assert s["extrapolated"]["reduced_energy_p2"] == pytest.approx(1.1, abs=1e-9)
+    assert s["sharp_crossing_at_these_points"]["v"] == pytest.approx(0.6, abs=1e-12)
+
+
+def test_shape_of_tells_prolate_oblate_and_cup():
+    """The form of three fields: tanh ellipsoids (semi-axes 0.7, 0.7, 1.4 and 1.2, 1.2, 0.5) and the tanh
+    profile of a cup (psi - s = 5 sin s ((1 - cos s)/2)^3 of ``sharp.spontaneous``'s parametrisation:
+    one pole turned inwards to the other's side)."""
+    from vesicle_opt.scene.shape_spec import Shape
+    from vesicle_opt.scene.shapes import phase_field
+    from vesicle_opt.sharp import spontaneous as S
+    d = ax.p1(((0.0, 2.0), (-2.0, 2.0)), (80, 160))
+    for semi, form in (((0.7, 0.7, 1.4), "prolate"), ((1.2, 1.2, 0.5), "oblate")):
+        phi = phase_field(Shape("ellipsoid", semi_axes=semi), *d.scene_points(), 0.05)
+        assert P.shape_of(d, phi) == form
+    g = S.Geometry(24)
+    y = 5.0 * np.sin(g.s) * ((1 - np.cos(g.s)) / 2) ** 3
+    a = np.array([2 / g.m * np.sum(y * np.sin(j * g.s)) for j in range(1, 25)])
+    r, z, _, _ = g.shape(a)
+    half = g.m // 2 + 1
+    r, z = np.maximum(r[:half].real, 0.0), z[:half].real
+    assert P.shape_of(d, phase_field_of(r, z - (z.max() + z.min()) / 2, d.nodes, 0.03)) == "cup"
+
+
+@pytest.mark.slow  # 20-45 s: four meridian solves and the sharp branches
+def test_quick_run(tmp_path):
+    assert P.main(tmp_path, quick=True) == 0
+    with open(tmp_path / "phase_diagram.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 4 and all(r["converged"] == "True" for r in rows)
+    assert {r["seed"] for r in rows} == {"sharp shape", "previous point"}
+    assert [r["shape"] for r in rows] == ["prolate", "prolate", "oblate", "oblate"]  # stayed on their forms
+    assert all(abs(float(r["reduced_volume"]) - float(r["target_v"])) < 1e-7 for r in rows)  # exact constraints
+    assert all(float(r["c0_reduced"]) == 0.0 for r in rows)
+    # the O(eps) gap to the sharp f at eps = 0.1, h = eps/2: measured +0.18, +0.24 (prolate), -0.03, +0.02 (oblate)
+    assert all(abs(float(r["f_minus_sharp"])) < 0.3 for r in rows)
+    summary = json.loads((tmp_path / "phase_diagram_summary.json").read_text())
+    assert summary["sharp_crossing_at_these_points"]["v"] == pytest.approx(0.651, abs=0.01)  # 2 points' spline
+    assert (tmp_path / "phase_diagram.png").is_file()

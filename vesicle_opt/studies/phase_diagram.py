@@ -1,0 +1,188 @@
+"""The spontaneous-curvature phase diagram at c0 = 0 on the meridian half-plane (``mesh.axisymmetric``):
+the prolate and oblate branches at several eps, their crossing per eps and its eps -> 0 limit,
+against the sharp references (``sharp.axisymmetric``), in the literature's units (f, v; Seifert, Berndl
+& Lipowsky, Phys. Rev. A 44, 1182 (1991)).
+
+Cases: one per (branch, eps), so the branches and the eps values run in parallel through the study
+runner (``studies.runner.run_cases``: local processes, or any executor, e.g. a dask cluster's), and
+the CSV is resumable. A case walks its branch down the reduced volumes ``vs`` on one meridian box,
+each point warm-started from the previous one; the first point is SEEDED with the tanh profile of the
+sharp shape at that v (``io.meridian.phase_field_of``; the column ``seed`` says so): the tanh
+ellipsoid start reached another state at eps = 0.02 (f 1.502 against 1.284 from the sharp seed,
+measured). The box is the sharp shapes' extent plus ``WALL`` eps on every side (natural walls
+attract a vesicle: ``mesh.axisymmetric``'s documentation). R0 = 1 (area 4 pi), exact constraints,
+IPOPT, second-order checked (axisymmetric perturbations only).
+
+Outputs: ``phase_diagram.csv`` (a row per point: f, c0_reduced, the sharp f, the verdicts),
+``phase_diagram_summary.json`` (per eps the prolate/oblate crossing, ``branch.crossing``; its eps -> 0
+extrapolation, ``branch.crossing.extrapolate_crossing``; the sharp crossing), ``phase_diagram.png``
+(f against v per eps, the sharp branches, the crossings). Full: eps = 0.1, 0.0707, 0.05 at
+eps/h = 3, v = 0.75 ... 0.55, sharp references with 16 modes and ``sharp.axisymmetric.crossing``.
+Quick: eps = 0.1 at eps/h = 2, v = 0.7, 0.65, sharp references with 8 modes: the plumbing (at
+eps = 0.1 the prolate lies above the oblate at both v: no crossing yet), in ~20 s. Not here yet: the
+stomatocyte branch and c0 = 2.4 (pears; see ``sharp.spontaneous``, whose pear seeds a phase-field
+pear whose neck the phase field pinches at eps >= 0.05: docs/guide/axisymmetric.md).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from vesicle_opt.api import solve
+from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
+from vesicle_opt.io.meridian import meridian_curves, phase_field_of
+from vesicle_opt.mesh import discretize
+from vesicle_opt.scene import from_dict
+from vesicle_opt.sharp import axisymmetric as sharp
+from vesicle_opt.studies._common import plt, savefig
+from vesicle_opt.studies.runner import run_cases
+
+log = logging.getLogger(__name__)
+
+NAME = "phase_diagram"
+BRANCHES = ("prolate", "oblate")
+WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
+FULL = {"epsilons": (0.1, 0.070711, 0.05), "eps_over_h": 3.0, "vs": (0.75, 0.7, 0.65, 0.6, 0.55), "n_modes": 16}
+QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "vs": (0.7, 0.65), "n_modes": 8}
+CUP = 0.1  # a pole dimple deeper than the other by this fraction of the height: a cup (stomatocyte)
+COLUMNS = ["branch", "shape", "c0", "target_v", "epsilon", "n", "h", "f", "c0_reduced", "reduced_volume", "sharp_f",
+           "f_minus_sharp", "converged", "second_order", "second_order_min_eigenvalue", "topology",
+           "kkt_residual", "iterations", "wall_time_s", "seed", "status"]
+
+
+def cases(quick: bool) -> list[dict]:
+    cfg = QUICK if quick else FULL
+    return [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "eps_over_h": cfg["eps_over_h"],
+             "vs": list(cfg["vs"]), "n_modes": cfg["n_modes"]} for b in BRANCHES for eps in cfg["epsilons"]]
+
+
+def shape_of(disc, phi) -> str:
+    """The state's form from its meridian curve (``io.meridian``): "cup" when one pole's dimple (its
+    depth below the curve's extreme z on its side) exceeds the other's by ``CUP`` of the height
+    (a stomatocyte; an oblate's dimples are equal), else "prolate" (height > width) or "oblate";
+    "other" unless the curve is one, from pole to pole."""
+    curves = meridian_curves(disc, phi)
+    if len(curves) != 1 or curves[0][0][0] > 0 or curves[0][-1][0] > 0:
+        return "other"
+    r, z = curves[0][:, 0], curves[0][:, 1]
+    height = float(z.max() - z.min())
+    poles = sorted((z[0], z[-1]))
+    dimples = (poles[0] - float(z.min()), float(z.max()) - poles[1])
+    if abs(dimples[0] - dimples[1]) > CUP * height:
+        return "cup"
+    return "prolate" if height > 2 * float(r.max()) else "oblate"
+
+
+def _box(meridians, eps: float) -> list[list[float]]:
+    r_max = max(float(r.max()) for r, _ in meridians)
+    z_lo = min(float(z.min()) for _, z in meridians)
+    z_hi = max(float(z.max()) for _, z in meridians)
+    pad = WALL * eps
+    return [[0.0, r_max + pad], [z_lo - pad, z_hi + pad]]
+
+
+def run(case: dict) -> list[dict]:
+    eps, which = case["epsilon"], case["branch"]
+    refs = sharp.branch(case["vs"], which, case["n_modes"], second_order=False)
+    meridians = [ref.meridian(2048) for ref in refs]
+    box = _box(meridians, eps)
+    h = eps / case["eps_over_h"]
+    n = [max(4, math.ceil((hi - lo) / h)) for lo, hi in box]
+    rows, start, seed = [], None, "sharp shape"
+    for v, ref, (r, z) in zip(case["vs"], refs, meridians):
+        raw = {"domain": {"box": box, "boundary": "natural"}, "mesh": {"kind": "axisymmetric", "n": n},
+               "model": {"epsilon": eps}, "constraints": {"reduced_volume": v, "area": 4 * math.pi},
+               "initial": {"shape": "sphere", "radius": 1.0}, "solver": {"method": "exact"}}
+        sc = from_dict(raw, name=f"{NAME}-{which}-v{v:g}-eps{eps:g}")
+        if start is None:
+            start = phase_field_of(r, z, discretize(sc).nodes, eps)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
+            res = solve(sc, x0=start)
+        ex = res.extra
+        f = ex.get("f", math.nan)
+        rows.append({"branch": which, "shape": shape_of(res.disc, res.phi) if res.converged else None, "c0": 0.0, "target_v": v, "epsilon": eps, "n": "x".join(map(str, n)),
+                     "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
+                     "c0_reduced": ex.get("c0_reduced"), "reduced_volume": ex.get("reduced_volume"),
+                     "sharp_f": ref.reduced_energy, "f_minus_sharp": f - ref.reduced_energy,
+                     "converged": res.converged, "second_order": ex.get("second_order"),
+                     "second_order_min_eigenvalue": ex.get("second_order_min_eigenvalue"),
+                     "topology": ex.get("topology"), "kkt_residual": res.kkt_residual,
+                     "iterations": res.iterations, "wall_time_s": res.wall_time_s, "seed": seed,
+                     "status": res.outcome})
+        if res.converged:
+            start, seed = res.phi, "previous point"
+    return rows
+
+
+def _num(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def summarise(rows: list[dict]) -> dict:
+    """Per eps the prolate/oblate crossing in (v, f) of certified points of their branch's form (a
+    walk that left its form, e.g. an oblate turned cup, is not used), and its eps -> 0 limit."""
+    ok = [r for r in rows if str(r.get("converged")) == "True" and r.get("shape", r["branch"]) == r["branch"]]
+    per_eps = {}
+    for eps in sorted({_num(r["epsilon"]) for r in ok}, reverse=True):
+        sel = {b: sorted([r for r in ok if _num(r["epsilon"]) == eps and r["branch"] == b],
+                         key=lambda r: _num(r["reduced_volume"])) for b in BRANCHES}
+        x = crossing(*[[_num(r[k]) for r in sel[b]] for b in BRANCHES for k in ("reduced_volume", "f")])
+        if x is not None:
+            per_eps[eps] = x
+    out = {"crossings": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()}}
+    if len(per_eps) >= 2:
+        out["extrapolated"] = extrapolate_crossing(per_eps)
+    one_eps = [r for r in rows if _num(r["epsilon"]) == max(_num(q["epsilon"]) for q in rows)]
+    ref = {b: sorted([r for r in one_eps if r["branch"] == b], key=lambda r: _num(r["target_v"])) for b in BRANCHES}
+    x = crossing(*[[_num(r[k]) for r in ref[b]] for b in BRANCHES for k in ("target_v", "sharp_f")])
+    if x is not None:  # the sharp branches' crossing through the same points (a spline, as the phase field's)
+        out["sharp_crossing_at_these_points"] = {"v": x["reduced_volume"], "f": x["reduced_energy"]}
+    return out
+
+
+def figure(rows: list[dict], summary: dict, path: Path) -> None:
+    pyplot = plt()
+    fig, ax = pyplot.subplots(figsize=(6, 4.5))
+    for b, colour in zip(BRANCHES, ("C0", "C3")):
+        sel = sorted([r for r in rows if r["branch"] == b], key=lambda r: _num(r["target_v"]))
+        ax.plot([_num(r["target_v"]) for r in sel], [_num(r["sharp_f"]) for r in sel], "-", color=colour,
+                label=f"{b}, sharp")
+        for eps in sorted({_num(r["epsilon"]) for r in sel}):
+            pts = [r for r in sel if _num(r["epsilon"]) == eps and str(r["converged"]) == "True"]
+            ax.plot([_num(r["reduced_volume"]) for r in pts], [_num(r["f"]) for r in pts], "o--", color=colour,
+                    ms=4, alpha=0.5 + 0.5 * (eps == min(_num(q["epsilon"]) for q in sel)), label=f"{b}, eps {eps:g}")
+    for e, x in summary.get("crossings", {}).items():
+        ax.plot(x["v"], x["f"], "kx")
+    ax.set_xlabel("reduced volume v")
+    ax.set_ylabel("f = F / 8 pi kappa")
+    ax.set_title("c0 = 0: prolate and oblate (meridian half-plane)")
+    ax.legend(fontsize=7)
+    savefig(fig, path)
+
+
+def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = run_cases(NAME, cases(quick), run, out / f"{NAME}.csv", executor=executor, workers=workers,
+                     extra_columns=COLUMNS)
+    good = [r for r in rows if not str(r.get("status", "")).startswith("error")]
+    summary = summarise(good)
+    v_s, f_s = sharp.crossing() if not quick else (math.nan, math.nan)  # ~20 s: the full run's reference
+    summary["sharp_crossing"] = {"v": v_s, "f": f_s}
+    (out / f"{NAME}_summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    for e, x in summary["crossings"].items():
+        log.info(f"eps {e}: crossing v = {x['v']:.5f}, f = {x['f']:.5f} (sharp {v_s:.5f}, {f_s:.5f})")
+    if good:
+        figure(good, summary, out / f"{NAME}.png")
+    certified = all(str(r.get("converged")) == "True" for r in good)
+    return 0 if good and len(good) == len(rows) and certified else 1
