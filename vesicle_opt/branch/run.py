@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -336,7 +337,13 @@ def write_diagram(b: Branch, path: Path, title: str = "") -> None:
     from vesicle_opt.branch import diagram
     points = None if b.out is None else b.out / "points"
     series = [(f"branch {k}" if k else "branch", b.points(k), points) for k in sorted(b.stopped)]
-    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title)
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.png")  # drawn beside, then moved: an interrupt
+    try:  # never leaves half a PNG
+        diagram.plot(series, tmp, xlabel=b.param.replace("_", " "), title=title)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _result(par, to, step, store, stopped, out) -> Branch:
