@@ -95,3 +95,13 @@ def test_a_disk_failure_while_writing_is_rescued_to_a_temporary_directory(tmp_pa
     assert not (tmp_path / staging.PARTIAL).exists()
     (spare / "phi.npz").unlink()
     spare.rmdir()
+
+
+def test_the_record_ends_with_the_block():
+    """An API solve after an interrupted ``cli.main`` in the same process is not taken for interrupted."""
+    with pytest.raises(interrupt.Interrupted):
+        with interrupt.handled():
+            os.kill(os.getpid(), signal.SIGINT)
+            signal.sigtimedwait([], 0)
+    assert interrupt.received() is None
+    interrupt.check()  # no exception

@@ -46,6 +46,7 @@ A failed corrector is a row (``converged`` false, its ``outcome`` and ``status``
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -203,5 +204,11 @@ def write_diagram(b: Branch, path: Path, title: str = "") -> None:
     from vesicle_opt.branch import diagram
     points = None if b.out is None else b.out / "points"
     series = [(f"branch {k}" if k else "branch", b.points(k), points) for k in sorted(b.stopped) if b.points(k)]
-    diagram.plot(series, path, xlabel=b.param.replace("_", " "), title=title, events=b.located(),
-                 dim=b.scene.dim if b.scene is not None else 3)
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.png")  # drawn beside, then moved: an interrupt
+    try:  # never leaves half a PNG
+        diagram.plot(series, tmp, xlabel=b.param.replace("_", " "), title=title, events=b.located(),
+                     dim=b.scene.dim if b.scene is not None else 3)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -64,6 +64,9 @@ def handled():
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+        # the record ends with the block: a later solve in this process (an API call after an
+        # interrupted cli.main) is not taken for interrupted; ``where`` stays for the message
+        _state.update(signum=None, pending=None, defer=0)
 
 
 def received() -> int | None:
