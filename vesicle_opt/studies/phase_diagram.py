@@ -66,8 +66,11 @@ def shape_of(disc, phi) -> str:
     """The state's form from its meridian curve (``io.meridian``): "cup" when one pole's dimple (its
     depth below the curve's extreme z on its side) exceeds the other's by ``CUP`` of the height
     (a stomatocyte; an oblate's dimples are equal), else "prolate" (height > width) or "oblate";
-    "other" unless the curve is one, from pole to pole."""
+    "torus" for one closed curve off the axis (an oblate whose dimples met: the phase field changes
+    topology at finite eps), "other" for anything else."""
     curves = meridian_curves(disc, phi)
+    if len(curves) == 1 and len(curves[0]) > 2 and np.array_equal(curves[0][0], curves[0][-1]):
+        return "torus"
     if len(curves) != 1 or curves[0][0][0] > 0 or curves[0][-1][0] > 0:
         return "other"
     r, z = curves[0][:, 0], curves[0][:, 1]
