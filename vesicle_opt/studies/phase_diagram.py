@@ -19,7 +19,7 @@ extrapolation, ``branch.crossing.extrapolate_crossing``; the sharp crossing), ``
 (f against v per eps, the sharp branches, the crossings). Full: eps = 0.1, 0.0707, 0.05 at
 eps/h = 3, v = 0.75 ... 0.55, sharp references with 16 modes and ``sharp.axisymmetric.crossing``.
 Quick: eps = 0.1 at eps/h = 2, v = 0.7, 0.65, sharp references with 8 modes: the plumbing (at
-eps = 0.1 the prolate lies above the oblate at both v: no crossing yet), in ~20 s. Not here yet: the
+eps = 0.1 the oblate seeds' dimples meet, tori: no crossing), in ~20 s. Not here yet: the
 stomatocyte branch and c0 = 2.4 (pears; see ``sharp.spontaneous``, whose pear seeds a phase-field
 pear whose neck the phase field pinches at eps >= 0.05: docs/guide/axisymmetric.md).
 """
@@ -66,8 +66,11 @@ def shape_of(disc, phi) -> str:
     """The state's form from its meridian curve (``io.meridian``): "cup" when one pole's dimple (its
     depth below the curve's extreme z on its side) exceeds the other's by ``CUP`` of the height
     (a stomatocyte; an oblate's dimples are equal), else "prolate" (height > width) or "oblate";
-    "other" unless the curve is one, from pole to pole."""
+    "torus" for one closed curve off the axis (an oblate whose dimples met: the phase field changes
+    topology at finite eps), "other" for anything else."""
     curves = meridian_curves(disc, phi)
+    if len(curves) == 1 and len(curves[0]) > 2 and np.array_equal(curves[0][0], curves[0][-1]):
+        return "torus"
     if len(curves) != 1 or curves[0][0][0] > 0 or curves[0][-1][0] > 0:
         return "other"
     r, z = curves[0][:, 0], curves[0][:, 1]
