@@ -268,8 +268,9 @@ def pack_run(pack, stages: list[Stage], method: str, cnt, log: list, level_log: 
     info = {"failed_stages": failed}
     if method == "continuation":
         info.update(extrapolation([stage_record(r) for r in records]))
-    if polish:
-        info.update(polish_keys(pack(polish[0], polish[0].newton, polish[0].wall_s, polish[0].deriv_s)))
+    if polish:  # its last stage, with every polish stage's Newton steps
+        info.update(polish_keys(pack(polish[-1], polish[-1].newton, polish[-1].wall_s, polish[-1].deriv_s)),
+                    polish_iterations=sum(st.newton for st in polish))
     return combine_stages(records[-1], records, method, wall, info,
                           iterations=cnt.newton, derivative_time_s=cnt.deriv_time)
 

@@ -15,6 +15,8 @@ from vesicle_opt.model.penalty import (AL_REDUCTION, DualSecant, certifiable_M, 
                                        penalty_retry, ramp_schedule, raise_M, schedule)
 from vesicle_opt.nk.newton_cg import Objective, newton_minimize
 
+POLISH_STAGES = 4  # as nlp.continuation.POLISH_STAGES
+
 
 @dataclass
 class Stage:
@@ -106,6 +108,14 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
         ext = extrapolation([{"M": st.M[0], "energy": obj.rig * st.pt.st.E, "lambda_volume": st.pt.mu[0],
                               "lambda_area": st.pt.mu[1], "converged": st.status == "converged"}
                              for st in stages])
-        if ext:
-            run(stages[-1].M[0], (ext["lambda_volume_extrapolated"], ext["lambda_area_extrapolated"]), polish=True)
+        if ext:  # as nlp.continuation.polish_stage: secant stages from the extrapolated multipliers
+            M, mu, secant = stages[-1].M[0], np.array([ext["lambda_volume_extrapolated"],
+                                                        ext["lambda_area_extrapolated"]]), DualSecant()
+            for _ in range(POLISH_STAGES):
+                pt, status = run(M, mu, polish=True)
+                if not np.all(np.isfinite(pt.phi)) or (status == "converged" and abs(pt.c[0]) <= tol * volume
+                                                       and abs(pt.c[1]) <= tol * abs(beta)):
+                    break
+                phi = pt.phi
+                mu = secant.step(mu, pt.c, M)
     return stages
