@@ -29,7 +29,9 @@ def test_no_space_left_while_writing_keeps_the_result_elsewhere(tmp_path, capsys
     monkeypatch.setattr(output, "write_png", full_disk)
     capsys.readouterr()
     code = cli.main([*SCENE, "--set", "model.epsilon=0.3", "--out", str(out)])
-    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("vesicle-opt:")]  # the log apart
+    # the log and its warnings apart (eps / h = 0.6 and the bulk offset: right for this coarse toy, not the subject)
+    err = [ln for ln in capsys.readouterr().err.splitlines()
+           if ln.startswith("vesicle-opt:") and not ln.startswith("vesicle-opt: warning")]
     assert code == 1 and len(err) == 1 and "No space left on device" in err[0] and str(out) in err[0], err
     spare = Path(err[0].split("written to '")[1].split("'")[0])
     assert json.loads((spare / "summary.json").read_text())["converged"] is True
@@ -67,7 +69,8 @@ def test_the_disk_failing_during_a_flow_is_one_line_exit_1_and_the_finished_run_
     monkeypatch.setattr(output, "write_png", full_disk)
     capsys.readouterr()
     rc = cli.main([*argv, "--set", "model.epsilon=0.3", "--out", str(out)])
-    err = capsys.readouterr().err.strip().splitlines()
+    # the eps / h = 0.6 warning apart (right for this coarse toy, not the subject)
+    err = [ln for ln in capsys.readouterr().err.strip().splitlines() if not ln.startswith("vesicle-opt: warning")]
     assert rc == 1 and len(err) == 1 and "No space left on device" in err[0] and "frame_002" in err[0], err
     after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file() and not p.name.startswith(".")}
     assert after == before

@@ -47,7 +47,10 @@ ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1"}
 
 
 def _argv(verb, scene, out, extra=(), n=96):
-    head = {"solve": ["solve", str(scene), "--set", f"mesh.n={n}", "--set", "initial.semi_axes=[2.5, 0.6]"],
+    # the solve at eps 0.3: at the scene's 0.6 the bulk carries 35% of the volume and verify.shape calls
+    # the round phi = 0 curve a wrong shape (exit 1); at 0.3, 4% (a bulk-offset warning), eps/h 2.4 at n = 64
+    head = {"solve": ["solve", str(scene), "--set", f"mesh.n={n}", "--set", "initial.semi_axes=[2.5, 0.6]",
+                      "--set", "model.epsilon=0.3"],
             "flow": ["flow", str(scene), "--scheme", "penalty", "--dt", "1e-3", "--steps", "30", "-q",
                      "--set", "flow.checkpoint_every=10", "--set", "flow.frames=4"],
             "branch": ["branch", str(scene), "--param", "reduced_volume", "--to", "0.85", "--step", "-0.02"],
@@ -160,7 +163,7 @@ def _files(d: Path) -> dict:
 CASES = [("solve", signal.SIGINT, True), ("flow", signal.SIGTERM, True)] + [
     pytest.param(verb, sig, False, marks=pytest.mark.slow)
     for verb in ("solve", "flow", "branch", "study") for sig in (signal.SIGINT, signal.SIGTERM)]
-OTHER = {"solve": ["--set", "model.epsilon=0.7"], "flow": ["--set", "model.epsilon=0.7"]}  # another finished run
+OTHER = {"solve": ["--set", "model.epsilon=0.35"], "flow": ["--set", "model.epsilon=0.7"]}  # another finished run
 RESUMES = {"solve": False, "flow": True, "branch": True, "study": True}
 
 

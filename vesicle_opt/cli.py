@@ -36,7 +36,6 @@ from vesicle_opt.io import interrupt, outdir, output, progress, staging
 from vesicle_opt.io.files import package_version
 from vesicle_opt.scene import load as load_scene
 from vesicle_opt.scene import bundled, resolved
-from vesicle_opt.scene.ranges import resolution_warning
 from vesicle_opt.studies import DESCRIPTIONS, STUDIES, docstring, run_study, study
 
 DESCRIPTION = ("Equilibrium shapes of vesicle membranes with the phase-field bending model, computed as "
@@ -150,9 +149,7 @@ def cmd_flow(args) -> int:
         overrides.append('flow.stepping="adaptive"')
     sc = load_scene(args.scene, overrides)
     check_flow_supported(sc)  # the flows' own refusals, before the directory is touched
-    with _preflight(sc, args.out, "flow") as out:
-        if (coarse := resolution_warning(sc)) is not None:  # eps / h below the recommended 2: after the
-            logging.getLogger("vesicle_opt.cli").warning("%s", coarse)  # refusals, before the flow
+    with _preflight(sc, args.out, "flow") as out:  # write_flow warns on eps / h after its own refusals
         run = write_flow(sc, out, restart=args.restart, progress=not getattr(args, "quiet", False))
     s = run.summary
     print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "

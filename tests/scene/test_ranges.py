@@ -109,3 +109,12 @@ def test_the_choices_checked_are_the_schemas():
     from vesicle_opt.scene.schema import SCHEMA
     for key, allowed in ranges.CHOICES.items():
         assert tuple(SCHEMA[key][2]) == tuple(allowed), key
+
+
+def test_cli_flow_warns_once_after_its_refusals(capsys, tmp_path):
+    """The flow verb's eps / h warning comes from write_flow after the state files' checks (a refused
+    checkpoint is one line alone: tests/io/test_state.py), once per run."""
+    from vesicle_opt.cli import main
+    assert main(["flow", "ellipse-2d", "--set", "mesh.n=16", "--steps", "1", "-q", "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("epsilon / h = 0.4 is below the recommended 2") == 1, err  # eps 0.2, h = 8/16

@@ -19,6 +19,7 @@ one of the same problem starts from a copy of DIR's state files.
 
 from __future__ import annotations
 
+import logging
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +30,7 @@ from vesicle_opt.io import fields, files, interrupt, output
 from vesicle_opt.io import state as state_files
 from vesicle_opt.io.staging import Staging
 from vesicle_opt.scene import resolved
+from vesicle_opt.scene.ranges import resolution_warning
 from vesicle_opt.flows.api import FlowResult, build_model, check_supported, fingerprint, flow
 from vesicle_opt.flows.trackers import CheckpointTracker, HistoryTracker, ProgressTracker, SnapshotTracker, Tracker
 
@@ -36,6 +38,8 @@ COLUMNS = ["step", "t", "dt", "energy", "penalized_energy", "volume_residual", "
            "energy_law_residual", "newton_iterations", "krylov_iterations", "wall_time_s", "rejections", "phi_t_norm"]
 EXTRA = {"penalty": [], "lagrange": ["lambda_1", "lambda_2"], "backward-euler": ["equality_law_defect"]}
 
+
+log = logging.getLogger(__name__)
 
 STATE_FILES = ("history.csv", "checkpoint.npz", "checkpoint.id", "snapshots", "frames", "phi.pvd")
 
@@ -118,7 +122,9 @@ def write_flow(scene, out: Path, *, restart: bool = False, progress: bool = Fals
     md = build_model(scene)
     fl = scene.flow
     fp = fingerprint(scene)
-    stage, resume = _work_dir(final, fp, restart, md.disc.n_nodes)
+    stage, resume = _work_dir(final, fp, restart, md.disc.n_nodes)  # the state files' refusals
+    if (coarse := resolution_warning(scene)) is not None:  # eps / h below the recommended 2: after every
+        log.warning("%s", coarse)  # refusal (one line, exit 2, alone), before the flow (as api.solve)
     out = stage.dir
     ckpt, hist, fp_file = out / "checkpoint.npz", out / "history.csv", out / "checkpoint.id"
     if not resume:
