@@ -137,3 +137,24 @@ def test_a_finished_branch_extends_with_a_further_to_and_sharp_fills_its_column(
     pts = ext.points()
     assert all(r["sharp_reduced_energy"] is not None for r in pts)
     assert pts[-1]["sharp_reduced_energy"] == pytest.approx(elastica.solve(pts[-1]["target"]).reduced_energy, rel=1e-12)
+
+
+def test_a_branch_tree_reads_back_with_its_parents(tmp_path):
+    """The tree of a run (branch.tree's nodes: pitchfork at p = 0, both sides switched) against
+    load_branch's parents, rebuilt from branch.csv's parent column alone."""
+    import sys
+    from pathlib import Path
+
+    from vesicle_opt.branch import tree
+    sys.path.insert(0, str(Path(__file__).parent / "branch"))
+    from toy import Toy  # closed-form problems behind branch.problem.TreeProblem
+
+    t = Toy("pitchfork", -0.5, 0.5, 0.1, np.array([0.0, 1.0]), out=tmp_path)
+    nodes = tree.grow(t, depth=1)
+    t.store.finish({k: n.stopped for k, n in nodes.items()})
+    meta = json.loads((tmp_path / "branch.json").read_text())
+    (tmp_path / "branch.json").write_text(json.dumps({**meta, "param": "p", "scene": "pitchfork"}))
+    b = vo.load_branch(tmp_path)
+    assert b.parents == {k: n.parent for k, n in nodes.items()} == {0: None, 1: 0, 2: 0}
+    assert b.children(0) == [1, 2] and b.children(1) == []
+    assert b.stopped == {k: n.stopped for k, n in nodes.items()}

@@ -15,7 +15,7 @@ above ``branch``: it builds Branch, Result and Scene objects).
 * ``flow``   (``summary.json`` with ``scheme``)                -> :class:`FlowRecord` (``load_flow``);
 * ``branch`` (``branch.json``)                                  -> :class:`~vesicle_opt.branch.Branch`
   (``load_branch``), its rows parsed from ``branch.csv``, the scene from branch.json's ``scene_data``,
-  ``Branch.field(point)`` the point's snapshot;
+  ``parents`` (the tree) from the rows' ``parent`` column, ``Branch.field(point)`` the point's snapshot;
 * ``study``  (anything else with CSV files)                     -> :class:`StudyRecord` (``load_study``).
 
 The ``.npz`` files are read by ``io.fields.read`` (its format version checked). A directory that is
@@ -193,7 +193,12 @@ def load_branch(path: str | Path) -> "Branch":
     stopped = {int(k): v for k, v in meta.get("stopped", {"0": "unfinished"}).items()}
     data = meta.get("scene_data")
     scene = from_dict(data, name=meta["scene"]) if isinstance(data, dict) else None
-    return Branch(meta["param"], float(meta["to"]), float(meta["step"]), rows, stopped, path, scene=scene)
+    parents = {}  # the tree (branch.tree): each branch's parent, from the parent column of its first row
+    for r in rows:
+        parents.setdefault(r["branch"], r.get("parent"))
+    parents.update({k: None for k in stopped if k not in parents})  # a branch without rows: a root
+    return Branch(meta["param"], float(meta["to"]), float(meta["step"]), rows, stopped, path, parents,
+                  scene=scene)
 
 
 def load_study(path: str | Path) -> StudyRecord:

@@ -34,7 +34,8 @@ class Toy(TreeProblem):
         # shift: the problem in p - shift (a second parameter moving the diagram, ``branch.lines``)
         self.E, self.Fx, self.Hx, self.Fp = ((lambda f: (lambda x, p: f(x, p - shift)))(f) for f in PROBLEMS[name])
         self.store = Store(out, {"toy": name, "to": to, "step": step}, snapshots=False)
-        self.disc = SimpleNamespace(grid_shape=None, box=[[0.0, 1.0]])
+        # a stand-in for a mesh discretisation as io.fields writes it: phi's two entries at two nodes
+        self.disc = SimpleNamespace(grid_shape=None, box=[[0.0, 1.0]], nodes=[[0.0], [1.0]], dim=1)
         self.s = arc.Settings(step=step, to=to, max_points=max_points)
         self.weights, self.start, self.param, self.x0 = np.ones(2), start, "p", x0
         self.symmetric = symmetric

@@ -99,6 +99,7 @@ class Branch:
             self.stopped.get(0) in ("reached", "max_points") and all(r["converged"] for r in self.points())
 
     def children(self, branch: int) -> list[int]:
+        """The ids of the branches that left ``branch`` (switched at its branch points), ascending."""
         return sorted(k for k, v in self.parents.items() if v == branch)
 
     def envelope_central(self, branch: int = 0) -> list[tuple[int, float]]:

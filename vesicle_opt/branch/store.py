@@ -165,10 +165,9 @@ class Store:
         """Record in branch.json why each branch stopped (``{"0": "reached", ...}``)."""
         if self.out is None:
             return
-        path = self.out / "branch.json"
-        meta = json.loads(path.read_text())
-        meta["stopped"] = {str(k): v for k, v in stopped.items()}
-        write_json(path, meta)
+        # self.meta is what branch.json holds (written, or checked equal, in __init__), less any
+        # earlier "stopped": no re-read of the file is needed
+        write_json(self.out / "branch.json", {**self.meta, "stopped": {str(k): v for k, v in stopped.items()}})
 
     def rows(self) -> list[dict]:
         return list(self._rows)
