@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from vesicle_opt.model import functionals as F
+from vesicle_opt.scene.schema import SCHEMA
 from vesicle_opt.sums import total
 
 AL_REDUCTION = 0.25  # augmented Lagrangian: increase M when a residual did not drop by this factor
@@ -121,10 +122,14 @@ def next_stage(Ms: list[float], k: int, floor: float, tol: float, margin: float 
 
 
 def penalty_retry(M: float, floor: float, tol: float) -> float | None:
-    """The method penalty at an M whose floor reached tol (it cannot be certified at any residual):
-    the M to solve at instead, warm-started, where the floor is tol / 2 (``certifiable_M``); None
-    when the floor is below tol. The result reports ``M_requested`` (the scene's solver.M)."""
-    return None if floor < tol else float(certifiable_M(floor, M, tol))
+    """The method penalty at the default M (``solver.M`` left at the schema's 1e4, read as "the largest
+    M up to 1e4 that can be certified") whose floor reached tol: the M to solve at instead, warm-started,
+    where the floor is tol / 2 (``certifiable_M``); None when the floor is below tol or M was chosen
+    (another value: solved as given, and refused as ``roundoff_floor`` if its floor reaches tol). The
+    result reports ``M_requested``."""
+    if floor < tol or M != SCHEMA["solver.M"][1]:
+        return None
+    return float(certifiable_M(floor, M, tol))
 
 
 def richardson(Ms, values, order: int) -> float:
