@@ -77,15 +77,24 @@ def test_front_door_penalty_fd_2d():
     _compare(("ellipse-2d", "mesh.n=32", "solver.method='penalty'", "solver.M=1e3"))
 
 
-@pytest.mark.parametrize("method, sets", [("augmented", ()), ("continuation", ("solver.M_max=1e4",))])
-def test_front_door_stage_methods_fd_2d(method, sets):
+@pytest.mark.parametrize("method", ["augmented", "continuation"])
+def test_front_door_stage_methods_fd_2d(method):
     """The stage loop of nk.solve (penalty_stages) run with nk_jax's Newton-CG: the same stages,
-    each certified, combined the same way. Continuation stops at M = 1e4: beyond it the penalty's
-    own round-off floor (model.penalty.roundoff_floor) refuses the last stage on both arrays alike
-    (M = 1e6: floor 1.7e-7 > tol; measured the same six stages, 41 Newton / 822 CG steps each)."""
-    rn, rj = _compare(("ellipse-2d", "mesh.n=32", f"solver.method='{method}'", *sets))
+    each certified, combined the same way, planned by the same floors (issue 25, computed on the
+    host: ``verify.certify.dual_floor_of``). Continuation stops raising M where the next stage's
+    floor would reach tol and ends on the augmented polish (measured on both arrays: M = 1e1 ... 1e4
+    and the certifiable 2.94e4, 39 Newton / 792 CG steps, the polish converged in 4); augmented: the
+    warm ramp, then three secant stages at M = 1e4 (37 Newton steps each). Before the floors
+    reached nk_jax, its continuation ran past the floor and its augmented skipped the ramp
+    (energy 2.6300 against numpy's 2.6879, another KKT point)."""
+    rn, rj = _compare(("ellipse-2d", "mesh.n=32", f"solver.method='{method}'"))
     assert rj.extra["stages"] == rn.extra["stages"] and rj.method == rn.method == method
     assert [s["status"] for s in rj.history["stages"]] == [s["status"] for s in rn.history["stages"]]
+    # the stage M's: the schedule's exactly, the floor-planned last one from each array's own round-off
+    # (measured 2.5e-11 relative apart)
+    assert [s["M"] for s in rj.history["stages"]] == pytest.approx([s["M"] for s in rn.history["stages"]], rel=1e-8)
+    assert rj.extra.get("polish_outcome") == rn.extra.get("polish_outcome")
+    assert (rn.extra.get("polish_outcome") is not None) == (method == "continuation")
 
 
 def _at_constraints(r) -> float:

@@ -77,6 +77,11 @@ class Point:
     g: np.ndarray
     rel: float  # relative dual norm of g
 
+    @property
+    def E(self) -> float:
+        """E_h at phi (``nk.stages``' extrapolation reads it here on numpy and ``nk_jax`` alike)."""
+        return self.st.E
+
 
 class Objective:
     def __init__(self, pf, prec, translations, rig: float, alpha: float, beta: float,

@@ -105,7 +105,7 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
             sched, i = [M, nxt], 0  # the last stage, at the certifiable M
         M = nxt
     if method == "continuation" and floor is not None and stages[-1].status == "converged":
-        ext = extrapolation([{"M": st.M[0], "energy": obj.rig * st.pt.st.E, "lambda_volume": st.pt.mu[0],
+        ext = extrapolation([{"M": st.M[0], "energy": obj.rig * st.pt.E, "lambda_volume": st.pt.mu[0],
                               "lambda_area": st.pt.mu[1], "converged": st.status == "converged"}
                              for st in stages])
         if ext:  # as nlp.continuation.polish_stage: secant stages from the extrapolated multipliers

@@ -34,6 +34,7 @@ class Point:
     mu: np.ndarray
     g: object
     rel: float
+    E: float = math.nan  # E_h at phi (host scalar: the continuation's extrapolation, ``nk.stages``)
 
 
 class DeviceObjective:
@@ -75,7 +76,7 @@ class DeviceObjective:
         dnE, dnB, dng = (float(x) for x in jax.device_get((dnE, dnB, dng)))
         scale = self.rig * dnE + abs(mu[0]) * self.dn_dA + abs(mu[1]) * dnB
         self.cnt.deriv_time += time.perf_counter() - t0
-        return Point(phi, (lap, r, s), f, c, dE, dB, mu, g, dng / max(scale, np.finfo(float).tiny))
+        return Point(phi, (lap, r, s), f, c, dE, dB, mu, g, dng / max(scale, np.finfo(float).tiny), float(E))
 
     def hess(self, pt: Point) -> tuple:
         lap, r, s = pt.st

@@ -7,9 +7,11 @@
   solve, ``nk.solve.outer_verdict``, with its ``roundoff_stall`` exit), least-squares multipliers in
   the dual metric of P0;
 * ``penalty``, ``continuation``, ``augmented``: ``nk.solve.penalty_stages`` itself, the stage
-  loop of the numpy path (one M; the schedule M0 ... M_max; the first-order multiplier updates
-  mu <- mu - M c with M growth), with this package's Newton-CG as its inner solver; every stage is
-  certified and the stages combined as on numpy (``result.combine_stages``).
+  loop of the numpy path (one M, re-solved at the certifiable M; the schedule M0 ... M_max stopped
+  where the next stage's floor would reach tol, then the augmented polish; the warm ramp and the
+  secant multiplier updates at the floor-capped M), with this package's Newton-CG as its inner
+  solver and the floors (``verify.certify.dual_floor_of``) computed on the host from the fields
+  brought back; every stage is certified and the stages combined as on numpy (``result.combine_stages``).
 
 Nested iteration (coarse grids first, ``nk.setup.coarse_levels``; the interpolant by
 ``nk.setup.resample`` on the host) as on numpy. The result is the one certified ``Result`` of
@@ -43,7 +45,7 @@ from vesicle_opt.nk_jax.newton import DeviceObjective, newton_minimize
 from vesicle_opt.nk_jax.ops import GridOps
 from vesicle_opt.result import Result
 from vesicle_opt.scene.shapes import phase_field
-from vesicle_opt.verify.certify import build_result
+from vesicle_opt.verify.certify import build_result, dual_floor_of
 
 METHODS = ("exact", "penalty", "continuation", "augmented")
 
@@ -144,8 +146,14 @@ def _run_level(scene, level: Level, phi_host, log, tol, opts, W=None):
         (pt, status, lam, dual, W), n, wall, deriv = timed_stage(
             obj, lambda: _exact(level, phi, tol, opts, level.disc.volume, obj.target[1], log, W))
         return [Stage(pt, status, None, (0.0, 0.0), lam, dual, n, wall, deriv)], W
+    m, get = scene.model, level.layout.get
+    dA = get(obj.ones)
+
+    def floor(pt, M):  # the certificate's floor on the host, as ``nk.solve._run_level``'s
+        return dual_floor_of(level.disc, get(pt.phi), m.epsilon, m.C, m.rigidity, tuple(pt.mu), (M, M),
+                             (get(pt.dE), dA, get(pt.dB)))
     stages = penalty_stages(obj, phi, tol, opts, s.method, s, level.disc.volume, obj.target[1],
-                            minimize=newton_minimize)
+                            minimize=newton_minimize, floor=floor)
     return stages, W
 
 
@@ -204,11 +212,11 @@ def solve(scene, disc=None, *, x0=None, options: NewtonKrylovOptions | None = No
             scene=scene, disc=disc, alpha=alpha, beta=beta, phi=level.layout.get(st.pt.phi), tol=tol,
             solver_status=st.status, solver_success=st.status in ("converged", ROUNDOFF_STALL), method=method,
             lam=None if penalty else tuple(st.lam), M=st.M, mu=st.mu,
-            exact_constraints=method in ("exact", "augmented"), floor=floor,
+            exact_constraints=method in ("exact", "augmented") or st.polish, floor=floor,
             iterations=iterations, wall_time_s=wall_s, derivative_time_s=deriv_s, history=history,
             extra={"backend": "newton-krylov", "array": "jax", "devices": level.layout.count,
                    "platform": level.layout.devices[0].platform, "mesh_kind": disc.kind,
-                   "kkt_dual": float(st.dual), "kkt_l2_floor": floor, "discretization_path": path,
+                   "kkt_dual_solver": float(st.dual), "kkt_l2_floor": floor, "discretization_path": path,
                    **(extra or {})})
 
     return pack_run(pack, stages, method, cnt, log, level_log, cpu, wall)
