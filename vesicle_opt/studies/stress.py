@@ -19,8 +19,6 @@ Groups:
   periodic box (a slab joined to its periodic image);
 * ``domain``: a non-square box, an anisotropic grid, an unstructured mesh read from a file;
 * ``penalty``: the penalty form (11) at M = 1e2 ... 1e12 (conditioning of the penalised problem);
-  where the floor at M reaches tol the solve at M is not certified and is re-solved warm at the
-  certifiable M (``model.penalty.penalty_retry``): ``M_solved`` and ``first_stage`` say so;
 * ``flow``: three steps of scheme (18) with k from the paper's 3e-8 up to 10, far beyond what the
   Newton solve can take: the stepper must reject and halve k, never produce NaN.
 
@@ -51,7 +49,7 @@ from vesicle_opt.studies.runner import run_cases
 
 EXTRA = ["group", "parameter", "outcome", "reference_energy", "relative_energy_error", "kkt_residual",
          "second_order", "second_order_min_eigenvalue", "topology", "rejections", "max_law_residual",
-         "limit_reference", "beta_over_beta_min", "M_solved", "first_stage"]
+         "limit_reference", "beta_over_beta_min"]
 BETA_MIN, SHARP = "phase-field beta_min(alpha)", "sharp reduced volume"
 
 
@@ -164,10 +162,6 @@ def run_case(case: dict) -> dict:
                second_order_min_eigenvalue=res.extra.get("second_order_min_eigenvalue"),
                outcome="converged" if res.converged else
                f"failed: {res.status}: {res.extra.get('reason', 'not converged')}"[:200])
-    if "M_requested" in res.extra:  # a penalty re-solved at the certifiable M (model.penalty.penalty_retry)
-        first = res.history["stages"][0]
-        row.update(M_solved=res.M, first_stage=f"{first['status']}: "
-                   + ("converged" if first["converged"] else "not certified (round-off floor above tol)"))
     if case["reference"] and res.converged:
         ref = solve(_scene(case, case["reference"]))
         if ref.converged:
