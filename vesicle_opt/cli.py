@@ -94,8 +94,11 @@ def cmd_solve(args) -> int:
           f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {where}/summary.json")
     _kept(where, out)
     if result.converged and summary.get("second_order") == "saddle":
-        print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser (smallest tangent "
-              f"Hessian eigenvalue {summary['second_order_min_eigenvalue']:.3g} mu_ref, mass metric, "
+        # the reason names the negative direction: the least eigenvalue, or an excluded mode's
+        # Rayleigh quotient (then the least eigenvalue on the rest of T may be positive)
+        print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser "
+              f"({summary.get('second_order_reason') or 'a negative tangent direction'}; least eigenvalue "
+              f"{summary['second_order_min_eigenvalue']:.3g} mu_ref with "
               f"{summary.get('second_order_excluded', 'none')} excluded); try another initial shape",
               file=sys.stderr)
     if result.converged and summary.get("second_order") == "marginal":
