@@ -39,3 +39,18 @@ def test_the_user_guide_globs_its_pages():
     for page in (ROOT / "docs" / "guide").glob("*.md"):
         first = page.read_text().lstrip().splitlines()[0]
         assert first.startswith("# "), page.name  # one top-level heading: its title in the toctree
+
+
+def test_every_results_csv_renders_as_a_table_of_its_named_columns():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("vo_generate", ROOT / "docs" / "_ext" / "vo_generate.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    csvs = sorted((ROOT / "docs" / "results").glob("*.csv"))
+    assert {p.stem for p in csvs} <= set(gen.RESULT_TABLES)  # a CSV without a table spec would stop the build
+    page = (ROOT / "docs" / "benchmarks.md").read_text()
+    for path in csvs:
+        text = gen.results_table(path)  # raises KeyError where a named column is missing
+        n_rows = sum(1 for _ in path.open()) - 1
+        assert text.count("\n| ") == n_rows + 1, path.name  # the header and one line per CSV row
+        assert f"_generated/results_{path.stem}.md" in page, f"{path.name} is not shown on the benchmarks page"

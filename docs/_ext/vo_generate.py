@@ -9,7 +9,10 @@ build time so that they cannot drift from it.
   (ellipse-2d at 24^2, about a second), with the value each took;
 * ``studies.md``: the study registry with its one-line descriptions;
 * ``bundled_scenes.md``: the bundled scenes with the first line of each file;
-* ``cli_help.md``: ``vesicle-opt --help`` and every verb's, as argparse prints them.
+* ``cli_help.md``: ``vesicle-opt --help`` and every verb's, as argparse prints them;
+* ``results_<study>.md``: each benchmark CSV committed under ``docs/results/`` as a table of the
+  columns ``RESULT_TABLES`` names for it (a CSV without an entry, or a named column the CSV lacks,
+  stops the build), so the benchmarks page cannot drift from the CSVs.
 
 Docstrings are shown as written (plain text with the paper's equation numbers, not reStructuredText):
 ``autodoc-process-docstring`` turns each into a literal block.
@@ -118,6 +121,72 @@ def bundled() -> str:
     return _table(["scene", "what it is (the file's opening comment)"], rows)
 
 
+# study -> (column, header, format) shown on the benchmarks page; the CSV may hold more columns.
+RESULT_TABLES = {
+    "bench_equilibrium": [("case", "case", ""), ("n_nodes", "nodes", "d"), ("iterations", "iterations", "d"),
+                          ("wall_time_s", "wall (s)", ".3g"), ("derivative_fraction", "derivative share", ".2f"),
+                          ("hessian_nnz_per_row", "Hessian nnz/row", ".3g"), ("peak_memory_mb", "peak (MB)", ".0f"),
+                          ("energy", "energy", ".10g"), ("status", "status", "")],
+    "bench_stationarity": [("case", "case", ""), ("h", "h", ".3g"), ("converged", "converged", ""),
+                           ("kkt_residual", "L2 residual", ".2e"), ("kkt_floor", "L2 floor", ".2e"),
+                           ("kkt_dual", "natural residual", ".2e"), ("kkt_dual_floor", "natural floor", ".2e"),
+                           ("certified_l2", "old rule", ""), ("newton", "Newton", "d"), ("wall_s", "wall (s)", ".3g")],
+    "bench_overhead": [("case", "case", ""), ("method", "method", ""), ("mode", "mode", ""),
+                       ("repeat", "repeat", ""), ("iterations", "iterations", ""),
+                       ("wall_time_s", "wall (s)", ".3g"), ("ratio_to_bare", "ratio to bare", ".3f"),
+                       ("derivative_fraction", "derivative share", ".3f"),
+                       ("whole_process_s", "whole process (s)", ".3g"), ("solve_s", "solve (s)", ".3g"),
+                       ("whole_over_solve", "whole / solve", ".2f"), ("load_average", "load", ".1f")],
+    "bench_3d": [("case", "case", ""), ("n_nodes", "nodes", "d"), ("fft", "FFT", ""), ("newton", "Newton", "d"),
+                 ("cg", "CG", "d"), ("solve_wall_s", "solve (s)", ".3g"), ("total_wall_median_s", "total, median (s)", ".3g"),
+                 ("solve_over_fft_floor", "solve / FFT floor", ".2f"), ("peak_rss_mb", "peak RSS (MB)", ".0f"),
+                 ("energy", "energy", ".10g"), ("converged", "converged", "")],
+    "bench_certificate": [("case", "case", ""), ("solve_s", "solve (s)", ".3g"), ("certificate_s", "certificate (s)", ".3g"),
+                          ("certificate_ratio", "ratio", ".2f"), ("bare_peak_mb", "bare peak (MB)", ".0f"),
+                          ("certified_peak_mb", "certified peak (MB)", ".0f"), ("memory_ratio", "memory ratio", ".2f"),
+                          ("verdict", "verdict", ""), ("min_eigenvalue", "least eigenvalue", ".7g"),
+                          ("iterations", "iterations", ""), ("load_average", "load", ".1f")],
+    "bench_jax": [("case", "case", ""), ("variant", "variant", ""), ("devices", "devices", "d"), ("newton", "Newton", "d"),
+                  ("cg", "CG", "d"), ("total_wall_median_s", "wall, warm median (s)", ".3g"),
+                  ("total_wall_cold_s", "cold (s)", ".3g"), ("ratio_to_numpy", "ratio to numpy", ".2f"),
+                  ("peak_rss_mb", "peak RSS (MB)", ".0f"), ("energy_rel_to_numpy", "energy vs numpy", ".1e"),
+                  ("load_1min", "load", ".1f"), ("status", "status", "")],
+    "crossing_3d": [("case", "case", ""), ("epsilon", "ε", ".3g"), ("n", "grid", ""), ("start", "start", ""),
+                    ("reduced_volume", "v", ".4f"), ("reduced_energy", "reduced energy", ".6f"),
+                    ("sharp_reduced_energy", "sharp reference", ".6f"), ("iterations", "iterations", "d"),
+                    ("wall_time_s", "wall (s)", ".3g"), ("second_order", "second order", ""),
+                    ("converged", "converged", "")],
+}
+
+
+def _fmt(value: str, fmt: str) -> str:
+    if value in ("", None) or not fmt:
+        return value or ""
+    try:
+        x = float(value)
+    except ValueError:
+        return value
+    return f"{int(round(x))}" if fmt == "d" else f"{x:{fmt}}"
+
+
+def results_table(path: Path) -> str:
+    """The columns ``RESULT_TABLES`` names for ``path``'s study, one row per CSV row."""
+    import csv
+    study = path.stem
+    if study not in RESULT_TABLES:
+        raise KeyError(f"docs/results/{path.name}: no entry in RESULT_TABLES (docs/_ext/vo_generate.py)")
+    with path.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    spec = RESULT_TABLES[study]
+    missing = [c for c, _, _ in spec if rows and c not in rows[0]]
+    if missing:
+        raise KeyError(f"docs/results/{path.name} lacks the columns {missing}")
+    spec = [s for s in spec if any(r.get(s[0]) not in ("", None) for r in rows)]  # all-empty columns: left out
+    body = [[_fmt(r[c], f) for c, _, f in spec] for r in rows]
+    return (f"From `results/{path.name}` ({len(rows)} rows; `vesicle-opt study {study}` writes it):\n\n"
+            + _table([h for _, h, _ in spec], body))
+
+
 def generate(app) -> None:
     from vesicle_opt.branch.store import COLUMNS
     from vesicle_opt.flows.run import COLUMNS as FLOW, EXTRA
@@ -129,6 +198,8 @@ def generate(app) -> None:
                  f"`{k}`: " + (", ".join(f"`{c}`" for c in v) or "none") for k, v in EXTRA.items()) + ".\n",
              "solve_files.md": solve_files, "flow_files.md": flow_files, "studies.md": studies(),
              "bundled_scenes.md": bundled(), "cli_help.md": cli_help()}
+    for path in sorted((Path(app.srcdir) / "results").glob("*.csv")):
+        pages[f"results_{path.stem}.md"] = results_table(path)
     for name, text in pages.items():
         path = gen / name
         if not path.exists() or path.read_text() != text:  # unchanged files keep their time: no rebuild
