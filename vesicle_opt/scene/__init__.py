@@ -1,7 +1,7 @@
 """Scenes: one equilibrium problem as plain, validated data (Dedalus style: solvers are built from it).
 
 * ``schema``: the frozen sections (domain, mesh, model, constraints, initial, solver, flow), the key
-  table ``SCHEMA`` and validation (``from_dict``, ``load``, ``--set`` overrides);
+  table ``SCHEMA`` (kept in ``keys``) and validation (``from_dict``, ``load``, ``--set`` overrides);
 * ``shape_spec``: shape tables (``initial``, ``constraints.target``); ``shapes``: their phase fields;
 * ``bundled``: the scenes shipped inside the package, loaded by name.
 """

@@ -41,7 +41,7 @@ from vesicle_opt.mesh import discretize
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp
 from vesicle_opt.studies._common import plt, savefig
-from vesicle_opt.studies.runner import run_cases
+from vesicle_opt.studies.runner import run_into
 
 log = logging.getLogger(__name__)
 
@@ -174,11 +174,8 @@ def figure(rows: list[dict], summary: dict, path: Path) -> None:
 
 
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    rows = run_cases(NAME, cases(quick), run, out / f"{NAME}.csv", executor=executor, workers=workers,
-                     extra_columns=COLUMNS)
-    good = [r for r in rows if not str(r.get("status", "")).startswith("error")]
+    out, rows, good = run_into(NAME, cases(quick), run, out, executor=executor, workers=workers,
+                               extra_columns=COLUMNS)
     summary = summarise(good)
     v_s, f_s = sharp.crossing() if not quick else (math.nan, math.nan)  # ~20 s: the full run's reference
     summary["sharp_crossing"] = {"v": v_s, "f": f_s}

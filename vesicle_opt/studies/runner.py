@@ -240,6 +240,17 @@ def failed_line(study: str, case: str, row: dict) -> str | None:
     return f"{study} {case}{' ' + where if where else ''}: {outcome}{why}"
 
 
+def run_into(name: str, case_list: list[dict], fn: Callable[[dict], list[dict]], out, executor: Executor | None = None,
+             workers: int = 1, extra_columns: Iterable[str] = ()) -> tuple[Path, list[dict], list[dict]]:
+    """A study's run: ``out`` made, ``run_cases`` into ``out/<name>.csv`` (resumable); returns
+    (``out`` as a Path, every row, the rows of the cases that did not raise: status not ``error...``)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = run_cases(name, case_list, fn, out / f"{name}.csv", executor=executor, workers=workers,
+                     extra_columns=extra_columns)
+    return out, rows, [r for r in rows if not str(r.get("status", "")).startswith("error")]
+
+
 def run_study(name: str, case_list: list[dict], fn: Callable[[dict], list[dict]], summary: Callable,
               out: Path, executor: Executor | None = None, workers: int = 1,
               extra_columns: Iterable[str] = ()) -> tuple[list[dict], dict]:

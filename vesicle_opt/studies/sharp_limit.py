@@ -64,7 +64,7 @@ from vesicle_opt.nk.setup import prepare
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import elastica
 from vesicle_opt.studies._common import column, plt, savefig
-from vesicle_opt.studies.runner import run_cases
+from vesicle_opt.studies.runner import run_into
 from vesicle_opt.verify import lobpcg
 from vesicle_opt.verify.metrics import richardson, richardson_fixed
 
@@ -245,11 +245,8 @@ def figure(rows: list[dict], path: Path) -> None:
 
 
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    rows = run_cases(NAME, cases(quick), run, out / f"{NAME}.csv", executor=executor, workers=workers,
-                     extra_columns=COLUMNS)
-    good = [r for r in rows if not str(r.get("status", "")).startswith("error")]
+    out, rows, good = run_into(NAME, cases(quick), run, out, executor=executor, workers=workers,
+                               extra_columns=COLUMNS)
     summary = summarise(good)
     with open(out / f"{NAME}_summary.csv", "w", newline="") as f:
         w = csv.DictWriter(f, list(summary[0]) if summary else ["nu"], lineterminator="\n", extrasaction="ignore")

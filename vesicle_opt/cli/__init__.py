@@ -13,6 +13,9 @@ Output: the final result line of a verb on stdout; everything else through ``log
 progress bars with an ETA: tqdm on a terminal, plain lines in a log), ``-q`` only warnings and
 errors, ``-v`` also the solvers' iteration logs (IPOPT's own, one line per Newton step, one per
 flow step). ``-v``/``-q`` are accepted before or after the verb.
+
+This module holds the parser, the logging and ``main`` (exit codes, one-line errors); the verbs
+themselves are ``cli.verbs`` (``cmd_solve``, ``cmd_study``, ``cmd_flow``, ``cmd_branch``).
 """
 
 from __future__ import annotations
@@ -25,18 +28,11 @@ import sys
 import warnings
 from pathlib import Path
 
-from vesicle_opt import resources
-from vesicle_opt.api import solve
-from vesicle_opt.backends import choose_backend
-from vesicle_opt.branch import branch as follow_branch
-from vesicle_opt.branch.lines import check_line, sweep
-from vesicle_opt.branch.reference import reference as sharp_reference
+from vesicle_opt.cli.verbs import cmd_branch, cmd_flow, cmd_solve, cmd_study, out_dir  # noqa: F401 (out_dir: re-exported)
 from vesicle_opt.errors import InputError, VesicleError
-from vesicle_opt.io import interrupt, outdir, output, progress, staging
+from vesicle_opt.io import interrupt, progress
 from vesicle_opt.io.files import package_version
-from vesicle_opt.scene import load as load_scene
-from vesicle_opt.scene import bundled, resolved
-from vesicle_opt.studies import DESCRIPTIONS, STUDIES, docstring, run_study, study
+from vesicle_opt.studies import DESCRIPTIONS, STUDIES, docstring
 
 DESCRIPTION = ("Equilibrium shapes of vesicle membranes with the phase-field bending model, computed as "
                "constrained minimisation (CasADi + IPOPT, or matrix-free Newton-Krylov), gradient flows "
@@ -56,150 +52,6 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, exit 2
         print(f"vesicle-opt: error: {message}", file=sys.stderr)
         raise SystemExit(2)
-
-
-def out_dir(arg: str) -> Path:
-    """The output directory, created and probed now (``io.outdir.check``): a one-line InputError
-    (``--out``) before any work when it cannot be used (a file, below a file, not writable)."""
-    return outdir.check(arg)
-
-
-def _preflight(scene, out: str | None, path: str | None):
-    """Everything checked before any work: the scene's memory estimate on ``path`` (a backend or
-    "flow"; ``resources``), then ``--out`` (``io.outdir``); returns the context that holds the
-    directory's lock for the run (a second run into it is refused with one line)."""
-    if scene is not None and path is not None:
-        resources.check(scene, path)
-    return outdir.locked(out_dir(out))
-
-
-def cmd_solve(args) -> int:
-    if args.list:  # the bundled scenes, one line each (the first line of each file's comment)
-        print("\n".join(bundled.describe()))
-        return 0
-    if args.scene is None:
-        raise InputError("scene", "give a scene (a TOML path or a bundled name) or --list")
-    sc = load_scene(args.scene, args.set)
-    with _preflight(sc, args.out, choose_backend(sc)) as out:
-        interrupt.note("during the solve", resume=False)
-        result = solve(sc)
-        interrupt.check()  # a signal a C extension swallowed: the result is not written
-
-        def write(d: Path) -> dict:
-            summary = output.write_result(d, sc, result.disc, result)
-            resolved.write(d / "scene.resolved.toml", sc)  # the run, repeatable: vesicle-opt solve DIR/scene.resolved.toml
-            return summary
-        summary, where = staging.write_run(out, write, lambda s: result.converged, sc.name)
-    print(f"{sc.name}: {result.status}, converged={result.converged}, energy={result.energy:.10g}, "
-          f"iterations={result.iterations}, wall={result.wall_time_s:.2f}s -> {where}/summary.json")
-    _kept(where, out)
-    if result.converged and summary.get("second_order") == "saddle":
-        # the reason names the negative direction: the least eigenvalue, or an excluded mode's
-        # Rayleigh quotient (then the least eigenvalue on the rest of T may be positive)
-        print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser "
-              f"({summary.get('second_order_reason') or 'a negative tangent direction'}; least eigenvalue "
-              f"{summary['second_order_min_eigenvalue']:.3g} mu_ref with "
-              f"{summary.get('second_order_excluded', 'none')} excluded); try another initial shape",
-              file=sys.stderr)
-    if result.converged and summary.get("second_order") == "marginal":
-        print(f"vesicle-opt: warning: second order marginal, not a strict minimum: "
-              f"{summary.get('second_order_reason', '')} (rotation_rayleigh "
-              f"{summary.get('rotation_rayleigh', float('nan')):.3g}); a flat direction such as a "
-              f"nearly free rotation in the periodic box", file=sys.stderr)
-    if summary.get("wraps"):
-        print(f"vesicle-opt: warning: the inside {summary['topology']}: a slab or tube joined to its "
-              f"periodic image, not a closed vesicle", file=sys.stderr)
-    if not result.converged:
-        reason = f" ({summary['reason']})" if summary.get("reason") else ""
-        print(f"vesicle-opt: not converged{reason}: status {summary['status']}, kkt_residual "
-              f"{summary['kkt_residual']}, volume_residual {summary['volume_residual']}, "
-              f"area_residual {summary['area_residual']}", file=sys.stderr)
-        return 1
-    return 0
-
-
-def _kept(where: Path, out: Path) -> None:
-    """The warning of a failed run whose files stayed in the staging directory (``io.staging``)."""
-    if Path(where) != Path(out):
-        print(f"vesicle-opt: warning: this run failed and {out} holds a good run, which was kept; "
-              f"this run's files are in {where}", file=sys.stderr)
-
-
-def cmd_study(args) -> int:
-    if args.list:
-        width = max(map(len, STUDIES))
-        print("\n".join(f"{name:<{width}}  {DESCRIPTIONS[name]}" for name in STUDIES))
-        return 0
-    if args.name is None:
-        raise InputError("study", f"give a study name or --list; one of {', '.join(STUDIES)}")
-    study(args.name)  # an unknown name is refused before the directory is made
-    if args.out is None:  # the README's contract: a study writes many files, so it names its directory
-        raise InputError("--out", "a study needs --out DIR (the directory for its CSV and figures)")
-    with _preflight(None, args.out, None) as out:
-        return run_study(args.name, out, quick=args.quick)
-
-
-def cmd_flow(args) -> int:
-    # the flows package with the flow verb only: the solve verb does not need it (start-up, 0.02 s)
-    from vesicle_opt.flows.api import check_supported as check_flow_supported
-    from vesicle_opt.flows.run import write_flow  # the same reason: the flow verb only
-    overrides = list(args.set)
-    for key, value in (("flow.scheme", args.scheme), ("flow.dt", args.dt), ("flow.steps", args.steps),
-                       ("flow.t_end", args.t_end)):
-        if value is not None:
-            overrides.append(f"{key}={value!r}" if isinstance(value, str) else f"{key}={value}")
-    if args.adaptive:
-        overrides.append('flow.stepping="adaptive"')
-    sc = load_scene(args.scene, overrides)
-    check_flow_supported(sc)  # the flows' own refusals, before the directory is touched
-    with _preflight(sc, args.out, "flow") as out:  # write_flow warns on eps / h after its own refusals
-        run = write_flow(sc, out, restart=args.restart, progress=not getattr(args, "quiet", False))
-    s = run.summary
-    print(f"{sc.name} {s['scheme']}: {s['status']} after {s['steps']} steps, t = {s['t']:.6g}, "
-          f"energy = {s['energy']:.10g}, rejections = {s['rejections']}, wall = {s['wall_time_s']:.2f}s "
-          f"-> {run.where}/history.csv")
-    _kept(run.where, out)
-    if s["status"] == "failed":
-        print(f"vesicle-opt: flow failed: {s['message']}", file=sys.stderr)
-        return 1
-    return 0
-
-
-def cmd_branch(args) -> int:
-    """``vesicle-opt branch SCENE --param reduced_volume|c0 --to VALUE [--step DS] [--out DIR]``:
-    one line per point on stderr, branch.csv and the snapshots in --out (resumed after a kill)."""
-    for flag, v in (("--depth", args.depth), ("--deflate", args.deflate)):  # before any work
-        if v < 0:
-            raise InputError(flag, f"allowed range: an integer >= 0, got {v!r}")
-    check_line(args.param, args.second, args.values)
-    sc = load_scene(args.scene, args.set)
-    sharp = None if args.sharp is None else sharp_reference(args.sharp, sc, args.param)  # checked first
-
-    def show(row):
-        why = "" if row["converged"] or not row.get("reason") else f" ({row['reason']})"  # the outcome's line
-        print(f"point {row['point']} [{row['branch']}] {row['param']} = {row['target']:.6g}: "
-              f"converged={row['converged']}, outcome={row.get('outcome')}{why}, reduced_energy="
-              f"{row.get('reduced_energy')}, {row.get('second_order')}, iterations={row['iterations']}",
-              file=sys.stderr)
-    if args.second is not None:
-        with _preflight(sc, args.out, choose_backend(sc)) as out:
-            line = sweep(sc, args.param, args.to, args.step, args.second, args.values, out, progress=show,
-                         switch=args.switch, depth=args.depth, deflate=args.deflate)
-        for r in line:
-            print(f"fold at {r['second']} = {r['value']:.6g}: {r['param']} = {r['target']:.8g}, "
-                  f"reduced_energy = {r['reduced_energy']}, located by {r['located_by']}")
-        print(f"{sc.name}: {len(line)} folds over {len(args.values)} values of {args.second} -> {args.out}/fold_line.csv")
-        return 0
-    with _preflight(sc, args.out, choose_backend(sc)) as out:  # memory, --out and its lock first
-        b = follow_branch(sc, args.param, args.to, args.step, out, progress=show, switch=args.switch,
-                          depth=args.depth, deflate=args.deflate, reference=sharp)
-    pts = b.points()
-    # "all certified" only of a run that has certified points (before: "0 points, ..., all certified=True")
-    verdict = (f"all certified={all(r['converged'] for r in pts)}" if pts else
-               "no certified point" + "".join(f"; last failure: {r.get('outcome')} ({r.get('reason')})"
-                                              for r in b.rows[-1:] if not r["converged"]))
-    print(f"{sc.name}: {len(pts)} points, stopped {b.stopped}, {verdict} -> {args.out}/branch.csv")
-    return 0 if b.converged else 1
 
 
 def _flow_parser(sub) -> None:
@@ -349,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def one_line_warning(message, category, filename, lineno, file=None, line=None):
         # the tool's own warnings as its own; a library's named as that library's (matplotlib, ...)
-        ours = Path(filename).resolve().is_relative_to(Path(__file__).resolve().parent)
+        ours = Path(filename).resolve().is_relative_to(Path(__file__).resolve().parents[1])  # vesicle_opt/
         parts = Path(filename).parts
         site = [i for i, p in enumerate(parts) if p in ("site-packages", "dist-packages")]
         who = "vesicle-opt" if ours else parts[site[-1] + 1] if site and site[-1] + 1 < len(parts) - 1 else \
@@ -399,7 +251,3 @@ def run() -> None:
     sys.stderr.flush()
     logging.shutdown()
     os._exit(code)
-
-
-if __name__ == "__main__":
-    run()
