@@ -61,9 +61,10 @@ def cmd_solve(args) -> int:
     if result.converged and summary.get("second_order") == "saddle":
         # the reason names the negative direction: the least eigenvalue, or an excluded mode's
         # Rayleigh quotient (then the least eigenvalue on the rest of T may be positive)
-        print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser "
-              f"({summary.get('second_order_reason') or 'a negative tangent direction'}; least eigenvalue "
-              f"{summary['second_order_min_eigenvalue']:.3g} mu_ref with "
+        why = summary.get("second_order_reason") or "a negative tangent direction"
+        if not why.startswith("least eigenvalue"):
+            why += f"; least eigenvalue on the rest {summary['second_order_min_eigenvalue']:.3g} mu_ref"
+        print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser ({why}, "
               f"{summary.get('second_order_excluded', 'none')} excluded); try another initial shape",
               file=sys.stderr)
     if result.converged and summary.get("second_order") == "marginal":
