@@ -41,11 +41,16 @@ def test_the_user_guide_globs_its_pages():
         assert first.startswith("# "), page.name  # one top-level heading: its title in the toctree
 
 
-def test_every_results_csv_renders_as_a_table_of_its_named_columns():
+def _generator():
     import importlib.util
     spec = importlib.util.spec_from_file_location("vo_generate", ROOT / "docs" / "_ext" / "vo_generate.py")
     gen = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gen)
+    return gen
+
+
+def test_every_results_csv_renders_as_a_table_of_its_named_columns():
+    gen = _generator()
     csvs = sorted((ROOT / "docs" / "results").glob("*.csv"))
     assert {p.stem for p in csvs} <= set(gen.RESULT_TABLES)  # a CSV without a table spec would stop the build
     page = (ROOT / "docs" / "benchmarks.md").read_text()
@@ -54,3 +59,13 @@ def test_every_results_csv_renders_as_a_table_of_its_named_columns():
         n_rows = sum(1 for _ in path.open()) - 1
         assert text.count("\n| ") == n_rows + 1, path.name  # the header and one line per CSV row
         assert f"_generated/results_{path.stem}.md" in page, f"{path.name} is not shown on the benchmarks page"
+
+
+def test_the_study_columns_table_holds_the_runners_columns_and_every_study():
+    from vesicle_opt.studies import STUDIES, runner
+    gen = _generator()
+    text = gen.study_columns()
+    assert gen.columns(runner.COLUMNS) in text  # the common columns, in the runner's order
+    assert all(f"| `{name}` |" in text for name in STUDIES)  # a row per registered study
+    assert gen.study_extra_columns("sharp_limit")[:2] == ["nu", "epsilon"]  # its own COLUMNS, minus n and h
+    assert "_generated/study_columns.md" in (ROOT / "docs" / "guide" / "outputs.md").read_text()

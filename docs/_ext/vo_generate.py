@@ -8,6 +8,9 @@ build time so that they cannot drift from it.
 * ``solve_files.md`` / ``flow_files.md``: the files and summary.json keys of a real run of each verb
   (ellipse-2d at 24^2, about a second), with the value each took;
 * ``studies.md``: the study registry with its one-line descriptions;
+* ``study_columns.md``: the columns of every study CSV (``studies.runner``'s ``COLUMNS``, ``BOOKKEEPING``,
+  ``FAILURE``) and, per registered study, the ``extra_columns`` it passes to the runner, read from the
+  module's source and data (``study_extra_columns``; no study is run);
 * ``bundled_scenes.md``: the bundled scenes with the first line of each file;
 * ``cli_help.md``: ``vesicle-opt --help`` and every verb's, as argparse prints them;
 * ``results_<study>.md``: each benchmark CSV committed under ``docs/results/`` as a table of the
@@ -108,6 +111,80 @@ def studies() -> str:
     return _table(["study", "what it does"], [[f"`{n}`", DESCRIPTIONS[n]] for n in STUDIES])
 
 
+_RUNNER_CALLS = ("run_cases", "run_into", "run_study")  # the runner's entry points that take extra_columns
+
+
+def _column_expr(node, module):
+    """The value of an ``extra_columns`` expression made of string lists, module-level names and ``+``;
+    None for anything else (a call, a comprehension written at the call): nothing is executed."""
+    import ast
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        return [node.value]
+    if isinstance(node, (ast.List, ast.Tuple)):
+        parts = [_column_expr(e, module) for e in node.elts]
+        return None if any(p is None for p in parts) else [c for p in parts for c in p]
+    if isinstance(node, ast.Name):
+        value = getattr(module, node.id, None)
+        ok = isinstance(value, (list, tuple)) and all(isinstance(c, str) for c in value)
+        return list(value) if ok else None
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+        left, right = _column_expr(node.left, module), _column_expr(node.right, module)
+        return None if left is None or right is None else left + right
+    return None
+
+
+def study_extra_columns(name: str) -> list[str] | None:
+    """The columns study ``name`` adds to the runner's, in the CSV's order: every ``extra_columns``
+    its module passes to ``run_cases`` / ``run_into`` / ``run_study`` (keyword or position), found in
+    its source and resolved against the imported module's data. None where a call's columns are
+    built in a way this cannot read (or no call is found): the study's docstring says them."""
+    import ast
+    import importlib
+    import inspect
+    from vesicle_opt.studies import runner
+    module = importlib.import_module(f"vesicle_opt.studies.{name}")  # a study's import runs no study
+    found: list[list[str]] = []
+    for node in ast.walk(ast.parse(inspect.getsource(module))):
+        if not isinstance(node, ast.Call):
+            continue
+        fname = getattr(node.func, "id", getattr(node.func, "attr", None))
+        if fname not in _RUNNER_CALLS:
+            continue
+        params = list(inspect.signature(getattr(runner, fname)).parameters)
+        pos = params.index("extra_columns")
+        expr = next((k.value for k in node.keywords if k.arg == "extra_columns"),
+                    node.args[pos] if len(node.args) > pos else None)
+        if any(isinstance(a, ast.Starred) for a in node.args) or any(k.arg is None for k in node.keywords):
+            return None
+        cols = [] if expr is None else _column_expr(expr, module)
+        if cols is None:
+            return None
+        found.append(cols)
+    if not found:
+        return None
+    out: list[str] = []
+    for cols in found:  # the same CSV from two calls (a resumed pass): the union, first order kept
+        out += [c for c in cols if c not in runner.COLUMNS and c not in out]
+    return out
+
+
+def study_columns() -> str:
+    """The study CSVs' columns: the runner's, then each study's extras (``runner.CsvLog`` order)."""
+    from vesicle_opt.studies import STUDIES, runner
+    text = ("Every study CSV written through `vesicle_opt.studies.runner` (`<study>.csv` in its `--out`) has, "
+            "in this order, the common columns\n\n" + columns(runner.COLUMNS)
+            + "\nthen the study's own columns (below), then the bookkeeping columns\n\n" + columns(runner.BOOKKEEPING)
+            + "\nand the failure columns (those a study does not already hold)\n\n" + columns(runner.FAILURE)
+            + "\nA CSV written by an older version keeps its header; new columns are added at its end.\n\n")
+    rows = []
+    for name in STUDIES:
+        extra = study_extra_columns(name)
+        cell = ("see the study's docstring (`vesicle-opt study " + name + " --help`)" if extra is None
+                else ", ".join(f"`{c}`" for c in extra) or "none")
+        rows.append([f"`{name}`", cell])
+    return text + _table(["study", "its own columns"], rows)
+
+
 def bundled() -> str:
     from vesicle_opt.scene import bundled as b
     rows = []
@@ -197,6 +274,7 @@ def generate(app) -> None:
              "flow_columns.md": columns(FLOW) + "\nScheme extras: " + "; ".join(
                  f"`{k}`: " + (", ".join(f"`{c}`" for c in v) or "none") for k, v in EXTRA.items()) + ".\n",
              "solve_files.md": solve_files, "flow_files.md": flow_files, "studies.md": studies(),
+             "study_columns.md": study_columns(),
              "bundled_scenes.md": bundled(), "cli_help.md": cli_help()}
     for path in sorted((Path(app.srcdir) / "results").glob("*.csv")):
         pages[f"results_{path.stem}.md"] = results_table(path)
