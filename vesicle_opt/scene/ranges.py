@@ -33,7 +33,7 @@ TOL_RANGE = (1e-14, 1e-4)
 # interface is as wide as the box (no vesicle fits)
 EPS_PER_H_MIN, EPS_PER_BOX_MAX = 0.1, 0.5
 EPS_PER_H_RECOMMENDED = 2.0  # the README's resolution table: ε/h = 1 is 7.3 % off, 0.5 another shape
-CHOICES = {
+CHOICES = {  # the one list of each choice key's values (scene.keys.SCHEMA shows these)
     "domain.boundary": ("periodic", "natural"),
     "mesh.kind": ("fem-p1", "fd", "spectral", "axisymmetric"),
     "mesh.mass": ("lumped", "consistent"),
