@@ -81,7 +81,7 @@ def test_the_sphere_at_its_own_targets_is_certified(n):
 def test_the_sphere_is_certified_at_1e10_with_the_energy_of_1e8(n):
     """Issue 25's target: refused at tol 1e-10 while kkt_dual's denominator was the net terms (floor
     4.9e-10 at 48^3, 8.8e-10 at 64^3: the sphere's net force vanishes in the sharp limit, its dE's two
-    terms cancel 1400x). Relative to the terms apart (``verify.kkt.dual_scale``) the floor is 4.2e-13 /
+    terms cancel 2800x). Relative to the terms apart (``verify.kkt.dual_scale``) the floor is 4.2e-13 /
     7.4e-13 (measured), and the solve at 1e-10 is certified with the tol-1e-8 energy (measured equal to
     all 13 printed digits)."""
     coarse = vo.solve(_sphere(n).replace(solver=dataclasses.replace(_sphere(n).solver, second_order=False)))

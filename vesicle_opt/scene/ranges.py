@@ -28,8 +28,8 @@ M_DEFAULT = 1e4  # the M that 'auto' starts at (the paper's Table 1 value) and t
 # solver.tol: the certificate accepts kkt_dual (the relative residual in the natural norm,
 # verify.kkt) <= 100 tol, so above 1e-4 a point 1% away from stationarity would pass (tol = 1
 # certified a saddle with kkt 0.2); below 1e-14 no grid can certify: the natural-norm floor (the
-# round-off of phi through the bulk Hessian, ~ eps_mach h^-2) is 3.6e-14 at the coarsest bundled
-# grid (torus 16^3) and 1e-12 ... 3e-10 on 2D grids 64^2 ... 1024^2 (measured)
+# round-off of phi through the bulk Hessian, ~ eps_mach h^-2, relative to the terms apart) is 1.7e-14
+# at the coarsest bundled grid (torus 16^3) and 3e-13 ... 7e-11 on ellipse-2d 64^2 ... 1024^2 (measured)
 TOL_RANGE = (1e-14, 1e-4)
 # model.epsilon: below h/10 the tanh profile jumps from -1 to +1 between neighbouring nodes to
 # within 1e-6 (no node sees the diffuse interface); above half the box's shortest side the

@@ -8,8 +8,9 @@ code that shares nothing with the solver's derivatives:
   ``model.penalty.residuals``);
 * the multipliers of a penalty run, lambda = mu - M (A - alpha, B - beta) (exact runs pass theirs);
 * the relative KKT residual in the natural norm, ``kkt_dual`` (``verify.kkt``, hand-derived
-  gradients; the norm of the bulk Hessian model P0, ``model.metric``), which decides, and the
-  relative L2 one, ``kkt_residual``, reported beside it;
+  gradients; the norm of the bulk Hessian model P0, ``model.metric``; relative to the norms of the
+  residual's elementary terms, ``kkt_dual_scale``), which decides; the same against the net terms,
+  ``kkt_dual_net``, and the relative L2 one, ``kkt_residual``, reported beside it;
 * the round-off floor of each: the least residual double precision permits. In the natural norm
   (``kkt_dual_floor``, which decides) the round-off of phi through P0 (``verify.kkt.dual_floor``,
   ~ h^-2), and for a penalty run the larger ``model.penalty.roundoff_floor`` in that norm (the
@@ -51,8 +52,9 @@ from vesicle_opt.verify.kkt import kkt_dual_report, kkt_residual
 
 KKT_FACTOR = 100.0  # the deciding residual (kkt_dual since issue 25) may exceed IPOPT's scaled
 # max-norm test by this: measured ratios for the relative L2 residual (nlp.exact scaling) 0.2-1.3 on
-# ellipse-2d, ~12 on a sphere; kkt_dual 0.73 on ellipse-2d 48^2 (7.3e-9 at IPOPT's tol 1e-8); a
-# larger ratio means the iterate is not a KKT point
+# ellipse-2d, ~12 on a sphere; kkt_dual against the net terms (kkt_dual_net) 0.73 on ellipse-2d 48^2
+# (7.3e-9 at IPOPT's tol 1e-8), against the terms apart 3.99x less; a larger ratio means the iterate
+# is not a KKT point
 _ITERATION_LIMITS = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded",
                      "Maximum_WallTime_Exceeded", "max_iter")
 

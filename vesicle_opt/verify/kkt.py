@@ -15,8 +15,8 @@ vector), both relative and so free of units:
   (``functionals.energy_gradient_parts``, ``area_gradient_parts``). This is the normwise backward
   error of the residual (the Rigal-Gaches / Oettli-Prager denominator |A||x| + |b|, not |Ax| + |b|:
   Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed., Thm 7.1): the two terms of dE
-  nearly cancel across an equilibrium's interface (f_c ~ kappa phi', J phi' ~ 0), by 40x on a
-  circle and 1400x on a sphere at its own targets, whose net force vanishes in the sharp limit, so a
+  nearly cancel across an equilibrium's interface (f_c ~ kappa phi', J phi' ~ 0), by 78x on a
+  circle and 2800x on a sphere at its own targets, whose net force vanishes in the sharp limit, so a
   denominator built on the net dE measured the residual against a near-zero of the problem rather than
   against the forces it balances. Its round-off floor (``dual_floor``, same denominator) grows like
   h^-2; to first order |r|_nat bounds the error of the iterate in the energy norm
