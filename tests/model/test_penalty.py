@@ -141,8 +141,10 @@ def test_richardson_is_exact_on_its_polynomials_and_next_stage_stops_at_the_floo
     assert next_stage([10.0, 1e2, 1e3, 1e4], 1, 1e-10, 1e-8) == 1e3  # next one below the cap: as scheduled
     assert next_stage([10.0, 1e2, 1e3, 1e4], 2, 4e-9, 1e-8) is None  # cap 1.25e3 < 1.5 M: stop here
     # the default M (1e4) is lowered to where its floor is tol / 2; a chosen M is solved as given
-    assert penalty_retry(1e4, 2e-8, 1e-8) == pytest.approx(2.5e3) and penalty_retry(1e4, 2e-9, 1e-8) is None
-    assert penalty_retry(1e8, 2e-4, 1e-8) is None
+    # solver.M = 'auto' (its number 1e4): floor 2e-8 at 1e4 -> the M of floor tol/2, 1e4 x 5e-9 / 2e-8
+    assert penalty_retry(1e4, 2e-8, 1e-8, True) == pytest.approx(2.5e3) and penalty_retry(1e4, 2e-9, 1e-8, True) is None
+    assert penalty_retry(1e4, 2e-8, 1e-8, False) is None  # a number, even 1e4, is solved as given
+    assert penalty_retry(1e8, 2e-4, 1e-8, False) is None
 
 
 def test_dual_secant_reaches_the_root_of_a_linear_dual_in_few_steps():

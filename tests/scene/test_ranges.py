@@ -24,7 +24,7 @@ BAD = {
     "flow.checkpoint_every": 0, "mesh.n": 2,
 }
 RANGED = [k for k, (kind, _, allowed) in SCHEMA.items()
-          if kind in ("float", "int", "ints") and allowed != "any real"]
+          if kind in ("float", "float/auto", "int", "ints") and allowed != "any real"]
 
 
 def test_every_ranged_key_has_a_bad_value():
@@ -118,3 +118,21 @@ def test_cli_flow_warns_once_after_its_refusals(capsys, tmp_path):
     assert main(["flow", "ellipse-2d", "--set", "mesh.n=16", "--steps", "1", "-q", "--out", str(tmp_path / "o")]) == 0
     err = capsys.readouterr().err
     assert err.count("epsilon / h = 0.4 is below the recommended 2") == 1, err  # eps 0.2, h = 8/16
+
+
+def test_solver_M_is_auto_by_default_or_a_number():
+    """solver.M = 'auto' (the default): the penalty method's choice, starting at M_DEFAULT; a number is
+    kept as given (an explicit 1e4 is no longer taken for the default); any other string is refused
+    by both paths with the same InputError."""
+    from vesicle_opt.scene.ranges import M_AUTO, M_DEFAULT
+    scene = load("ellipse-2d")
+    assert scene.solver.M == M_AUTO and scene.solver.M_auto and scene.solver.M_value == M_DEFAULT
+    given = load("ellipse-2d", ["solver.M=1e4"])
+    assert given.solver.M == 1e4 and not given.solver.M_auto and given.solver.M_value == 1e4
+    assert load("ellipse-2d", ["solver.M='auto'"]).solver == scene.solver
+    with pytest.raises(InputError) as via_load:
+        load("ellipse-2d", ["solver.M='big'"])
+    with pytest.raises(InputError) as via_replace:
+        _replace(scene, "solver.M", "big")
+    assert via_load.value.key == via_replace.value.key == "solver.M"
+    assert "'auto'" in str(via_load.value) and "'auto'" in str(via_replace.value)

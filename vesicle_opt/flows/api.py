@@ -66,7 +66,7 @@ def build_model(scene, disc: Discretization | None = None) -> FlowModel:
     disc = disc or discretize(scene)
     alpha, beta = constraint_data(scene, disc)
     return FlowModel(disc, scene.model.epsilon, scene.model.C, scene.model.rigidity, alpha, beta,
-                     scene.solver.M, scene.flow.gamma)
+                     scene.solver.M_value, scene.flow.gamma)
 
 
 def initial_field(scene, md: FlowModel) -> np.ndarray:

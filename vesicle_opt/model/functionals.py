@@ -150,12 +150,21 @@ def gradients(disc: Discretization, phi: np.ndarray, epsilon: float, C: float):
 
 
 def energy_gradient(disc: Discretization, phi: np.ndarray, epsilon: float, C: float) -> np.ndarray:
-    """dE_h (see ``gradients``)."""
+    """dE_h (see ``gradients``): the sum of its two ``energy_gradient_parts``."""
+    bending, reaction_part = energy_gradient_parts(disc, phi, epsilon, C)
+    return bending + reaction_part
+
+
+def energy_gradient_parts(disc: Discretization, phi: np.ndarray, epsilon: float, C: float):
+    """The two terms summed into dE_h: Delta_h^T P^T W f_c (through the Laplacian) and
+    P^T W (f_c g'(phi)) / eps (through the reaction). Across the interface of an equilibrium they
+    nearly cancel (f_c ~ kappa phi' and J phi' ~ 0 for J = eps Delta_h + g'), so each is far larger
+    than their sum: the certificate's scale counts them apart (``verify.kkt.dual_scale``)."""
     lap = disc.apply_laplacian(phi)
     q = disc.at_quad(phi)
     r = curvature_residual(q, disc.at_quad(lap), epsilon, C)
     s = reaction_derivative(q, epsilon, C)
-    return disc.apply_laplacian_transpose(disc.quad_transpose(r)) + disc.quad_transpose(r * s) / epsilon
+    return disc.apply_laplacian_transpose(disc.quad_transpose(r)), disc.quad_transpose(r * s) / epsilon
 
 
 def volume_gradient(disc: Discretization) -> np.ndarray:
@@ -164,9 +173,16 @@ def volume_gradient(disc: Discretization) -> np.ndarray:
 
 
 def area_gradient(disc: Discretization, phi: np.ndarray, epsilon: float) -> np.ndarray:
-    """dB (see ``gradients``)."""
+    """dB (see ``gradients``): the sum of its two ``area_gradient_parts``."""
+    grad, well = area_gradient_parts(disc, phi, epsilon)
+    return grad + well
+
+
+def area_gradient_parts(disc: Discretization, phi: np.ndarray, epsilon: float):
+    """The two terms summed into dB: eps K phi and P^T W W'(phi) / eps (they cancel across a tanh
+    profile, as ``energy_gradient_parts`` do)."""
     q = disc.at_quad(phi)
-    return epsilon * (disc.K @ phi) + disc.quad_transpose(double_well_derivative(q)) / epsilon
+    return epsilon * (disc.K @ phi), disc.quad_transpose(double_well_derivative(q)) / epsilon
 
 
 def sharp_energy_sphere(B: float, dim: int) -> float:

@@ -21,7 +21,6 @@ import math
 import numpy as np
 
 from vesicle_opt.model import functionals as F
-from vesicle_opt.scene.schema import SCHEMA
 from vesicle_opt.sums import total
 
 AL_REDUCTION = 0.25  # augmented Lagrangian: increase M when a residual did not drop by this factor
@@ -68,11 +67,13 @@ def residuals(disc, phi: np.ndarray, epsilon: float, alpha: float, beta: float) 
 
 
 def roundoff_floor(disc, phi, epsilon: float, C: float, rigidity: float, lam: tuple[float, float],
-                   M: tuple[float, float], grads=None, norm=None) -> float:
+                   M: tuple[float, float], grads=None, norm=None, scale=None) -> float:
     """Least relative stationarity residual (verify.kkt) that double precision permits at penalty M.
     ``grads``: (dE, dA, dB) of ``functionals.gradients`` at phi, when the caller has them; ``norm``:
     the norm of the residual (default the L2 one, ``disc.dual_norm``; the certificate's is the natural
-    norm of ``model.metric``, in which the same law holds with that norm's |dA|, |dB|).
+    norm of ``model.metric``, in which the same law holds with that norm's |dA|, |dB|); ``scale``: the
+    denominator to be relative to (default the net terms below; the certificate passes kkt_dual's,
+    ``verify.kkt.dual_scale``).
 
     The estimates lambda = mu - M (A - alpha) inherit the evaluation error of A and B inside the
     NLP (CasADi sums N nodal terms in order: error ~ sqrt(N) u_mach sum|terms|), multiplied by M:
@@ -87,7 +88,8 @@ def roundoff_floor(disc, phi, epsilon: float, C: float, rigidity: float, lam: tu
     u = np.finfo(float).eps
     S_A = float(np.sum(np.abs(disc.weights * phi)))
     S_B = float(F.area_functional(F.NumpyOps(disc), phi, epsilon))
-    scale = rigidity * norm(dE) + abs(lam[0]) * norm(dA) + abs(lam[1]) * norm(dB)
+    if scale is None:
+        scale = rigidity * norm(dE) + abs(lam[0]) * norm(dA) + abs(lam[1]) * norm(dB)
     num = np.sqrt(phi.size) * u * (M[0] * S_A * norm(dA) + M[1] * S_B * norm(dB))
     return float(num / max(scale, np.finfo(float).tiny))
 
@@ -121,13 +123,13 @@ def next_stage(Ms: list[float], k: int, floor: float, tol: float, margin: float 
     return float(cap) if cap >= 1.5 * Ms[k] else None
 
 
-def penalty_retry(M: float, floor: float, tol: float) -> float | None:
-    """The method penalty at the default M (``solver.M`` left at the schema's 1e4, read as "the largest
-    M up to 1e4 that can be certified") whose floor reached tol: the M to solve at instead, warm-started,
-    where the floor is tol / 2 (``certifiable_M``); None when the floor is below tol or M was chosen
-    (another value: solved as given, and refused as ``roundoff_floor`` if its floor reaches tol). The
-    result reports ``M_requested``."""
-    if floor < tol or M != SCHEMA["solver.M"][1]:
+def penalty_retry(M: float, floor: float, tol: float, auto: bool) -> float | None:
+    """The method penalty with ``solver.M = 'auto'`` (``auto``; M = its number, ``scene.ranges.M_DEFAULT``,
+    read as "the largest M up to it that can be certified") whose floor reached tol: the M to solve at
+    instead, warm-started, where the floor is tol / 2 (``certifiable_M``); None when the floor is below
+    tol or M was a number (solved as given, and refused as ``roundoff_floor`` if its floor reaches
+    tol). The result reports ``M_requested``."""
+    if floor < tol or not auto:
         return None
     return float(certifiable_M(floor, M, tol))
 

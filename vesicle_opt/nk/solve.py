@@ -33,9 +33,11 @@ level started from the trigonometric interpolant of the last; see ``coarse_level
 
 Reported multipliers of ``exact`` are the least-squares ones of the final phi in the dual metric
 (independent of the iteration), with rigidity * grad E_h = lam_A grad A + lam_B grad B. The solver
-stops on the dual-norm KKT residual (``extra['kkt_dual_solver']``); ``verify.certify.build_result``
-recomputes it (``kkt_dual``, the same norm: ``model.metric``) with its floor ~ eps_mach h^-2
-(``kkt_dual_floor``), which decide, and reports the L2 one (``kkt_residual``, floor ~ eps_mach
+stops on the dual-norm KKT residual relative to the net terms (``extra['kkt_dual_solver']``;
+``verify.certify.build_result`` recomputes it as ``kkt_dual_net``); the certificate decides on the same
+norm (``model.metric``) relative to the terms apart (``kkt_dual``, never above it: the solver's test is
+the stricter, and where it cannot be met the run ends ``roundoff_stall``) with its floor ~ eps_mach
+h^-2 (``kkt_dual_floor``), and reports the L2 one (``kkt_residual``, floor ~ eps_mach
 k_max^4 on Fourier grids: ``l2_floor``, ``extra['kkt_floor']``) beside them: ``converged`` is the one
 certificate of every backend.
 """

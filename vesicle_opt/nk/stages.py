@@ -63,7 +63,7 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
         return pt, status
 
     if method == "augmented":
-        M, mu, prev, secant = float(s.M), np.zeros(2), (math.inf, math.inf), DualSecant()
+        M, mu, prev, secant = s.M_value, np.zeros(2), (math.inf, math.inf), DualSecant()
         if floor is not None:
             for Mk in ramp_schedule(s, M):  # warm-up stages at mu = 0 (model.penalty.ramp_schedule)
                 pt, status = run(Mk, mu)
@@ -86,7 +86,7 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
                 M = min(M * s.M_factor, s.M_max)
             prev = res
         return stages
-    sched = [float(s.M)] if method == "penalty" else schedule(s.M0, s.M_factor, s.M_max)
+    sched = [s.M_value] if method == "penalty" else schedule(s.M0, s.M_factor, s.M_max)
     i, M = 0, sched[0]
     while M is not None:
         pt, status = run(M, np.zeros(2))
@@ -96,7 +96,7 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
         if floor is None:
             nxt = sched[i + 1] if i + 1 < len(sched) else None
         elif method == "penalty":
-            nxt = penalty_retry(M, floor(pt, M), tol) if len(stages) == 1 and status == "converged" else None
+            nxt = penalty_retry(M, floor(pt, M), tol, s.M_auto) if len(stages) == 1 and status == "converged" else None
         else:
             nxt = next_stage(sched, i, floor(pt, M), tol)
         if nxt is not None and i + 1 < len(sched) and nxt == sched[i + 1]:

@@ -136,7 +136,7 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
     the floor stays below tol (``model.penalty.raise_M``). Every stage is certified with the exact
     constraints (the method's promise), so the first converged stage ends it."""
     s = nlp.scene.solver
-    M = float(M or s.M)
+    M = float(M or s.M_value)
     max_outer = max_outer or s.max_outer
     options = penalty_options(nlp, options, True)
     solver = solver or make_solver(nlp, options)
@@ -186,9 +186,9 @@ def solve_penalised(nlp: PenaltyNLP, *, x0=None, lam_x0=None, lam_g0=None, solve
         return augmented_lagrangian(nlp, options=options, solver=solver, **start)
     options = penalty_options(nlp, options)
     solver = solver or make_solver(nlp, options)
-    r = solve_stage(nlp, solver, nlp.parameters(s.M), x0=x0, lam_x0=lam_x0, lam_g0=lam_g0, tol=options.tol)
-    M = penalty_retry(s.M, r.extra["kkt_dual_floor"], options.tol) if r.success else None
+    r = solve_stage(nlp, solver, nlp.parameters(s.M_value), x0=x0, lam_x0=lam_x0, lam_g0=lam_g0, tol=options.tol)
+    M = penalty_retry(s.M_value, r.extra["kkt_dual_floor"], options.tol, s.M_auto) if r.success else None
     if M is None:
         return r
     again = solve_stage(nlp, solver, nlp.parameters(M), x0=r.x, lam_x0=r.lam_x, lam_g0=r.lam_g, tol=options.tol)
-    return combine_stages(again, [r, again], "penalty", r.wall_time_s + again.wall_time_s, {"M_requested": s.M})
+    return combine_stages(again, [r, again], "penalty", r.wall_time_s + again.wall_time_s, {"M_requested": s.M_value})

@@ -1,5 +1,6 @@
 """The scene key table: ``SCHEMA``, dotted key -> (kind, default, allowed), kind one of float,
-int, str, bool, shape, box, ints; the allowed text is what an InputError names. ``POSITIVE``: the
+float/auto (a number or the string 'auto'), int, str, bool, shape, box, ints; the allowed text is
+what an InputError names. ``POSITIVE``: the
 keys that must be > 0; ``known``: whether a dotted key is a scene key (``schema`` validates with it).
 """
 
@@ -7,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from vesicle_opt.scene.ranges import CHOICES, EPS_PER_BOX_MAX, EPS_PER_H_MIN, M_LIMIT, TOL_RANGE
+from vesicle_opt.scene.ranges import CHOICES, EPS_PER_BOX_MAX, EPS_PER_H_MIN, M_AUTO, M_DEFAULT, M_LIMIT, TOL_RANGE
 from vesicle_opt.scene.shape_spec import SHAPE_KEYS
 
 REQUIRED = object()  # the default of a key a scene must give
@@ -29,7 +30,8 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "constraints.area": ("float", None, "> 0 (area in 3D, perimeter in 2D), with constraints.reduced_volume"),
     "initial": ("shape", REQUIRED, "a shape table"),
     "solver.method": ("str", "exact", CHOICES["solver.method"]),
-    "solver.M": ("float", 1e4, f"0 < M <= {M_LIMIT:g}"),
+    "solver.M": ("float/auto", M_AUTO, f"{M_AUTO!r} (the penalty method's choice, from {M_DEFAULT:g} down to "
+                 f"the certifiable M) or 0 < M <= {M_LIMIT:g} (solved as given)"),
     "solver.tol": ("float", 1e-8, f"{TOL_RANGE[0]:g} <= tol <= {TOL_RANGE[1]:g}"),
     "solver.max_iter": ("int", 500, ">= 1"),
     "solver.backend": ("str", "auto", CHOICES["solver.backend"]),

@@ -22,11 +22,14 @@ from numbers import Integral, Real
 from vesicle_opt.errors import InputError
 
 M_LIMIT = 1e12  # largest penalty constant accepted (double precision: M |A - alpha| loses digits beyond)
+M_AUTO = "auto"  # solver.M's default: the penalty method picks M (model.penalty.penalty_retry)
+M_DEFAULT = 1e4  # the M that 'auto' starts at (the paper's Table 1 value) and the flows' penalty constant;
+# 'auto' lowers it, warm, to the certifiable M where its floor reaches tol, a number is solved as given
 # solver.tol: the certificate accepts kkt_dual (the relative residual in the natural norm,
 # verify.kkt) <= 100 tol, so above 1e-4 a point 1% away from stationarity would pass (tol = 1
 # certified a saddle with kkt 0.2); below 1e-14 no grid can certify: the natural-norm floor (the
-# round-off of phi through the bulk Hessian, ~ eps_mach h^-2) is 3.6e-14 at the coarsest bundled
-# grid (torus 16^3) and 1e-12 ... 3e-10 on 2D grids 64^2 ... 1024^2 (measured)
+# round-off of phi through the bulk Hessian, ~ eps_mach h^-2, relative to the terms apart) is 1.7e-14
+# at the coarsest bundled grid (torus 16^3) and 3e-13 ... 7e-11 on ellipse-2d 64^2 ... 1024^2 (measured)
 TOL_RANGE = (1e-14, 1e-4)
 # model.epsilon: below h/10 the tanh profile jumps from -1 to +1 between neighbouring nodes to
 # within 1e-6 (no node sees the diffuse interface); above half the box's shortest side the
@@ -80,9 +83,18 @@ def check_tol(tol) -> None:
                          f"kkt_dual <= 100 tol), got {tol!r}")
 
 
+def penalty_M(M) -> float:
+    """The number solver.M stands for: ``M_DEFAULT`` for 'auto' (``M_AUTO``), else M itself."""
+    return M_DEFAULT if M == M_AUTO else float(M)
+
+
 def check_penalty(M, M0, M_max, M_factor) -> None:
-    """Ranges of the penalty keys (methods penalty, continuation, augmented)."""
+    """Ranges of the penalty keys (methods penalty, continuation, augmented); solver.M may be 'auto'."""
+    if isinstance(M, str) and M != M_AUTO:
+        raise InputError("solver.M", f"allowed {M_AUTO!r} or 0 < M <= {M_LIMIT:g}, got {M!r}")
     for key, v in (("solver.M", M), ("solver.M0", M0), ("solver.M_max", M_max)):
+        if key == "solver.M" and M == M_AUTO:
+            continue
         real(key, v, positive=True)
         if v > M_LIMIT:
             rng = {"solver.M": f"0 < M <= {M_LIMIT:g}", "solver.M0": f"0 < M0 <= M_max <= {M_LIMIT:g}",

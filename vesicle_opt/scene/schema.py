@@ -95,7 +95,7 @@ class Constraints:
 @dataclass(frozen=True)
 class Solver:
     method: str  # "exact" | "penalty" | "continuation"
-    M: float
+    M: float | str  # a number, or "auto" (scene.ranges.M_AUTO): the number is ``M_value``
     tol: float
     max_iter: int
     backend: str = "auto"  # "auto" | "ipopt" | "newton-krylov" (see vesicle_opt.backends.choose_backend)
@@ -118,6 +118,16 @@ class Solver:
 
     def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
         ranges.check_solver(self)
+
+    @property
+    def M_auto(self) -> bool:
+        """solver.M = 'auto': the penalty method may lower M to what tol can certify."""
+        return self.M == ranges.M_AUTO
+
+    @property
+    def M_value(self) -> float:
+        """The penalty constant as a number (``scene.ranges.penalty_M``: 'auto' is M_DEFAULT)."""
+        return ranges.penalty_M(self.M)
 
 
 @dataclass(frozen=True)
@@ -240,7 +250,10 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
         elif kind == "bool":
             if not isinstance(v, bool):
                 raise InputError(key, f"expected true or false, got {v!r}")
-        elif kind in ("float", "int"):
+        elif kind == "float/auto" and isinstance(v, str):
+            if v != ranges.M_AUTO:
+                raise InputError(key, f"allowed {allowed}, got {v!r}")
+        elif kind in ("float", "int", "float/auto"):
             v = number(key, v, integer=kind == "int")
             v = int(v) if kind == "int" else float(v)
             if key in POSITIVE and v <= 0:

@@ -8,8 +8,9 @@ code that shares nothing with the solver's derivatives:
   ``model.penalty.residuals``);
 * the multipliers of a penalty run, lambda = mu - M (A - alpha, B - beta) (exact runs pass theirs);
 * the relative KKT residual in the natural norm, ``kkt_dual`` (``verify.kkt``, hand-derived
-  gradients; the norm of the bulk Hessian model P0, ``model.metric``), which decides, and the
-  relative L2 one, ``kkt_residual``, reported beside it;
+  gradients; the norm of the bulk Hessian model P0, ``model.metric``; relative to the norms of the
+  residual's elementary terms, ``kkt_dual_scale``), which decides; the same against the net terms,
+  ``kkt_dual_net``, and the relative L2 one, ``kkt_residual``, reported beside it;
 * the round-off floor of each: the least residual double precision permits. In the natural norm
   (``kkt_dual_floor``, which decides) the round-off of phi through P0 (``verify.kkt.dual_floor``,
   ~ h^-2), and for a penalty run the larger ``model.penalty.roundoff_floor`` in that norm (the
@@ -47,12 +48,13 @@ from vesicle_opt.model import functionals as F
 from vesicle_opt.model.metric import natural_metric
 from vesicle_opt.model.penalty import penalised_energy, residuals, roundoff_floor
 from vesicle_opt.result import Result, Status
-from vesicle_opt.verify.kkt import kkt_dual, kkt_residual
+from vesicle_opt.verify.kkt import kkt_dual_report, kkt_residual
 
 KKT_FACTOR = 100.0  # the deciding residual (kkt_dual since issue 25) may exceed IPOPT's scaled
 # max-norm test by this: measured ratios for the relative L2 residual (nlp.exact scaling) 0.2-1.3 on
-# ellipse-2d, ~12 on a sphere; kkt_dual 0.73 on ellipse-2d 48^2 (7.3e-9 at IPOPT's tol 1e-8); a
-# larger ratio means the iterate is not a KKT point
+# ellipse-2d, ~12 on a sphere; kkt_dual against the net terms (kkt_dual_net) 0.73 on ellipse-2d 48^2
+# (7.3e-9 at IPOPT's tol 1e-8), against the terms apart 3.99x less; a larger ratio means the iterate
+# is not a KKT point
 _ITERATION_LIMITS = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded",
                      "Maximum_WallTime_Exceeded", "max_iter")
 
@@ -106,11 +108,16 @@ def dual_floor_of(disc, phi, epsilon: float, C: float, rigidity: float, lam, M=N
     """The floor ``build_result`` certifies against (``kkt_dual_floor``): the round-off of phi in
     the natural norm, and at a penalty M the larger multiplier floor ``model.penalty.roundoff_floor``
     in that norm. Solvers call it to plan stages (``model.penalty.next_stage``)."""
-    grads = F.gradients(disc, phi, epsilon, C) if grads is None else grads
-    floor = kkt_dual(disc, phi, epsilon, C, rigidity, lam[0], lam[1], grads=grads)[1]
-    if M is not None:
+    return _dual_floor(kkt_dual_report(disc, phi, epsilon, C, rigidity, lam[0], lam[1], grads), disc, phi,
+                       epsilon, C, rigidity, lam, M, grads)
+
+
+def _dual_floor(report, disc, phi, epsilon, C, rigidity, lam, M, grads) -> float:
+    floor = report["kkt_dual_floor"]
+    if M is not None:  # relative to kkt_dual's own denominator, as the residual it guards
         floor = max(floor, roundoff_floor(disc, phi, epsilon, C, rigidity, lam, M, grads=grads,
-                                          norm=natural_metric(disc, epsilon).dual_norm))
+                                          norm=natural_metric(disc, epsilon).dual_norm,
+                                          scale=report["kkt_dual_scale"]))
     return floor
 
 
@@ -154,19 +161,22 @@ def build_result(*, scene, disc, alpha: float, beta: float, phi: np.ndarray, tol
     if finite:
         grads = F.gradients(disc, phi, eps, C)  # once, for the residuals and the penalty's floors
         kkt = kkt_residual(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)
-        dual = kkt_dual(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)[0]
-        dual_floor = dual_floor_of(disc, phi, eps, C, rig, (lam_A, lam_B), M, grads)
+        report = kkt_dual_report(disc, phi, eps, C, rig, lam_A, lam_B, grads=grads)
+        dual = report["kkt_dual"]
+        dual_floor = _dual_floor(report, disc, phi, eps, C, rig, (lam_A, lam_B), M, grads)
         if M is not None:
             floor = max(floor, roundoff_floor(disc, phi, eps, C, rig, (lam_A, lam_B), M, grads=grads))
     else:
         kkt, floor, dual, dual_floor = np.nan, np.inf, np.nan, np.inf
+        report = {"kkt_dual_scale": np.nan, "kkt_dual_net": np.nan}
     exact_constraints = (M is None) if exact_constraints is None else exact_constraints
     rel = (abs(res[0]) / disc.volume, abs(res[1]) / abs(beta)) if exact_constraints else None
     cert = certify(solver_status=solver_status, solver_success=solver_success, finite=finite, tol=tol,
                    kkt=dual, floor=dual_floor, constraints=rel, checks=checks)
     info = {"alpha": alpha, "beta": beta, "epsilon": eps, "c0": scene.model.c0, "h": disc.h,
             "kkt_floor": floor, "kkt_dual_floor": dual_floor, **_physical(disc, alpha + res[0], beta + res[1], rig * E, rig, scene.model.c0),
-            **(extra or {}), "kkt_dual": dual}
+            **(extra or {}), "kkt_dual": dual, "kkt_dual_scale": report["kkt_dual_scale"],
+            "kkt_dual_net": report["kkt_dual_net"]}
     if M is not None:
         info.update({"M2": M[1], "mu_volume": mu[0], "mu_area": mu[1]})
     if cert.reason is not None:
