@@ -50,11 +50,12 @@ def test_the_nk_fold_corrector_passes_the_fold_on_the_ipopt_correctors_points(mo
     assert 0 < k < len(p) - 1 and p[-1] < p[k] - 1e-4, p
     folds = [r for r in b.located(0) if r["event"] == "fold"]
     # IPOPT's walk located it at 0.734765 (``test_run``; chord and parabola agree to 1.1e-6), within
-    # the zigzag (measured here 0.7347630)
+    # the zigzag (measured here 0.7347630 - 0.7347690 over runs with other first steps)
     assert len(folds) == 1 and abs(folds[0]["target"] - 0.734765) < 1e-5, folds
     for r in pts[2:]:  # the p-free points: a few bordered Newton steps of a few GMRES iterations
         steps = [int(m) for m in r["krylov_iterations"].split(";")]
-        assert len(steps) <= 8 and max(steps) <= 40, steps  # measured 4-8 steps of 2-24
+        # measured 4-9 steps of 3-25 iterations (a failure is MAX_NEWTON = 25 steps or MAX_KRYLOV = 400)
+        assert len(steps) <= 12 and max(steps) <= 40, steps
     sc_ip = ellipse_c0("ipopt")
     problem = ves.VesicleProblem(sc_ip, parameter(sc_ip, "c0"), arc.Settings(step=0.02, to=0.9),
                                  Store(None, {}, False), None, None, None, None)

@@ -110,7 +110,7 @@ class VesicleProblem(TreeProblem):
     def nk_newton_point(self, branch, phi0, p0, lam, t_phi, t_p, theta, t0) -> arc.Attempt:
         """The bordered Newton-Krylov point from (phi0, p0, lam) on the hyperplane, certified at its p."""
         if lam is None:
-            lam = least_squares_multipliers(self.scene, self.disc, phi0)
+            lam = least_squares_multipliers(self.par.scene_at(self.scene, p0), self.disc, phi0)
         nw = free_newton(self.kkt(), phi0, lam, p0, t_phi, t_p, theta, self.nk.options.tol)
         if not nw.converged or (self.par.name == "reduced_volume" and not 0 < nw.p <= 1):
             why = nw.message or f"reduced_volume {nw.p:.6g} outside (0, 1]"
@@ -121,6 +121,17 @@ class VesicleProblem(TreeProblem):
                                               "krylov_iterations": ";".join(map(str, nw.krylov))})
         return arc.Attempt(nw.p, res.phi, res.converged, nw.iterations + res.iterations,
                            (res, None, time.perf_counter() - t0, False))
+
+    def nk_fixed(self, branch, sc: Scene, p: float, phi0, lam0, t0):
+        """(result, restarted) at fixed p on Newton-Krylov: Newton on the KKT system from the prediction
+        (``nk_free`` with t_phi = 0, t_p = 1), certified at p, which converges on saddles too; if it
+        fails, the fixed-p solve (a minimiser) from the prediction (``restarted`` true), the
+        iterations added."""
+        nw = self.nk_newton_point(branch, phi0, p, lam0, np.zeros_like(phi0), 1.0, 0.0, t0)
+        if nw.converged:  # its iterations: the Newton steps of both (the step control's count)
+            return dataclasses.replace(nw.payload[0], iterations=nw.iterations), False
+        res = self.nk.solve(sc, phi0, lam0, -1 if branch is None else branch)
+        return dataclasses.replace(res, iterations=nw.iterations + res.iterations), True
 
     def multipliers(self, branch: int, p: float) -> tuple[float, float] | None:
         """(lambda_volume, lambda_area) predicted at p: linear in p through the branch's last two
@@ -184,15 +195,10 @@ class VesicleProblem(TreeProblem):
                 sc = self.par.scene_at(self.scene, p)
             restarted = None
             try:
-                if self.nk is not None:  # warm: the predicted multipliers (None at a start: least squares)
-                    res = self.nk.solve(sc, phi_start, None if start else self.multipliers(branch, p), branch)
-                    if not res.converged and not start:  # a minimiser wandering off a saddle: Newton on
-                        # the KKT system at fixed p from the prediction (t_phi = 0, t_p = 1), certified
-                        nw = self.nk_newton_point(branch, phi_start, p, self.multipliers(branch, p),
-                                                  np.zeros_like(phi_start), 1.0, 0.0, t0)
-                        if nw.converged:
-                            return dataclasses.replace(nw, iterations=res.iterations + nw.iterations,
-                                                       payload=(*nw.payload[:3], True))
+                if self.nk is not None and start:  # the scene's own start (nested iteration, least squares)
+                    res = self.nk.solve(sc, phi_start, None, branch)
+                elif self.nk is not None:
+                    res, restarted = self.nk_fixed(branch, sc, p, phi_start, self.multipliers(branch, p), t0)
                 elif self.ipopt is None:
                     res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
                 elif start:
@@ -273,7 +279,7 @@ class VesicleProblem(TreeProblem):
         sc = self.par.scene_at(self.scene, p)
         try:
             if self.nk is not None:
-                res = self.nk.solve(sc, phi0, lam0, branch=-1)
+                res, _ = self.nk_fixed(None, sc, p, phi0, lam0, time.perf_counter())
             elif self.ipopt is None:
                 res = solve(sc, backend=self.backend, method="exact", x0=phi0, options=self.options)
             else:
