@@ -108,7 +108,7 @@ def bordered_solve(hvp, pinv, cols, rows, corner, f, g, eta: float, max_iter: in
         top = hvp(x)
         for b, yi in zip(cols, y):
             top = top + yi * b
-        bottom = np.array([float(rw @ x) for rw in rows]) + S_dot(corner, y)
+        bottom = np.array([float(rw @ x) for rw in rows]) + _corner_product(corner, y)
         return precond(top, bottom)
 
     op = spla.LinearOperator((n + k, n + k), matvec=matvec, dtype=float)
@@ -122,7 +122,7 @@ def bordered_solve(hvp, pinv, cols, rows, corner, f, g, eta: float, max_iter: in
     return sol[:n], sol[n:], count[0], info == 0
 
 
-def S_dot(corner, y):
+def _corner_product(corner, y):
     return np.asarray(corner, float) @ y if len(y) else np.zeros(0)
 
 

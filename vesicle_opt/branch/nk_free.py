@@ -10,11 +10,14 @@ are the branch's Newton-Krylov setup (``nk.setup.prepare``: Fourier, mirror and 
 the sparse path); where the parameter is c0 only the pointwise part (PhaseField at C(p)) changes.
 
 Phase conditions (the near-null modes that would make J numerically singular): the translations
-w d_i phi_pred on spectral periodic grids (exact symmetries, as ``nk.setup`` projects them), and on
-2D periodic grids the rotation (``branch.corrector.rotation_row``, the row the IPOPT warm solves
-hold); their multipliers vanish at a solution up to the grid's symmetry breaking (the rotation's at
-shapes symmetric under the axis reflections). Mirror grids have neither (their symmetry class fixes
-position and orientation).
+w d_i phi_pred on spectral periodic grids (exact symmetries, as ``nk.setup`` projects them; their
+multipliers vanish at a solution up to aliasing). None on FD grids (whole-cell shifts only, as
+``nk.setup``) and mirror grids (their symmetry class fixes position and orientation). The rotation
+is not pinned: on FD grids it is no symmetry, and a rotation row (the IPOPT warm solves' row,
+``branch.corrector.rotation_row``) held the FD ellipse at its axis orientation where the certified
+point turns (measured: the switched branch of the nu = 0.8 ellipse in c0, its every fixed-p polish
+at max_iter with the row, certified at 5-7 Newton steps without it); on the 2D spectral grids tried
+its near-null mode (~1e-8 mu_ref) did not stall Newton (the circle's saddle: 3-4 steps a point).
 
 r_p, the stationarity's derivative in p: 0 for the reduced volume; for c0, rigidity sqrt(2) dE'/dC,
 dE' (the gradient) quadratic in C, so the central difference with step 1 is exact up to round-off.
@@ -29,15 +32,12 @@ topology, as the IPOPT path certifies ``branch.bordered``'s point.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from vesicle_opt.branch.bordered import Affine
 from vesicle_opt.branch.krylov_bordered import Free, Linearization, newton
 from vesicle_opt.model.lumped import PhaseField
 
-ROTATION = False
 STOP = 0.05  # x tol: below the fixed-p solve's own tests (0.1 tol on both), so it takes the point as is
 
 
@@ -50,7 +50,6 @@ class VesicleKKT:
         self.affine = affine
         self._pf: dict = {}
         self.volume = self.disc.volume
-        self.rotation = ROTATION
 
     def pf(self, C: float) -> PhaseField:
         if C not in self._pf:
@@ -89,20 +88,9 @@ class VesicleKKT:
 
     def phase(self, phi_pred) -> list:
         """The phase conditions' vectors at the prediction (module docstring)."""
-        out = []
-        w = self.disc.weights
         T = self.translations(np.asarray(phi_pred, float))
-        if T is not None:
-            out += [w * T[:, i] for i in range(T.shape[1])]
-        if self.rotation and self.disc.dim == 2 and _periodic(self.disc):
-            from vesicle_opt.branch.corrector import rotation_row  # FourierGrid derivatives of the nodes
-            out.append(rotation_row(self.disc, np.asarray(phi_pred, float)) * math.sqrt(self.volume))
-        return out
-
-
-def _periodic(disc) -> bool:
-    fourier = getattr(disc, "fourier", None)
-    return fourier is not None and getattr(fourier, "kind", None) in ("spectral", "fd")
+        w = self.disc.weights
+        return [] if T is None else [w * T[:, i] for i in range(T.shape[1])]
 
 
 def free_newton(model: VesicleKKT, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: float,

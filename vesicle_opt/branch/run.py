@@ -21,10 +21,11 @@ with the front door's certificate, its second-order verdict (``second_order``,
   ``branch.nk_free`` (bordered Newton on the KKT system, GMRES with a Schur-complement
   preconditioner on the Newton-Krylov model, ``branch.krylov_bordered``; ``krylov_iterations``
   the GMRES counts of its Newton steps), then certified and checked at its own p by that fixed-p
-  solve, so a branch passes turning points and follows saddles; where a fixed-p solve fails (the
-  final step, an explicit ``turn``), the same Newton at fixed p from the prediction, certified
-  likewise (``restarted`` true); with ``solver.array = "jax"`` the front door itself (the scalar
-  iteration on p of ``branch.arclength`` near a fold, which approaches it but does not pass it).
+  solve, so a branch passes turning points and follows saddles; every point at a fixed p (the
+  first and the final step, the tree's location and switch trials) is the same Newton with p held
+  (t_phi = 0, t_p = 1), certified likewise, the fixed-p solve (a minimiser, which leaves saddles)
+  its fallback (``restarted`` true); with ``solver.array = "jax"`` the front door itself (the
+  scalar iteration on p of ``branch.arclength`` near a fold, which approaches it but does not pass it).
 
 Per accepted point the row also holds
 
