@@ -6,7 +6,8 @@ Per point (``row``): the certificate, the second-order verdict and its least few
 envelope identity's ``dE_dp`` and ``envelope_residual`` (``branch.run`` docstring). For the tree:
 
 * ``solve(p, phi0, lam0)``: the certified point at fixed p, warm (the location of a branch point,
-  the fixed-p switch); ``free``: the point with p free on a hyperplane (IPOPT, lumped mass);
+  the fixed-p switch); ``free``: the point with p free on a hyperplane (IPOPT with lumped mass:
+  ``branch.bordered``; Newton-Krylov: ``branch.nk_free``, which also makes every fixed-p point there);
 * ``mode(point, m)``: the m-th eigenvector of the reduced Hessian at a point (``verify.lobpcg``'s
   matrix-free spectrum with its vectors; the check's own least mode for m = 0 elsewhere);
 * ``align(phi, ref)``: on periodic grids the image of phi under translations (the peak of the FFT
@@ -116,7 +117,10 @@ class VesicleProblem(TreeProblem):
             why = nw.message or f"reduced_volume {nw.p:.6g} outside (0, 1]"
             return arc.Attempt(nw.p, phi0, False, nw.iterations,
                                (None, f"bordered Newton-Krylov: {why}", time.perf_counter() - t0, None))
-        res = self.nk.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, -1 if branch is None else branch)
+        try:
+            res = self.nk.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, -1 if branch is None else branch)
+        except InputError as exc:  # infeasible targets at the p found: a failed attempt
+            return arc.Attempt(nw.p, phi0, False, nw.iterations, (None, str(exc), time.perf_counter() - t0, None))
         res = dataclasses.replace(res, extra={**res.extra, "bordered_newton": nw.iterations,
                                               "krylov_iterations": ";".join(map(str, nw.krylov))})
         return arc.Attempt(nw.p, res.phi, res.converged, nw.iterations + res.iterations,
