@@ -100,6 +100,45 @@ def test_the_nk_saddle_branch_of_the_circle_passes_nu_0_657():
     assert np.all(np.diff(energies) > 0)  # E rises as nu falls at fixed perimeter (dE/dnu = lambda_A dalpha < 0)
 
 
+def test_the_branch_verb_on_newton_krylov_writes_the_gmres_counts(tmp_path, capsys):
+    """``vesicle-opt branch`` with solver.backend = newton-krylov runs the p-free corrector (no new
+    flag): its rows are ``arclength`` between the first and the final step, and every point after the
+    start (those at fixed p too: Newton with p held) has the GMRES count of each bordered Newton step
+    in ``krylov_iterations`` (as many as its Newton ``iterations``)."""
+    import csv
+
+    from vesicle_opt import cli
+    raw = {"domain": {"box": [[-4.0, 4.0], [-4.0, 4.0]], "boundary": "periodic"},
+           "mesh": {"kind": "spectral", "n": 48}, "model": {"epsilon": 0.4},
+           "constraints": {"reduced_volume": 0.95, "area": 8.0},
+           "initial": {"shape": "circle", "radius": 1.27},
+           "solver": {"method": "exact", "tol": 1e-8, "second_order": True, "max_iter": 200,
+                      "backend": "newton-krylov", "shape_check": False}}
+    toml = tmp_path / "circle.toml"
+    toml.write_text("".join(f"[{sec}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in body.items())
+                            for sec, body in raw.items()))
+    out = tmp_path / "out"
+    code = cli.main(["branch", str(toml), "--param", "reduced_volume", "--to", "0.875", "--step", "-0.025",
+                     "--no-switch", "--out", str(out)])
+    capsys.readouterr()
+    assert code == 0
+    with open(out / "branch.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    kinds = [r["corrector"] for r in rows]  # the final step to --to is at fixed p (Newton with p held)
+    assert kinds[:2] == ["start", "natural"] and set(kinds[2:-1]) == {"arclength"} and len(rows) >= 4
+    for r in rows[1:]:
+        counts = r["krylov_iterations"].split(";")
+        assert r["converged"] == "true" and len(counts) == int(r["iterations"]) and all(int(c) > 0 for c in counts)
+
+
+def _toml_value(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return f'"{v}"'
+    return repr(v).replace("(", "[").replace(")", "]")
+
+
 @pytest.mark.slow
 def test_a_3d_mirror_grid_branch_passes_its_turning_point():
     """The prolate at v = 0.8 on the octant mirror grid (eps 0.2, 50 x 20 x 20, Newton-Krylov) in c0
