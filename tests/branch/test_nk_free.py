@@ -142,9 +142,12 @@ def _toml_value(v):
 @pytest.mark.slow
 def test_a_3d_mirror_grid_branch_passes_its_turning_point():
     """The prolate at v = 0.8 on the octant mirror grid (eps 0.2, 50 x 20 x 20, Newton-Krylov) in c0
-    from -1.8 towards -3: the stable prolate (index 0) turns at c0 ~ -1.999 and comes back on the
-    index-1 sheet past the start (measured: 34 points, ~100 s at load ~10). The shape check is off:
-    at |C| = 2.8 and eps = 0.2 the outer bulk carries 5 % of the volume (``wrong_shape``), a
+    from -1.8 towards -3 (measured: 34 points, 100-130 s at load ~10). Near c0 = -1.99 the stable
+    prolate sheet (index 0, its least eigenvalue dipping to 0.002 and rising again: a fine walk goes
+    on past -2.3) comes within ~0.01 of a second sheet, onto which this walk (step 0.05) crosses; that
+    sheet turns at a fold, located on the chord with p free at c0 = -1.982793 (its second eigenvalue
+    zero to its bound), and the walk comes back on its index-1 part past the start. The shape check is
+    off: at |C| = 2.8 and eps = 0.2 the outer bulk carries 5 % of the volume (``wrong_shape``), a
     phase-field effect of this coarse eps, not the continuation's."""
     from vesicle_opt.studies import crossing_3d as cx
     box, n = cx.octant_box(tuple(1.3 * h for h in cx.HALF_EXTENT["prolate"]), 0.2)
@@ -156,8 +159,11 @@ def test_a_3d_mirror_grid_branch_passes_its_turning_point():
     b = branch(from_dict(raw, "prolate-octant-c0"), "c0", to=-3.0, step=-0.05, max_points=45, switch=False)
     pts = b.points()
     p = np.array([r["target"] for r in pts])
-    k = int(np.argmin(p))
     assert all(r["converged"] for r in pts) and b.stopped[0].startswith("left the range")
-    assert 0 < k < len(p) - 1 and p[-1] > -1.8  # turned and came back past the start
-    assert -2.01 < p[k] < -1.99  # measured -1.998957 (the steps in c0 there ~0.005)
-    assert pts[0]["index"] == 0 and pts[-1]["index"] == 1  # the stable sheet, then the saddle one
+    assert pts[0]["index"] == 0 and pts[-1]["index"] == 1 and p[-1] > -1.8  # turned and came back past the start
+    folds = [r for r in b.located(0) if r["event"] == "fold"]
+    assert len(folds) == 1 and folds[0]["located_by"] == "chord"
+    # this walk and a walk on the second sheet alone (step 0.01, started from this one's index-1 point
+    # at -1.9395) located it at -1.9827927 and -1.9827930
+    assert abs(folds[0]["target"] + 1.982793) < 1e-5, folds[0]["target"]
+    assert abs(folds[0]["critical_eigenvalue"]) <= folds[0]["critical_error"]  # measured 2.5e-5 <= 9.1e-5
