@@ -32,7 +32,7 @@ from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multiplie
 from vesicle_opt.branch.deflation import deflated_vesicle
 from vesicle_opt.branch.events import Point
 from vesicle_opt.branch.nk_corrector import NewtonKrylovCorrector
-from vesicle_opt.branch.nk_free import VesicleKKT, free_newton
+from vesicle_opt.branch.nk_free import CERTIFY_MAX_ITER, VesicleKKT, free_newton
 from vesicle_opt.branch.params import Parameter, explicit_derivative
 from vesicle_opt.branch.problem import TreeProblem
 from vesicle_opt.branch.store import Store
@@ -118,7 +118,8 @@ class VesicleProblem(TreeProblem):
             return arc.Attempt(nw.p, phi0, False, nw.iterations,
                                (None, f"bordered Newton-Krylov: {why}", time.perf_counter() - t0, None))
         try:
-            res = self.nk.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, -1 if branch is None else branch)
+            res = self.nk.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, -1 if branch is None else branch,
+                                max_iter=CERTIFY_MAX_ITER)
         except InputError as exc:  # infeasible targets at the p found: a failed attempt
             return arc.Attempt(nw.p, phi0, False, nw.iterations, (None, str(exc), time.perf_counter() - t0, None))
         res = dataclasses.replace(res, extra={**res.extra, "bordered_newton": nw.iterations,
