@@ -25,7 +25,7 @@ minimises |K^{-1}(b - J x)|_2, whose phi block is the residual in P's dual norm,
 Newton-Krylov solver measures stationarity in (``nk.newton_cg``). K and J differ in the H block
 only, K^{-1} J = I + K^{-1} [H - P, 0; 0, 0], so K^{-1} J clusters where P^{-1} H does (what keeps
 the fixed-p CG counts at 10-300 a Newton step). Measured GMRES counts a Newton step: 2-25 (2D FD
-and spectral 48^2), 3-40 (3D octant 20-31 k nodes), 8-28 (3D periodic spectral 90 x 36 x 36).
+and spectral 48^2), 3-57 (3D octant 20-31 k nodes), 8-28 (3D periodic spectral 90 x 36 x 36).
 
 Newton: inexact, forcing term eta = min(ETA_MAX, sqrt(error)) (Eisenstat-Walker, as the fixed-p
 steps), a step capped at STEP_CAP in any nodal value, halved while the error grows more than
