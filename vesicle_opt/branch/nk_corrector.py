@@ -119,11 +119,13 @@ class NewtonKrylovCorrector:
         return setup
 
     def solve(self, scene: Scene, phi0: np.ndarray | None, lam0: tuple[float, float] | None = None,
-              branch: int = 0) -> Result:
+              branch: int = 0, max_iter: int | None = None) -> Result:
         """The point of ``scene`` (a point scene of the branch) from the field ``phi0`` (None: the
         scene's own start, nested iteration, as the front door) and the predicted multipliers
         ``lam0`` (physical; None: least squares at ``phi0``), with the previous point of ``branch``
-        as the warm start. Infeasible targets raise InputError before any solve."""
+        as the warm start. Infeasible targets raise InputError before any solve. ``max_iter``: a
+        Newton budget below the options' (the certification of a point already converged,
+        ``branch.nk_free``)."""
         scene = scene.replace(solver=dataclasses.replace(scene.solver, method="exact"))
         setup = self.setup(scene)
         disc = setup[0]
@@ -131,7 +133,8 @@ class NewtonKrylovCorrector:
         prev = self.warm.setdefault(branch, _Warm())
         warm = None if phi0 is None else (lam0, prev.dual_model)
         with fft_library(scene.solver.fft):
-            res = nk_solve.solve(scene, x0=phi0, options=self.options, setup=setup, check=False, warm=warm)
+            opts = self.options if max_iter is None else dataclasses.replace(self.options, max_iter=max_iter)
+            res = nk_solve.solve(scene, x0=phi0, options=opts, setup=setup, check=False, warm=warm)
             so, used, t0 = None, None, time.perf_counter()
             if scene.solver.second_order and res.converged:
                 so, used = self.check(scene, res, setup, prev)

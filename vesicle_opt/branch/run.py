@@ -17,8 +17,15 @@ with the front door's certificate, its second-order verdict (``second_order``,
 * on Newton-Krylov (``backend="newton-krylov"``, large 3D spectral grids): ``branch.nk_corrector``
   at fixed p (the step control aiming at its ``TARGET_ITERATIONS`` Newton steps), the front door's solve and check warm from the branch's previous point (predicted
   multipliers, the dual model, the check's coarsest eigenvectors; ``second_order_warm`` in the
-  Result's extra), and near a fold the scalar iteration on p of ``branch.arclength`` (which
-  approaches a fold but does not pass it); with ``solver.array = "jax"`` the front door itself.
+  Result's extra); after the first step (``NK_TURN``) every point by the p-free corrector
+  ``branch.nk_free`` (bordered Newton on the KKT system, GMRES with a Schur-complement
+  preconditioner on the Newton-Krylov model, ``branch.krylov_bordered``; ``krylov_iterations``
+  the GMRES counts of its Newton steps), then certified and checked at its own p by that fixed-p
+  solve, so a branch passes turning points and follows saddles; every point at a fixed p (the
+  first and the final step, the tree's location and switch trials) is the same Newton with p held
+  (t_phi = 0, t_p = 1), certified likewise, the fixed-p solve (a minimiser, which leaves saddles)
+  its fallback (``restarted`` true); with ``solver.array = "jax"`` the front door itself (the
+  scalar iteration on p of ``branch.arclength`` near a fold, which approaches it but does not pass it).
 
 Per accepted point the row also holds
 
@@ -135,6 +142,10 @@ class Branch:
         return [r for r in self.rows if r["corrector"] == "locate" and (branch is None or r["branch"] == branch)]
 
 
+NK_TURN = 2.0  # Newton-Krylov: the p-free corrector (``branch.nk_free``) at every step after the first
+# (|t_p| <= 1 < 2): Newton on the KKT system converges on saddle branches, where the fixed-p solve, a
+# minimiser, wanders off (the 2D circle's index-2 branch, spectral 48^2: it stopped at nu = 0.657; p free,
+# nu 0.95 -> 0.5 in 21 points, 2.5 s), and costs no more than it on minima (3-5 Newton steps a point)
 ENDINGS = ("reached", "max_points", "joined", "known", "left the range", "none found")
 
 
@@ -155,13 +166,14 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
            out: str | Path | None = None, *, backend: str | None = None,
            options: "IpoptOptions | NewtonKrylovOptions | None" = None, max_points: int = 200, switch: bool = True,
            reference: Callable | None = None, snapshots: bool = True,
-           progress: Callable[[dict], None] | None = None, turn: float = arc.Settings.turn,
+           progress: Callable[[dict], None] | None = None, turn: float | None = None,
            depth: int = 1, deflate: int = 0) -> Branch:
     """Follow the branch of equilibria of ``scene`` in ``param`` from the scene's value to ``to``
     (module docstring); ``step`` is the first (and largest) parameter step, signed towards ``to``
     (default: a 25th of the range). ``out``: a directory for branch.csv and the snapshots, resumed
     when it holds the same run. ``turn``: |t_p| below which the pseudo-arclength corrector runs
-    (``branch.arclength``; above 1: every step after the first). ``switch``, ``depth``: follow the
+    (``branch.arclength``; above 1: every step after the first; None: ``arclength.Settings.turn``
+    on IPOPT, every step on Newton-Krylov, ``NK_TURN``). ``switch``, ``depth``: follow the
     branches leaving located branch points, recursively to ``depth`` levels; ``deflate``: up to this
     many other points at the start by deflation where switching found none (``branch.tree``). Bad
     input raises InputError (naming the flag) before any solve."""
@@ -173,19 +185,22 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     check_end(scene, par, to)
     if not (isinstance(max_points, int) and max_points >= 2):
         raise InputError("max_points", f"allowed range >= 2, got {max_points!r}")
-    if not (isinstance(turn, (int, float)) and 0 <= turn):
+    nk = choose_backend(scene, backend) == "newton-krylov"
+    explicit = turn is not None
+    if turn is None:
+        turn = NK_TURN if nk and scene.solver.array != "jax" else arc.Settings.turn
+    if isinstance(turn, bool) or not (isinstance(turn, (int, float)) and 0 <= turn):
         raise InputError("turn", f"allowed range >= 0 (|t_p| below which the arclength corrector runs), got {turn!r}")
     for name, v in (("--depth", depth), ("--deflate", deflate)):
         if isinstance(v, bool) or not isinstance(v, int) or v < 0:
             raise InputError(name, f"allowed range: an integer >= 0, got {v!r}")
     meta = _meta(scene, param, to, step, backend, switch, depth, deflate)
-    if turn != arc.Settings.turn:
+    if explicit and turn != arc.Settings.turn:
         meta["turn"] = float(turn)
     store = Store(None if out is None else Path(out), meta, snapshots)
     step = store.meta["step"]  # an extension of a finished run (further --to) keeps its first step
     # the step control's target in the corrector's own iterations (Newton steps on Newton-Krylov)
-    target = NK_TARGET_ITERATIONS if choose_backend(scene, backend) == "newton-krylov" else \
-        arc.Settings.target_iterations
+    target = NK_TARGET_ITERATIONS if nk else arc.Settings.target_iterations
     settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn),
                             target_iterations=target)
     problem = VesicleProblem(scene, par, settings, store, backend, options, reference, progress)

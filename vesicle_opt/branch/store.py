@@ -36,7 +36,9 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            "critical", "critical_eigenvalue", "critical_error", "critical_mode", "located_by", "bracket",
            "f", "c0_reduced",  # f = F/8 pi kappa, c0_reduced = C0 R0 (geometry.literature_units; 3D)
            # why a point failed (verify.failure) and the shape check (verify.shape)
-           "reason", "certifiable_tol", "shape", "shape_volume_gap", "bulk_volume_share"]
+           "reason", "certifiable_tol", "shape", "shape_volume_gap", "bulk_volume_share",
+           # the p-free Newton-Krylov corrector (branch.nk_free): GMRES iterations of each bordered Newton step
+           "krylov_iterations"]
 
 INTS = ("point", "branch", "iterations", "solves", "components", "n", "parent", "index", "detected_at", "critical")
 BOOLS = ("converged", "accepted", "restarted")
@@ -73,7 +75,7 @@ def _text(v) -> str:
     return str(v)
 
 
-TEXT = ("second_order_eigenvalues", "second_order_errors", "critical_mode")  # ';'-joined numbers, a file name
+TEXT = ("second_order_eigenvalues", "second_order_errors", "critical_mode", "krylov_iterations")  # ';'-joined numbers, a file name
 
 
 def parse(row: dict) -> dict:

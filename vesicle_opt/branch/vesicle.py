@@ -6,7 +6,8 @@ Per point (``row``): the certificate, the second-order verdict and its least few
 envelope identity's ``dE_dp`` and ``envelope_residual`` (``branch.run`` docstring). For the tree:
 
 * ``solve(p, phi0, lam0)``: the certified point at fixed p, warm (the location of a branch point,
-  the fixed-p switch); ``free``: the point with p free on a hyperplane (IPOPT, lumped mass);
+  the fixed-p switch); ``free``: the point with p free on a hyperplane (IPOPT with lumped mass:
+  ``branch.bordered``; Newton-Krylov: ``branch.nk_free``, which also makes every fixed-p point there);
 * ``mode(point, m)``: the m-th eigenvector of the reduced Hessian at a point (``verify.lobpcg``'s
   matrix-free spectrum with its vectors; the check's own least mode for m = 0 elsewhere);
 * ``align(phi, ref)``: on periodic grids the image of phi under translations (the peak of the FFT
@@ -31,6 +32,7 @@ from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multiplie
 from vesicle_opt.branch.deflation import deflated_vesicle
 from vesicle_opt.branch.events import Point
 from vesicle_opt.branch.nk_corrector import NewtonKrylovCorrector
+from vesicle_opt.branch.nk_free import CERTIFY_MAX_ITER, VesicleKKT, free_newton
 from vesicle_opt.branch.params import Parameter, explicit_derivative
 from vesicle_opt.branch.problem import TreeProblem
 from vesicle_opt.branch.store import Store
@@ -59,13 +61,18 @@ class VesicleProblem(TreeProblem):
         self.nk = NewtonKrylovCorrector(scene, options) if chosen == "newton-krylov" and \
             scene.solver.array != "jax" else None
         self._bordered = None  # branch.bordered, built when the walk first nears a fold (IPOPT, lumped)
+        self._kkt = None  # branch.nk_free's model, built when first needed (Newton-Krylov)
         self.start, self.param = par.start, par.name
         self.disc = self.ipopt.disc if self.ipopt is not None else discretize(scene)
 
     def free_corrector(self, branch: int) -> Callable | None:
         """The corrector with p free (``branch.bordered``, then the fixed-p IPOPT solve at the p
         found, which certifies the point); None where it does not apply (Newton-Krylov backend,
-        consistent mass): the walk then uses its scalar iteration (``branch.arclength``)."""
+        consistent mass): the walk then uses its scalar iteration (``branch.arclength``). On
+        Newton-Krylov (numpy arrays): ``branch.nk_free``, then the fixed-p Newton-Krylov solve at
+        the p found, which certifies the point."""
+        if self.nk is not None:
+            return self.nk_free_corrector(branch)
         if self.ipopt is None or self.ipopt.disc.consistent:
             return None
 
@@ -83,6 +90,53 @@ class VesicleProblem(TreeProblem):
             return arc.Attempt(nw.p, res.phi, res.converged, nw.iterations + res.iterations,
                                (res, None, time.perf_counter() - t0, False))
         return free
+
+    def kkt(self) -> VesicleKKT:
+        """The Newton-Krylov bordered model of the branch (``branch.nk_free``), built once."""
+        if self._kkt is None:
+            a, b, c = self.par.affine(self.scene)
+            self._kkt = VesicleKKT(self.nk.setup(self.scene), self.nk.scene, Affine(a, b, c))
+        return self._kkt
+
+    def nk_free_corrector(self, branch: int | None) -> Callable:
+        """p free on Newton-Krylov (``branch.nk_free``): the bordered Newton-GMRES point, then
+        ``NewtonKrylovCorrector.solve`` at its own p from it (the certificate, the check); the
+        iterations are Newton steps of both, the GMRES counts in the Result's extra."""
+        def free(phi_pred, p_pred, t_phi, t_p, theta):
+            t0 = time.perf_counter()
+            lam = None if branch is None else self.multipliers(branch, p_pred)
+            return self.nk_newton_point(branch, phi_pred, p_pred, lam, t_phi, t_p, theta, t0)
+        return free
+
+    def nk_newton_point(self, branch, phi0, p0, lam, t_phi, t_p, theta, t0) -> arc.Attempt:
+        """The bordered Newton-Krylov point from (phi0, p0, lam) on the hyperplane, certified at its p."""
+        if lam is None:
+            lam = least_squares_multipliers(self.par.scene_at(self.scene, p0), self.disc, phi0)
+        nw = free_newton(self.kkt(), phi0, lam, p0, t_phi, t_p, theta, self.nk.options.tol)
+        if not nw.converged or (self.par.name == "reduced_volume" and not 0 < nw.p <= 1):
+            why = nw.message or f"reduced_volume {nw.p:.6g} outside (0, 1]"
+            return arc.Attempt(nw.p, phi0, False, nw.iterations,
+                               (None, f"bordered Newton-Krylov: {why}", time.perf_counter() - t0, None))
+        try:
+            res = self.nk.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, -1 if branch is None else branch,
+                                max_iter=CERTIFY_MAX_ITER)
+        except InputError as exc:  # infeasible targets at the p found: a failed attempt
+            return arc.Attempt(nw.p, phi0, False, nw.iterations, (None, str(exc), time.perf_counter() - t0, None))
+        res = dataclasses.replace(res, extra={**res.extra, "bordered_newton": nw.iterations,
+                                              "krylov_iterations": ";".join(map(str, nw.krylov))})
+        return arc.Attempt(nw.p, res.phi, res.converged, nw.iterations + res.iterations,
+                           (res, None, time.perf_counter() - t0, False))
+
+    def nk_fixed(self, branch, sc: Scene, p: float, phi0, lam0, t0):
+        """(result, restarted) at fixed p on Newton-Krylov: Newton on the KKT system from the prediction
+        (``nk_free`` with t_phi = 0, t_p = 1), certified at p, which converges on saddles too; if it
+        fails, the fixed-p solve (a minimiser) from the prediction (``restarted`` true), the
+        iterations added."""
+        nw = self.nk_newton_point(branch, phi0, p, lam0, np.zeros_like(phi0), 1.0, 0.0, t0)
+        if nw.converged:  # its iterations: the Newton steps of both (the step control's count)
+            return dataclasses.replace(nw.payload[0], iterations=nw.iterations), False
+        res = self.nk.solve(sc, phi0, lam0, -1 if branch is None else branch)
+        return dataclasses.replace(res, iterations=nw.iterations + res.iterations), True
 
     def multipliers(self, branch: int, p: float) -> tuple[float, float] | None:
         """(lambda_volume, lambda_area) predicted at p: linear in p through the branch's last two
@@ -146,8 +200,10 @@ class VesicleProblem(TreeProblem):
                 sc = self.par.scene_at(self.scene, p)
             restarted = None
             try:
-                if self.nk is not None:  # warm: the predicted multipliers (None at a start: least squares)
-                    res = self.nk.solve(sc, phi_start, None if start else self.multipliers(branch, p), branch)
+                if self.nk is not None and start:  # the scene's own start (nested iteration, least squares)
+                    res = self.nk.solve(sc, phi_start, None, branch)
+                elif self.nk is not None:
+                    res, restarted = self.nk_fixed(branch, sc, p, phi_start, self.multipliers(branch, p), t0)
                 elif self.ipopt is None:
                     res = solve(sc, backend=self.backend, method="exact", x0=phi_start, options=self.options)
                 elif start:
@@ -182,7 +238,8 @@ class VesicleProblem(TreeProblem):
                                           "reduced_volume", "reduced_energy", "second_order",
                                           "second_order_min_eigenvalue", "second_order_excluded",
                                           "rotation_rayleigh", "topology", "components",
-                                          "h", "alpha", "beta", "volume", "area", "f", "c0_reduced")})
+                                          "h", "alpha", "beta", "volume", "area", "f", "c0_reduced",
+                                          "krylov_iterations")})
         row["wraps"] = None if ex.get("wraps") is None else "".join("xyz"[i] for i in ex["wraps"]) or "none"
         row["certifiable_tol"] = tol_to_certify(res)  # a round-off floor: the tol that can be certified
         row.update({"energy": res.energy, "lambda_volume": res.lambda_volume, "lambda_area": res.lambda_area,
@@ -227,7 +284,7 @@ class VesicleProblem(TreeProblem):
         sc = self.par.scene_at(self.scene, p)
         try:
             if self.nk is not None:
-                res = self.nk.solve(sc, phi0, lam0, branch=-1)
+                res, _ = self.nk_fixed(None, sc, p, phi0, lam0, time.perf_counter())
             elif self.ipopt is None:
                 res = solve(sc, backend=self.backend, method="exact", x0=phi0, options=self.options)
             else:

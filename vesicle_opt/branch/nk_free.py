@@ -1,0 +1,109 @@
+"""The pseudo-arclength corrector with the parameter free on the Newton-Krylov backend.
+
+The equations are those of ``branch.bordered`` (the KKT system (6)-(8) of one branch, alpha, beta,
+C = sqrt(2) c0 affine in p, bordered by the arclength hyperplane and the phase conditions); here
+nothing is assembled: H, the Hessian of the Lagrangian rigidity H_E - lambda_B H_B (H_A = 0), is
+the matrix-free product of ``model.lumped.PhaseField.hvp_operator``, its model P^{-1} that of the
+fixed-p Newton-CG (``nk.precond``, cE = rigidity, cB = -lambda_B), and the bordered Newton steps are
+GMRES solves with the Schur-complement preconditioner of ``branch.krylov_bordered``. The operators
+are the branch's Newton-Krylov setup (``nk.setup.prepare``: Fourier, mirror and FD-by-FFT grids, or
+the sparse path); where the parameter is c0 only the pointwise part (PhaseField at C(p)) changes.
+
+Phase conditions (the near-null modes that would make J numerically singular): the translations
+w d_i phi_pred on spectral periodic grids (exact symmetries, as ``nk.setup`` projects them; their
+multipliers vanish at a solution up to aliasing). None on FD grids (whole-cell shifts only, as
+``nk.setup``) and mirror grids (their symmetry class fixes position and orientation). The rotation
+is not pinned: on FD grids it is no symmetry, and a rotation row (the IPOPT warm solves' row,
+``branch.corrector.rotation_row``) held the FD ellipse at its axis orientation where the certified
+point turns (measured: the switched branch of the nu = 0.8 ellipse in c0, its every fixed-p polish
+at max_iter with the row, certified at 5-7 Newton steps without it); on the 2D spectral grids tried
+its near-null mode (~1e-8 mu_ref) did not stall Newton (the circle's saddle: 3-4 steps a point).
+
+r_p, the stationarity's derivative in p: 0 for the reduced volume; for c0, rigidity sqrt(2) dE'/dC,
+dE' (the gradient) quadratic in C, so the central difference with step 1 is exact up to round-off.
+
+Stop: the relative dual stationarity (P0's dual norm, as ``nk.solve`` measures it) <= ``STOP`` x tol
+and the relative constraint residual (IPOPT's scaling) 100x below it (``CONSTRAINT_WEIGHT``): the fixed-p Newton-Krylov
+solve at the p found (``branch.nk_corrector``), started there with these multipliers, then meets
+its own test at once (0 Newton steps: inner 0.1 tol, constraints ``constraint_margin`` tol) and
+certifies the point with the one certificate (``verify.certify``), its second-order check and
+topology, as the IPOPT path certifies ``branch.bordered``'s point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vesicle_opt.branch.bordered import Affine
+from vesicle_opt.branch.krylov_bordered import Free, Linearization, newton
+from vesicle_opt.model.lumped import PhaseField
+
+CERTIFY_MAX_ITER = 10  # the certifying fixed-p solve's Newton budget, a safeguard: from a point Newton
+# converged it takes 0 steps; one that needs many is off, and on a saddle sheet the minimiser then drifts
+# (measured once, before CONSTRAINT_WEIGHT: 94 steps to another branch, refused 78 ds off): fail it fast
+CONSTRAINT_WEIGHT = 100.0  # the constraints held 100x tighter than stationarity: the fixed-p solve reads
+# its start through the augmented Lagrangian, whose multiplier is lam - rho c, so a constraint residual
+# c shifts its stationarity by rho |c| |dB|_* (measured: relative 4.4e-10 in B on the 3D octant, rho_B =
+# 167, shifted the dual residual to 1.5e-8 > its inner 0.1 tol: 94 steps instead of 0); A is linear and B
+# converges quadratically, so this costs at most one more Newton step
+STOP = 0.05  # x tol: below the fixed-p solve's own tests (0.1 tol on both), so it takes the point as is
+
+
+class VesicleKKT:
+    """``krylov_bordered``'s model of one branch: the KKT residual and its linearisation at (phi, lam, p)."""
+
+    def __init__(self, setup, scene, affine: Affine):
+        self.disc, pf, self.prec, self.translations = setup
+        self.ops, self.eps, self.rig = pf.ops, scene.model.epsilon, scene.model.rigidity
+        self.affine = affine
+        self._pf: dict = {}
+        self.volume = self.disc.volume
+
+    def pf(self, C: float) -> PhaseField:
+        if C not in self._pf:
+            if len(self._pf) > 8:
+                self._pf.clear()
+            self._pf[C] = PhaseField(self.ops, self.eps, C)
+        return self._pf[C]
+
+    def targets(self, p: float) -> tuple[float, float, float]:
+        a = self.affine
+        return a.alpha[0] + a.alpha[1] * p, a.beta[0] + a.beta[1] * p, a.C[0] + a.C[1] * p
+
+    def at(self, phi, lam, p) -> Linearization:
+        alpha, beta, C = self.targets(p)
+        pf = self.pf(C)
+        st = pf.state(phi)
+        dE, dA, dB = pf.gradients(st)
+        r = self.rig * dE - lam[0] * dA - lam[1] * dB
+        c = np.array([st.A - alpha, st.B - beta])
+        r_p = None
+        if self.affine.C[1]:  # c0: d r/dp = rigidity C'(p) d(dE)/dC, central difference (exact: quadratic)
+            up, down = (self.pf(C + h) for h in (1.0, -1.0))
+            dE_up = up.gradients(up.state(phi))[0]
+            dE_down = down.gradients(down.state(phi))[0]
+            r_p = self.rig * self.affine.C[1] * (dE_up - dE_down) / 2.0
+        dn = self.prec.dual_norm
+        scale = self.rig * dn(dE) + abs(lam[0]) * dn(dA) + abs(lam[1]) * dn(dB)
+        cscale = np.array([self.volume, abs(beta)])
+
+        def error(r_, c_):
+            dual = dn(r_) / max(scale, np.finfo(float).tiny)
+            return max(dual, CONSTRAINT_WEIGHT * float(np.max(np.abs(c_) / cscale)))
+        return Linearization(r=r, c=c, hvp=pf.hvp_operator(st, pf.hessian_parts(st), self.rig, -lam[1], 0.0),
+                             pinv=self.prec.inverse(self.rig, -lam[1], 0.0), G=[dA, dB], r_p=r_p,
+                             c_p=np.array([-self.affine.alpha[1], -self.affine.beta[1]]), error=error)
+
+    def phase(self, phi_pred) -> list:
+        """The phase conditions' vectors at the prediction (module docstring)."""
+        T = self.translations(np.asarray(phi_pred, float))
+        w = self.disc.weights
+        return [] if T is None else [w * T[:, i] for i in range(T.shape[1])]
+
+
+def free_newton(model: VesicleKKT, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: float,
+                tol: float) -> Free:
+    """The bordered Newton-Krylov point on the hyperplane (``krylov_bordered.newton``; t_phi = 0,
+    t_p = 1: at fixed p)."""
+    return newton(model, phi_pred, lam_pred, p_pred, t_phi, t_p, theta, model.disc.weights, STOP * tol,
+                  phase=model.phase(phi_pred))
