@@ -88,15 +88,18 @@ def test_flow_reaches_a_certified_equilibrium(kind):
     # error ~ r^2 / 4e-3; at the scene's 1e-8 (kkt <= 1e-6) the flow stopped 1e-8 above the minimum
     res, eq = _certified_flow(sc, md, tol=1e-10)
     assert res.status == "stopped" and eq.result is not None and eq.result.converged
-    assert eq.result.kkt_residual <= 100 * 1e-10  # the certificate's own test
+    assert eq.result.extra["kkt_dual"] <= 100 * 1e-10  # the certificate's own test (kkt_dual since issue 25)
     # another solver from the flow's field (the polish the Section 5 study compares with): IPOPT's
     # exact-Hessian penalty solve on FD (an assembled second path), Newton-Krylov's on spectral grids;
     # it stays at that point (measured: energy equal to 1e-15, 0 Newton-Krylov steps)
     backend = "ipopt" if kind == "fd" else "newton-krylov"
     polish = solve(sc, x0=eq.result.phi, backend=backend)
     assert polish.converged, (polish.outcome, polish.reason)
-    # the energy error of a point with relative KKT residual r <= 1e-8 is O(r^2) relative, far below 1e-10
-    assert abs(eq.result.energy / polish.energy - 1) <= 1e-10, eq.result.energy / polish.energy - 1
+    # the error in E_M (the functional both make stationary) of a point with relative KKT residual
+    # r <= 1e-8 is O(r^2) relative, far below 1e-10 (measured 9e-15 on FD); E alone moves at first order
+    # with the constraint residuals (measured 9.7e-9 on FD since kkt_dual counts the terms apart)
+    rel = eq.result.penalized_energy / polish.penalized_energy - 1
+    assert abs(rel) <= 1e-10, rel
 
 
 @pytest.mark.slow
@@ -127,9 +130,15 @@ def test_flow_with_multiplier_shifts_reaches_the_exact_constraint_equilibrium():
     assert max(laws) <= LAW_TOL  # (24) for the shifted energy, every step of every stage
     ref = solve(sc, x0=initial_field(sc, md))
     assert ref.converged
-    # two certified exact-constraint KKT points from the same start; measured 9e-11 apart (the flow's
-    # point is certified to kkt 2e-13, the solve's to tol 1e-8 in the dual norm)
-    assert abs(result.energy / ref.energy - 1) <= 1e-9
+    # two certified exact-constraint KKT points from the same start (the flow's point certified to kkt
+    # 2e-13, the solve's to tol 1e-8). The solve holds |A - alpha| only to 0.1 tol |Omega| (measured
+    # 3.7e-8 since it stops on the certificate's kkt_dual: 19 Newton steps, not 21), which moves E by
+    # lambda_A dA = 4e-8 (1.4e-8 relative), first order; the Lagrangian E - lambda . c is stationary at
+    # both, so its difference is second order: measured 4.7e-15 relative (first order would be ~1e-8)
+    def lagrangian(r):
+        return r.energy - r.lambda_volume * r.volume_residual - r.lambda_area * r.area_residual
+    print(f"energy {result.energy / ref.energy - 1:.2e}, Lagrangian {lagrangian(result) / lagrangian(ref) - 1:.2e}")
+    assert abs(lagrangian(result) / lagrangian(ref) - 1) <= 1e-11  # second order in a tol-1e-8 error
     assert abs(result.lambda_volume / ref.lambda_volume - 1) <= 1e-6  # multipliers: first order in the error
     # the flow's equilibrium gets the front door's shape check (verify.shape): the same verdict and
     # gap, the two fields 9e-11 apart in energy

@@ -159,6 +159,22 @@ class PhaseField:
             dB -= (eps * m) * st.lap
         return dE, m.copy(), dB
 
+    def gradient_parts(self, st: State) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The four terms ``gradients`` sums into dE and dB: (Delta_h^T (m r), m r g'/eps, eps K phi
+        = -eps m Delta_h phi, m W'(phi)/eps), as ``functionals.energy_gradient_parts`` and
+        ``area_gradient_parts`` split them (their norms are the stopping test's denominator,
+        ``verify.kkt.terms_scale``)."""
+        eps, w, phi = self.eps, self.weight, st.phi
+        mr = w * st.r
+        bend = self.ops.lapT(mr)
+        mr *= st.s
+        mr *= 1.0 / eps
+        well = np.multiply(phi, phi)
+        well -= 1.0
+        well *= phi
+        well *= w / eps
+        return bend, mr, (-eps * w) * st.lap, well
+
     def hessian_parts(self, st: State) -> tuple[np.ndarray, np.ndarray]:
         """Diagonal coefficients reused by every product: m r g''/eps and m W''/eps
         (g'' = -6 phi/eps - 2C, W'' = 3 phi^2 - 1)."""

@@ -13,12 +13,22 @@ Steps come from ``krylov.projected_pcg`` with the Fourier/sparse model of ``prec
 cB = -mu_B, rho_A), forcing term eta = min(ETA_MAX, sqrt(rel)) (Eisenstat-Walker, superlinear), and
 translation modes projected out on periodic boxes; on Fourier grids in the orthonormal Fourier
 coordinates (``Objective.newton_system``, ``nk.system``), elsewhere on nodal values. Stationarity is measured in the dual norm of the
-fixed model P0 (``precond.dual_norm``), relative to rig |dE|_* + |mu_A| |dA|_* + |mu_B| |dB|_*.
+fixed model P0 (``precond.dual_norm``, the certificate's natural norm, ``model.metric``), two ways:
+
+* the stopping test (``Objective.kkt``): |g|_* relative to the norms of the five elementary terms of
+  g, rig (|dE_lap|_* + |dE_reac|_*) + |mu_A| |dA|_* + |mu_B| (|dB_grad|_* + |dB_well|_*)
+  (``verify.kkt.terms_scale``): the quotient the certificate decides on (``kkt_dual``), so a solve
+  stops where it can be certified rather than ending ``roundoff_stall`` after extra steps (issue
+  25: the net terms below cancel 78x on a circle, 2800x on a sphere at its own targets);
+* the step heuristics (forcing term, the round-off line search, ``Point.rel``): |g|_* relative to
+  the net terms rig |dE|_* + |mu_A| |dA|_* + |mu_B| |dB|_* (never below the first), as before, so
+  the iterates are those of the net test up to the step where the certificate's is met.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -28,6 +38,7 @@ from vesicle_opt.blas import axpy
 from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.nk.krylov import SubspacePreconditioner
 from vesicle_opt.nk.system import FourierSystem, NodalSystem
+from vesicle_opt.verify.kkt import terms_scale
 
 log = logging.getLogger(__name__)  # one DEBUG line per Newton step (the CLI's -v)
 ARMIJO = 1e-4  # sufficient-decrease constant (the usual textbook value)
@@ -49,16 +60,18 @@ class Counters:
     hvp: int = 0
     deriv_time: float = 0.0
     on_step: object = None  # called as on_step(relative dual stationarity) after every Newton step (progress)
-    history: dict = field(default_factory=lambda: {"f": [], "dual_rel": [], "cg": [], "step": [],
+    history: dict = field(default_factory=lambda: {"f": [], "dual_rel": [], "kkt_dual": [], "cg": [], "step": [],
                                                    "cg_status": []})
 
-    def record(self, f: float, dual_rel: float, cg, step: float) -> None:
+    def record(self, f: float, dual_rel: float, cg, step: float, kkt: float = float("nan")) -> None:
         """One Newton step done (numpy and ``nk_jax`` alike): its count and history row; ``cg`` the
-        inner solve (iterations, status); ``step`` the accepted line-search step, 0 if none."""
+        inner solve (iterations, status); ``step`` the accepted line-search step, 0 if none;
+        ``dual_rel`` and ``kkt`` the two stationarity measures at its start (module docstring)."""
         self.newton += 1
         h = self.history
         h["f"].append(f)
         h["dual_rel"].append(dual_rel)
+        h["kkt_dual"].append(kkt)
         h["cg"].append(cg.iterations)
         h["cg_status"].append(cg.status)
         h["step"].append(step)
@@ -75,7 +88,11 @@ class Point:
     dB: np.ndarray
     mu: np.ndarray
     g: np.ndarray
-    rel: float  # relative dual norm of g
+    rel: float  # |g|_* relative to the net terms (the step heuristics; module docstring)
+    gnorm: float = math.nan  # |g|_*
+    extra_norm: float = 0.0  # |extra gradient|_* of a subclass's term (nk.proximal), 0 if none
+    norms: tuple | None = None  # the five term norms of ``Objective.term_norms`` (on demand)
+    kkt: float | None = None  # the stopping test's quotient (``Objective.kkt``, on demand)
 
     @property
     def E(self) -> float:
@@ -111,11 +128,49 @@ class Objective:
         dn = self.prec.dual_norm
         scale = self.rig * dn(dE) + abs(mu[0]) * dn(dA) + abs(mu[1]) * dn(dB)
         extra = self.extra_gradient(phi)
+        extra_norm = 0.0
         if extra is not None:  # a term of a subclass's objective (nk.proximal), in the residual's scale too
             g = g + extra
-            scale += dn(extra)
+            extra_norm = dn(extra)
+            scale += extra_norm
+        gnorm = dn(g)
         self.cnt.deriv_time += time.perf_counter() - t0
-        return Point(phi, st, f, c, dE, dA, dB, mu, g, dn(g) / max(scale, np.finfo(float).tiny))
+        return Point(phi, st, f, c, dE, dA, dB, mu, g, gnorm / max(scale, np.finfo(float).tiny), gnorm, extra_norm)
+
+    def term_norms(self, pt: Point) -> tuple:
+        """(|dE_lap|_*, |dE_reac|_*, |dA|_*, |dB_grad|_*, |dB_well|_*) at pt, the norms of the terms
+        ``verify.kkt.terms_scale`` sums (``model.lumped.PhaseField.gradient_parts``); cached on pt."""
+        if pt.norms is None:
+            t0 = time.perf_counter()
+            dn = self.prec.dual_norm
+            if getattr(self, "_dn_dA", None) is None:
+                self._dn_dA = dn(pt.dA)  # dA = m: one value for every point
+            bend, reac, grad, well = self.pf.gradient_parts(pt.st)
+            pt.norms = (dn(bend), dn(reac), self._dn_dA, dn(grad), dn(well))
+            self.cnt.deriv_time += time.perf_counter() - t0
+        return pt.norms
+
+    def kkt(self, pt: Point) -> float:
+        """The certificate's quotient at pt with the multipliers mu: |g|_* relative to the norms of
+        g's elementary terms (``verify.kkt.terms_scale``, plus a subclass's term), i.e. ``kkt_dual``
+        of ``verify.kkt`` in the preconditioner's copy of the natural norm; cached on pt."""
+        if pt.kkt is None:
+            scale = terms_scale(self.rig, pt.mu[0], pt.mu[1], self.term_norms(pt)) + pt.extra_norm
+            pt.kkt = pt.gnorm / max(scale, np.finfo(float).tiny)
+        return pt.kkt
+
+    def kkt_at(self, pt: Point, lam) -> float:
+        """The same quotient for r = rig dE - lam_A dA - lam_B dB at pt with other multipliers lam
+        (the exact loop's least-squares ones, ``nk.solve._exact``)."""
+        r = self.rig * pt.dE
+        axpy(-lam[0], pt.dA, r)
+        axpy(-lam[1], pt.dB, r)
+        scale = terms_scale(self.rig, lam[0], lam[1], self.term_norms(pt))
+        return self.prec.dual_norm(r) / max(scale, np.finfo(float).tiny)
+
+    def stationarity(self, pt: Point) -> float:
+        """What ``newton_minimize`` stops on: ``kkt`` (the certificate's quotient)."""
+        return self.kkt(pt)
 
     def extra_gradient(self, phi):
         """The gradient of a term a subclass adds to the objective (None: none)."""
@@ -175,13 +230,15 @@ class Objective:
 
 
 def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, max_cg: int = 200):
-    """Minimise obj from phi until the relative dual stationarity <= tol. Returns (Point, status)."""
+    """Minimise obj from phi until its stationarity (``Objective.stationarity``) <= tol. Returns
+    (Point, status)."""
     cnt = obj.cnt
     pt = obj.point(phi)
     for _ in range(max_iter):
         if not np.isfinite(pt.f) or not np.isfinite(pt.rel):
             return pt, "non_finite"
-        if pt.rel <= tol:
+        stat = obj.stationarity(pt)  # the certificate's quotient; pt.rel (net terms) steers the step
+        if stat <= tol:
             return pt, "converged"
         eta = min(ETA_MAX, np.sqrt(pt.rel))
         system = obj.newton_system(pt)
@@ -210,17 +267,17 @@ def newton_minimize(obj: Objective, phi: np.ndarray, tol: float, max_iter: int, 
                     accepted = full
                     break
             t *= 0.5
-        cnt.record(pt.f, pt.rel, cg, t if accepted is not None else 0.0)
-        log.debug("Newton %3d  f = %.12g  kkt_dual = %.2e  cg = %3d (%s)  step = %.3g", cnt.newton, pt.f, pt.rel,
-                  cg.iterations, cg.status, t if accepted is not None else 0.0)
+        cnt.record(pt.f, pt.rel, cg, t if accepted is not None else 0.0, stat)
+        log.debug("Newton %3d  f = %.12g  kkt_dual = %.2e (net %.2e)  cg = %3d (%s)  step = %.3g", cnt.newton, pt.f,
+                  stat, pt.rel, cg.iterations, cg.status, t if accepted is not None else 0.0)
         if cnt.on_step is not None:
-            cnt.on_step(pt.rel)
+            cnt.on_step(stat)
         if accepted is None:
             return pt, "line_search_failed"
         if t * float(np.max(np.abs(p))) <= STALL * max(1.0, float(np.max(np.abs(pt.phi)))):
             return accepted, "stalled"  # steps below round-off of phi: no further progress possible
         pt = accepted
-    return pt, "converged" if pt.rel <= tol else "max_iter"
+    return pt, "converged" if obj.stationarity(pt) <= tol else "max_iter"
 
 
 def hessian_solves(obj: Objective, pt: Point, rhs, eta: float, max_cg: int = 200) -> list:

@@ -65,6 +65,11 @@ class ProximalObjective(Objective):
         """The Fourier model with the shift c m (exact for it)."""
         return super().fourier_symbol(pt) + self.c * self.prec.m
 
+    def stationarity(self, pt: Point) -> float:
+        """A step stops on the net-terms quotient (``Point.rel``, the module docstring's): a step of a
+        flow is not certified, and its ``tol`` was set against this measure."""
+        return pt.rel
+
     def translation_coordinates(self, pt: Point, w: float):
         return None  # no mode is projected out of a step (module docstring)
 

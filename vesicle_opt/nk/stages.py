@@ -27,7 +27,7 @@ class Stage:
     M: tuple[float, float] | None  # None for 'exact'
     mu: tuple[float, float]
     lam: np.ndarray | None  # the least-squares multipliers of 'exact' (penalty: mu - M c, recomputed)
-    dual: float
+    dual: float  # the stopping test's value (``kkt_dual_solver``: the certificate's quotient, ``verify.kkt.terms_scale``)
     newton: int
     wall_s: float
     deriv_s: float
@@ -59,7 +59,7 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
         obj.lam, obj.rho = np.asarray(mu, float).copy(), np.array([M, M], float)
         (pt, status), n, wall, deriv = timed_stage(
             obj, lambda: minimize(obj, phi, tol, opts.max_iter - obj.cnt.newton, opts.max_cg))
-        stages.append(Stage(pt, status, (M, M), tuple(mu), None, pt.rel, n, wall, deriv, polish))
+        stages.append(Stage(pt, status, (M, M), tuple(mu), None, obj.stationarity(pt), n, wall, deriv, polish))
         return pt, status
 
     if method == "augmented":

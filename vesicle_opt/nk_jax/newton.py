@@ -3,7 +3,8 @@
 f(phi) = rigidity E_h - lam . c + 1/2 sum_i rho_i c_i^2, c = (A - alpha, B - beta) (the penalty (11)
 for lam = 0, rho = (M, M); else the augmented Lagrangian of the exact-constraint problem); the same
 constants (``nk.newton_cg.ARMIJO``, ``ETA_MAX``, ``STEP_CAP``, ``STALL``, ``ROUNDOFF_REL``), the same
-forcing term, step cap, line search and stopping tests in the dual norm of the Fourier model P0.
+forcing term, step cap, line search and stopping tests in the dual norm of the Fourier model P0 (the
+stop on the certificate's quotient, ``DeviceObjective.kkt``; the steps steered by the net one, ``rel``).
 Fields stay on the device(s); the host holds the scalars (f, c, mu, the dual norms) that steer
 the iteration, read back once per evaluation.
 """
@@ -18,9 +19,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from vesicle_opt.model import functionals as F
 from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.nk.newton_cg import ARMIJO, ETA_MAX, ROUNDOFF_REL, STALL, STEP_CAP, Counters
 from vesicle_opt.nk_jax.krylov import DeviceKrylov
+from vesicle_opt.verify.kkt import terms_scale
 
 
 @dataclass
@@ -33,8 +36,11 @@ class Point:
     dB: object
     mu: np.ndarray
     g: object
-    rel: float
+    rel: float  # |g|_* relative to the net terms (the step heuristics, as ``nk.newton_cg.Point.rel``)
     E: float = math.nan  # E_h at phi (host scalar: the continuation's extrapolation, ``nk.stages``)
+    gnorm: float = math.nan  # |g|_*
+    norms: tuple | None = None  # the five term norms (``DeviceObjective.term_norms``, on demand)
+    kkt: float | None = None  # the stopping test's quotient (``DeviceObjective.kkt``, on demand)
 
 
 class DeviceObjective:
@@ -48,6 +54,7 @@ class DeviceObjective:
         self.ones = ops.layout.put(np.full(ops.size, ops.m))  # dA = m
         self.dn_dA = float(ops.dual_norm(self.ones))
         self._derive = jax.jit(self._derive_kernel)
+        self._parts = jax.jit(self._parts_kernel)
         self._axpy = jax.jit(lambda x, t, p: x + t * p)
         self._dot = jax.jit(ops.layout.dot)
         self._amax = jax.jit(lambda a: jnp.max(jnp.abs(a)))
@@ -57,6 +64,36 @@ class DeviceObjective:
         dE, dB = ops._gradients(phi, lap, r, s)
         g = ops.layout.constrain(self.rig * dE - mu0 * ops.m - mu1 * dB)
         return dE, dB, g, ops._dual_norm(dE), ops._dual_norm(dB), ops._dual_norm(g)
+
+    def _parts_kernel(self, phi, lap, r, s):
+        """The norms of the four terms summed into dE and dB (``model.lumped.PhaseField.gradient_parts``):
+        Delta_h (m r), s m r / eps, -eps m Delta_h phi, m W'(phi) / eps."""
+        ops, eps, m = self.ops, self.ops.eps, self.ops.m
+        mr = m * r
+        dn = ops._dual_norm
+        return (dn(ops._lap(mr)), dn(s * mr / eps), dn(-eps * m * lap),
+                dn(m * F.double_well_derivative(phi) / eps))
+
+    def term_norms(self, pt: Point) -> tuple:
+        """(|dE_lap|_*, |dE_reac|_*, |dA|_*, |dB_grad|_*, |dB_well|_*) at pt (``nk.newton_cg.Objective.term_norms``)."""
+        if pt.norms is None:
+            t0 = time.perf_counter()
+            lap, r, s = pt.st
+            bend, reac, grad, well = (float(x) for x in jax.device_get(self._parts(pt.phi, lap, r, s)))
+            pt.norms = (bend, reac, self.dn_dA, grad, well)
+            self.cnt.deriv_time += time.perf_counter() - t0
+        return pt.norms
+
+    def kkt(self, pt: Point) -> float:
+        """The certificate's quotient at pt with the multipliers mu (``nk.newton_cg.Objective.kkt``)."""
+        if pt.kkt is None:
+            scale = terms_scale(self.rig, pt.mu[0], pt.mu[1], self.term_norms(pt))
+            pt.kkt = pt.gnorm / max(scale, np.finfo(float).tiny)
+        return pt.kkt
+
+    def stationarity(self, pt: Point) -> float:
+        """What ``newton_minimize`` stops on: ``kkt``."""
+        return self.kkt(pt)
 
     def value(self, phi):
         lap, r, s, E, A, B = self.ops.state(phi)
@@ -76,7 +113,7 @@ class DeviceObjective:
         dnE, dnB, dng = (float(x) for x in jax.device_get((dnE, dnB, dng)))
         scale = self.rig * dnE + abs(mu[0]) * self.dn_dA + abs(mu[1]) * dnB
         self.cnt.deriv_time += time.perf_counter() - t0
-        return Point(phi, (lap, r, s), f, c, dE, dB, mu, g, dng / max(scale, np.finfo(float).tiny), float(E))
+        return Point(phi, (lap, r, s), f, c, dE, dB, mu, g, dng / max(scale, np.finfo(float).tiny), float(E), dng)
 
     def hess(self, pt: Point) -> tuple:
         lap, r, s = pt.st
@@ -103,7 +140,8 @@ def newton_minimize(obj: DeviceObjective, phi, tol: float, max_iter: int, max_cg
     for _ in range(max_iter):
         if not math.isfinite(pt.f) or not math.isfinite(pt.rel):
             return pt, "non_finite"
-        if pt.rel <= tol:
+        stat = obj.stationarity(pt)  # the certificate's quotient; pt.rel (net terms) steers the step
+        if stat <= tol:
             return pt, "converged"
         eta = min(ETA_MAX, math.sqrt(pt.rel))
         cg, coef, sub = obj.pcg(pt, -pt.g, eta, max_cg)
@@ -129,10 +167,10 @@ def newton_minimize(obj: DeviceObjective, phi, tol: float, max_iter: int, max_cg
                     accepted = cand
                     break
             t *= 0.5
-        cnt.record(pt.f, pt.rel, cg, t if accepted is not None else 0.0)
+        cnt.record(pt.f, pt.rel, cg, t if accepted is not None else 0.0, stat)
         if accepted is None:
             return pt, "line_search_failed"
         if t * pmax <= STALL * max(1.0, float(obj._amax(pt.phi))):
             return accepted, "stalled"
         pt = accepted
-    return pt, "converged" if pt.rel <= tol else "max_iter"
+    return pt, "converged" if obj.stationarity(pt) <= tol else "max_iter"

@@ -3,7 +3,8 @@
 
 * ``exact``: the augmented Lagrangian with dual Newton steps lam <- lam - W^{-1} c,
   W = G^T H_rho^{-1} G, of ``nk.solve._exact`` (the same rho start, refresh and growth rules and
-  the same outer test |c| <= margin tol, dual KKT <= tol, and the same decision after each inner
+  the same outer test |c| <= margin tol, dual KKT <= tol (the certificate's quotient,
+  ``verify.kkt.terms_scale``), and the same decision after each inner
   solve, ``nk.solve.outer_verdict``, with its ``roundoff_stall`` exit), least-squares multipliers in
   the dual metric of P0;
 * ``penalty``, ``continuation``, ``augmented``: ``nk.solve.penalty_stages`` itself, the stage
@@ -46,6 +47,7 @@ from vesicle_opt.nk_jax.ops import GridOps
 from vesicle_opt.result import Result
 from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.verify.certify import build_result, dual_floor_of
+from vesicle_opt.verify.kkt import terms_scale
 
 METHODS = ("exact", "penalty", "continuation", "augmented")
 
@@ -62,12 +64,10 @@ def _ls_kernel(ops, rig):
     return jax.jit(kernel)
 
 
-def _dual_kkt_kernel(ops, rig):
+def _residual_norm_kernel(ops, rig):
+    """|rig dE - lam_A dA - lam_B dB|_* (the numerator of ``nk.newton_cg.Objective.kkt_at``)."""
     def kernel(dE, dA, dB, lam0, lam1):
-        res = rig * dE - lam0 * dA - lam1 * dB
-        dn = ops._dual_norm
-        scale = rig * dn(dE) + jnp.abs(lam0) * dn(dA) + jnp.abs(lam1) * dn(dB)
-        return dn(res) / jnp.maximum(scale, np.finfo(float).tiny)
+        return ops._dual_norm(rig * dE - lam0 * dA - lam1 * dB)
     return jax.jit(kernel)
 
 
@@ -81,7 +81,7 @@ class Level:
         rig = scene.model.rigidity
         self.obj = DeviceObjective(self.ops, rig, alpha, beta, np.zeros(2), np.zeros(2), cnt)
         self._ls = _ls_kernel(self.ops, rig)
-        self._dual = _dual_kkt_kernel(self.ops, rig)
+        self._residual = _residual_norm_kernel(self.ops, rig)
         self._gpg = jax.jit(lambda g, cE: self.layout.dot(g, self.ops._apply_inverse(g, cE, 0.0, 0.0)))
 
     def multipliers(self, pt) -> np.ndarray:
@@ -89,7 +89,9 @@ class Level:
         return np.linalg.solve(np.asarray(N), np.asarray(rhs))
 
     def dual_kkt(self, pt, lam) -> float:
-        return float(self._dual(pt.dE, self.obj.ones, pt.dB, lam[0], lam[1]))
+        """The certificate's quotient at pt with multipliers lam (``nk.newton_cg.Objective.kkt_at``)."""
+        scale = terms_scale(self.obj.rig, lam[0], lam[1], self.obj.term_norms(pt))
+        return float(self._residual(pt.dE, self.obj.ones, pt.dB, lam[0], lam[1])) / max(scale, np.finfo(float).tiny)
 
 
 def _dual_hessian(level: Level, pt, w_tol: float, max_cg: int):

@@ -22,7 +22,8 @@ vector), both relative and so free of units:
   h^-2; to first order |r|_nat bounds the error of the iterate in the energy norm
   (``model.metric``'s docstring). ``kkt_dual_net`` is the same residual relative to the net terms
   rig |dE|_nat + |lambda_A| |dA|_nat + |lambda_B| |dB|_nat (the denominator up to issue 25; it is
-  never below ``kkt_dual``, by the triangle inequality; Newton-Krylov's own stopping test).
+  never below ``kkt_dual``, by the triangle inequality; once Newton-Krylov's stopping test, which now
+  stops on ``kkt_dual``'s own quotient, ``terms_scale``).
 * ``kkt_residual`` (reported beside it): the L2 residual through the Riesz representative
   M^{-1} v (lumped: v / m), |v|_* = sqrt(v^T M^{-1} v), relative to the net terms. Its round-off
   floor grows like h^-4 (``nk.solve.l2_floor``), which is why it no longer decides.
@@ -59,14 +60,23 @@ def kkt_residual(disc, phi, epsilon, C, rigidity, lam_A, lam_B, grads=None) -> f
     return num / max(scale, np.finfo(float).tiny)
 
 
+def terms_scale(rigidity, lam_A, lam_B, norms) -> float:
+    """The denominator of ``kkt_dual`` from the norms of the five elementary terms of r, ``norms`` =
+    (|dE_lap|, |dE_reac|, |dA|, |dB_grad|, |dB_well|): the one formula the certificate
+    (``dual_scale``) and Newton-Krylov's stopping test (``nk.newton_cg.Objective.kkt``,
+    ``nk_jax.newton``) share."""
+    bend, reac, vol, grad, well = norms
+    return abs(rigidity) * (bend + reac) + abs(lam_A) * vol + abs(lam_B) * (grad + well)
+
+
 def dual_scale(disc, phi, epsilon, C, rigidity, lam_A, lam_B, norm=None) -> float:
     """The denominator of ``kkt_dual`` (module docstring): the norms of the five elementary terms of
-    r, summed; ``norm`` defaults to the natural one."""
+    r, summed (``terms_scale``); ``norm`` defaults to the natural one."""
     norm = natural_metric(disc, epsilon).dual_norm if norm is None else norm
     bend, reac = F.energy_gradient_parts(disc, phi, epsilon, C)
     grad, well = F.area_gradient_parts(disc, phi, epsilon)
-    return (abs(rigidity) * (norm(bend) + norm(reac)) + abs(lam_A) * norm(F.volume_gradient(disc))
-            + abs(lam_B) * (norm(grad) + norm(well)))
+    return terms_scale(rigidity, lam_A, lam_B,
+                       (norm(bend), norm(reac), norm(F.volume_gradient(disc)), norm(grad), norm(well)))
 
 
 def kkt_dual_report(disc, phi, epsilon, C, rigidity, lam_A, lam_B, grads=None) -> dict[str, float]:
