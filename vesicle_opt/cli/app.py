@@ -195,7 +195,8 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = one_line_warning
     handler = setup_logging(getattr(args, "verbose", 0), getattr(args, "quiet", False))
     try:
-        with interrupt.handled():  # SIGINT / SIGTERM: one line, exit 130 / 143 (io.interrupt)
+        # SIGINT / SIGTERM: one line, exit 130 / 143, and not CasADi's own line besides (io.interrupt)
+        with interrupt.handled(), interrupt.casadi_line_absorbed():
             code = args.func(args)
             interrupt.check()
         sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at interpreter exit
