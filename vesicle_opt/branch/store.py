@@ -94,6 +94,14 @@ def parse(row: dict) -> dict:
     return out
 
 
+def check_row(row: dict, index: int) -> str | None:
+    """What is wrong with a row of branch.csv (its types; the points numbered 0, 1, ...): the rule
+    of a resume (``Store``) and of a read-back (``readback.load_branch``)."""
+    if row["point"] != str(index):
+        return f"point = {row['point'][:40]!r}, expected {index} (the rows are the points in order)"
+    return state.typed_row(row, INTS, FLOATS, BOOLS)
+
+
 class Store:
     """The files of one branch run (module docstring). ``out`` None: rows kept in memory only."""
 
@@ -139,18 +147,12 @@ class Store:
     def csv_path(self) -> Path:
         return self.out / "branch.csv"
 
-    def _check_row(self, row: dict, index: int) -> str | None:
-        """What is wrong with a row of branch.csv (its types; the points numbered 0, 1, ...)."""
-        if row["point"] != str(index):
-            return f"point = {row['point'][:40]!r}, expected {index} (the rows are the points in order)"
-        return state.typed_row(row, INTS, FLOATS, BOOLS)
-
     def _repair(self) -> list[dict]:
         """The rows of branch.csv, read through the checked loader (``io.state``): a torn last line
         cut off (the file rewritten without it), anything else refused before any work."""
         path = self.csv_path
         found = state.read_csv(path, lambda h: None if h == COLUMNS else f"{len(h)} columns, the first "
-                               f"{(h or [''])[0][:30]!r}", self._check_row, ADVICE)
+                               f"{(h or [''])[0][:30]!r}", check_row, ADVICE)
         if found is None:
             path.write_text(",".join(COLUMNS) + "\n")
             return []
