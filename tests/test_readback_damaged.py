@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 import vesicle_opt as vo
 from vesicle_opt import cli
-from vesicle_opt.branch.store import COLUMNS, _text
+from vesicle_opt.branch.store import COLUMNS, texts
 from vesicle_opt.errors import InputError, StateFileError
 from vesicle_opt.readback import read_csv
 
@@ -26,7 +26,7 @@ META = {"scene": "small", "param": "reduced_volume", "to": 0.9, "step": -0.01, "
 def _branch_csv(n=3) -> str:
     rows = [{"point": k, "branch": 0, "param": "reduced_volume", "target": 0.95 - 0.01 * k, "energy": 5.0 + k,
              "converged": True, "accepted": True, "iterations": 3} for k in range(n)]
-    return ",".join(COLUMNS) + "\n" + "".join(",".join(_text(r.get(c)) for c in COLUMNS) + "\n" for r in rows)
+    return ",".join(COLUMNS) + "\n" + "".join(",".join(texts(r)[c] for c in COLUMNS) + "\n" for r in rows)
 
 
 @pytest.fixture(scope="module")
