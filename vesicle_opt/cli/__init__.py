@@ -18,8 +18,9 @@ Start-up: ``run`` (the ``vesicle-opt`` command) sets SIGINT and SIGTERM to end t
 same one line (``interrupted (SIGINT) at start-up; ...``, exit 130 / 143) *before* it imports the
 parser and the verbs (numpy, scipy, the solvers: 0.6 s), and this package and ``vesicle_opt`` itself
 import nothing heavy, so no signal meets the default handler's KeyboardInterrupt traceback once
-this module runs (only the interpreter's own start, ~0.02 s, is before it). ``main`` then installs
-the run's handlers (``io.interrupt.handled``).
+this module runs. Only the interpreter's own start (its ``site`` import: 0.03-0.05 s measured, most
+of it an editable install's path finder) comes before it. ``main`` then installs the run's handlers
+(``io.interrupt.handled``).
 
 ``cli.app`` holds the parser, the logging and ``main`` (exit codes, one-line errors); the verbs
 themselves are ``cli.verbs`` (``cmd_solve``, ``cmd_study``, ``cmd_flow``, ``cmd_branch``). Their
@@ -62,8 +63,8 @@ def run() -> None:
 
 def __getattr__(name: str):
     """``cli.main``, ``cli.build_parser``, ... from ``cli.app`` (loaded with the first such use)."""
-    if name.startswith("__") or name in ("app", "verbs"):  # dunders and the submodules themselves:
-        raise AttributeError(f"module 'vesicle_opt.cli' has no attribute {name!r}")  # the import system's
+    if name.startswith("__") or name in ("app", "verbs"):  # the import system asks for these before
+        raise AttributeError(f"module 'vesicle_opt.cli' has no attribute {name!r}")  # loading them
     from vesicle_opt.cli import app  # the public names of the command line, lazily
 
     try:
