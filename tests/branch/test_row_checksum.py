@@ -1,6 +1,7 @@
 """``row_crc``, the last column of branch.csv (``branch.store``): a character changed inside a row is
 found on resume and on read-back (a swapped digit that still reads as a number included); a timing
-is left out of it; a branch.csv of the previous column set resumes, rewritten with the checksums."""
+is left out of it; a branch.csv of the previous column set resumes, rewritten with the checksums.
+And a damaged branch.json beside it (what the fuzz found) is another run's, refused in one line."""
 
 import json
 
@@ -8,7 +9,7 @@ import pytest
 
 import vesicle_opt as vo
 from vesicle_opt.branch.store import CHECKSUM, COLUMNS, Store, texts
-from vesicle_opt.errors import StateFileError
+from vesicle_opt.errors import InputError, StateFileError
 
 META = {"scene": "small", "param": "reduced_volume", "to": 0.8}
 
@@ -78,3 +79,15 @@ def test_a_branch_csv_of_the_previous_columns_resumes_with_its_checksums_added(t
     assert (tmp_path / "branch.csv").read_text() == _csv(_rows())  # rewritten whole, the column last
     assert [r[CHECKSUM] for r in rows] == [texts(r)[CHECKSUM] for r in _rows()]
     assert Store(tmp_path, META).rows() == rows  # and it resumes again as written
+
+
+@pytest.mark.parametrize("stored", [{**META, "to": 0.9}, {**META, "to": 0.7, "step": "x"}, {**META, "to": [0.7]}])
+def test_a_branch_json_without_a_numeric_to_or_step_is_another_run(tmp_path, stored):
+    """Found by the 10 000-example fuzz of tests/io/test_state.py: a stored branch.json whose ``to``
+    differs and whose ``step`` is missing or not a number raised KeyError / ValueError in
+    ``extends``; it is another run's file, refused with one line, untouched."""
+    (tmp_path / "branch.json").write_text(json.dumps(stored))
+    with pytest.raises(InputError, match="other") as info:
+        Store(tmp_path, {**META, "step": -0.01})
+    assert "\n" not in str(info.value)
+    assert json.loads((tmp_path / "branch.json").read_text()) == stored

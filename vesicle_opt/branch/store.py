@@ -68,7 +68,10 @@ def extends(old: dict, new: dict) -> bool:
     """``new`` asks for the run ``old`` (branch.json) with ``to`` further in the same direction
     (the sign of the first step); its own step may differ (its default depends on ``to``)."""
     same = all(old.get(k) == new.get(k) for k in set(old) | set(new) if k not in ("to", "step"))
-    return same and (float(new["to"]) - float(old["to"])) * float(old["step"]) > 0
+    try:
+        return same and (float(new["to"]) - float(old["to"])) * float(old["step"]) > 0
+    except (KeyError, TypeError, ValueError):  # a branch.json without a numeric to / step: another run's
+        return False
 
 
 def _text(v) -> str:
