@@ -24,12 +24,13 @@ def test_library_warnings_keep_their_origin(capsys):
         warnings.warn_explicit("No artists with labels found", UserWarning,
                                "/x/site-packages/matplotlib/legend.py", 1)
         return 0
-    parser = cli.build_parser
+    from vesicle_opt.cli import app  # main's own module (cli reads its names from it)
+    parser = app.build_parser
     try:
-        cli.build_parser = lambda: _Fake(verb)
+        app.build_parser = lambda: _Fake(verb)
         code = cli.main(["solve", "x"])
     finally:
-        cli.build_parser = parser
+        app.build_parser = parser
     err = capsys.readouterr().err
     assert code == 0 and "matplotlib: UserWarning: No artists" in err and "vesicle-opt: warning" not in err
 

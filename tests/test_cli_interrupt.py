@@ -53,7 +53,9 @@ def _argv(verb, scene, out, extra=(), n=96):
                       "--set", "model.epsilon=0.3"],
             "flow": ["flow", str(scene), "--scheme", "penalty", "--dt", "1e-3", "--steps", "30", "-q",
                      "--set", "flow.checkpoint_every=10", "--set", "flow.frames=4"],
-            "branch": ["branch", str(scene), "--param", "reduced_volume", "--to", "0.85", "--step", "-0.02"],
+            # at the scene's eps 0.6 the start is refused by the shape check (35% of the volume in the bulk)
+            "branch": ["branch", str(scene), "--param", "reduced_volume", "--to", "0.85", "--step", "-0.02",
+                       "--set", "model.epsilon=0.3", "--set", "mesh.n=64"],
             "study": ["study", "penalty_continuation", "--quick"]}[verb]
     return [sys.executable, "-m", "vesicle_opt.cli", *head, *extra, "--out", str(out)]
 
@@ -160,7 +162,7 @@ def _files(d: Path) -> dict:
     return out
 
 
-CASES = [("solve", signal.SIGINT, True), ("flow", signal.SIGTERM, True)] + [
+CASES = [("solve", signal.SIGINT, True), ("flow", signal.SIGTERM, True), ("branch", signal.SIGINT, True)] + [
     pytest.param(verb, sig, False, marks=pytest.mark.slow)
     for verb in ("solve", "flow", "branch", "study") for sig in (signal.SIGINT, signal.SIGTERM)]
 OTHER = {"solve": ["--set", "model.epsilon=0.35"], "flow": ["--set", "model.epsilon=0.7"]}  # another finished run
@@ -194,7 +196,11 @@ def test_an_interrupted_verb_says_one_line_keeps_finished_files_and_reruns_to_th
     assert code in (0, 128 + sig), err[-3000:]
     assert code or not inprocess, "the seeded point fell after the end of the run"
     assert "Traceback" not in err, err[-3000:]
+    assert "KeyboardInterruptException" not in err, err[-3000:]  # CasADi's own line is absorbed (io.interrupt)
+    if os.environ.get("VO_REPORT_CODES"):  # what each seeded point hit (for the record of a closing note)
+        print(f"\n{verb} {signal.Signals(sig).name} inprocess={inprocess}: rc {code}: {lines[-1] if lines else ''}")
     if code:
+        assert sum(ln.startswith("vesicle-opt: interrupted") for ln in lines) == 1, err[-3000:]
         name = signal.Signals(sig).name
         assert lines[-1].startswith(f"vesicle-opt: interrupted ({name}) "), err[-2000:]
         resumes = RESUMES[verb] and "at start-up" not in lines[-1]  # before any state: it starts again

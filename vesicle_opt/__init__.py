@@ -18,36 +18,52 @@ writes a solve's files as the CLI does, and ``load(dir)`` (``load_result``, ``lo
 ``load_branch``, ``load_study``) reads any verb's output directory back (``vesicle_opt.readback``).
 """
 
-from vesicle_opt.api import solve
-from vesicle_opt.branch import Branch, branch
-from vesicle_opt.io.files import package_version
-from vesicle_opt.errors import InfeasibleError, InputError, NotSupported, SolverError, VesicleError
-from vesicle_opt.nk.options import NewtonKrylovOptions
-from vesicle_opt.nlp import NLP, IpoptOptions, build_nlp
-from vesicle_opt.result import Result, Status
-from vesicle_opt.scene import Scene, load as load_scene
-from vesicle_opt.studies import run_study
+import sys as _sys
+import types as _types
 
-__version__ = package_version()
-
-# ``flow`` and ``FlowResult`` load the flows package with their first use (PEP 562): a solve does
-# not need it (0.02-0.03 s of every CLI run's start-up, measured). ``branch`` stays eager: its
-# name is also the subpackage's, which an import would rebind on this module.
-_LAZY = {"flow": "vesicle_opt.flows.api", "FlowResult": "vesicle_opt.flows.api",
+# Every public name loads its module with its first use (PEP 562), so ``import vesicle_opt`` (and the
+# CLI's entry, which installs its interrupt handling first: ``cli.run``) costs no numpy, scipy or
+# solver import: it was 0.6 s, inside which a Ctrl-C printed a KeyboardInterrupt traceback.
+_LAZY = {"solve": "vesicle_opt.api", "Branch": "vesicle_opt.branch", "branch": "vesicle_opt.branch",
+         "package_version": "vesicle_opt.io.files",
+         **dict.fromkeys(("InfeasibleError", "InputError", "NotSupported", "SolverError", "VesicleError"),
+                         "vesicle_opt.errors"),
+         "NewtonKrylovOptions": "vesicle_opt.nk.options",
+         **dict.fromkeys(("NLP", "IpoptOptions", "build_nlp"), "vesicle_opt.nlp"),
+         "Result": "vesicle_opt.result", "Status": "vesicle_opt.result",
+         "Scene": "vesicle_opt.scene", "load_scene": "vesicle_opt.scene", "run_study": "vesicle_opt.studies",
+         "flow": "vesicle_opt.flows.api", "FlowResult": "vesicle_opt.flows.api",
          # output directories read back, and a solve's files written from Python (readback)
-         "load": "vesicle_opt.readback", "load_result": "vesicle_opt.readback",
-         "load_flow": "vesicle_opt.readback", "load_branch": "vesicle_opt.readback",
-         "load_study": "vesicle_opt.readback", "write_result": "vesicle_opt.readback",
-         "FlowRecord": "vesicle_opt.readback", "StudyRecord": "vesicle_opt.readback"}
+         **dict.fromkeys(("load", "load_result", "load_flow", "load_branch", "load_study", "write_result",
+                          "FlowRecord", "StudyRecord"), "vesicle_opt.readback")}
+_SOURCE_NAME = {"load_scene": "load"}  # the name in its module, where it differs
 
 
 def __getattr__(name: str):
-    if name in _LAZY:
+    if name == "__version__":
+        value = __getattr__("package_version")()
+    elif name in _LAZY:
         import importlib  # the lazy attributes above only
-        value = getattr(importlib.import_module(_LAZY[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'vesicle_opt' has no attribute {name!r}")
+        value = getattr(importlib.import_module(_LAZY[name]), _SOURCE_NAME.get(name, name))
+    else:
+        raise AttributeError(f"module 'vesicle_opt' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+class _Package(_types.ModuleType):
+    """``vesicle_opt`` itself: the import system binds each loaded subpackage on its parent, and would
+    bind the ``branch`` subpackage over the ``branch`` function; that one binding is dropped, so
+    ``vesicle_opt.branch`` is the function whatever was imported first (``vesicle_opt.branch.run``
+    and ``from vesicle_opt.branch import ...`` read ``sys.modules`` and still work)."""
+
+    def __setattr__(self, name, value):
+        if name == "branch" and isinstance(value, _types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+_sys.modules[__name__].__class__ = _Package
 
 __all__ = ["__version__", "solve", "branch", "Branch", "flow", "FlowResult", "run_study", "load_scene", "Scene", "build_nlp", "NLP",
            "IpoptOptions", "NewtonKrylovOptions", "Result", "Status", "VesicleError", "InputError",
@@ -56,4 +72,4 @@ __all__ = ["__version__", "solve", "branch", "Branch", "flow", "FlowResult", "ru
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_LAZY) | {"__version__"})

@@ -18,22 +18,30 @@ above ``branch``: it builds Branch, Result and Scene objects).
   ``parents`` (the tree) from the rows' ``parent`` column, ``Branch.field(point)`` the point's snapshot;
 * ``study``  (anything else with CSV files)                     -> :class:`StudyRecord` (``load_study``).
 
-The ``.npz`` files are read by ``io.fields.read`` (its format version checked). A directory that is
-none of these raises InputError naming it.
+Every file is read through the checked loader of the state files (``io.state``; the ``.npz`` files
+through ``io.fields.read``, its format version checked): a file that does not parse (bytes that are
+not UTF-8, a CSV line with another number of fields than its header, a branch.csv value of the
+wrong type or an unknown column, a JSON file that is not an object or lacks a key, an npz that is
+not a zip or holds an array of another type or length) raises ``StateFileError`` (an InputError)
+naming the file, never a raw exception or a half-parsed object. The one thing read past is a torn
+last CSV line (a killed run's), with a warning: a resume cuts it off the same way. A directory that
+is none of these raises InputError naming it.
 """
 
 from __future__ import annotations
 
-import csv
-import json
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.errors import InputError
-from vesicle_opt.io import fields
+from vesicle_opt.errors import InputError, StateFileError
+from vesicle_opt.io import fields, state
 from vesicle_opt.result import Result, Status
+
+ADVICE = "not a file vesicle-opt wrote, or a damaged one (rerun the command that wrote it)"
+log = logging.getLogger(__name__)
 
 # summary.json keys that are Result fields (the rest go to ``extra``, as ``Result.summary`` writes them)
 _FIELDS = ("method", "energy", "volume_residual", "area_residual", "lambda_volume", "lambda_area",
@@ -99,19 +107,47 @@ def _number(text: str):
     return text
 
 
+def _header(names: list[str]) -> str | None:
+    """What is wrong with a CSV header of a study (its names are the study's own)."""
+    if not names or any(not n.strip() for n in names):
+        return "an empty column name"
+    if len(set(names)) != len(names):
+        return "a column named twice"
+    return None
+
+
+def _rows(path: Path, check_header, check_row=lambda row, k: None) -> list[dict]:
+    """The rows of a CSV file as text, read through the checked loader (module docstring)."""
+    found = state.read_csv(path, check_header, check_row, ADVICE, "path")
+    if found is None:
+        return []
+    _, rows, torn = found
+    if torn is not None:
+        log.warning("%s: its last line is torn (the run was killed while writing it); read without it", path)
+    return rows
+
+
 def read_csv(path: Path) -> tuple[dict, ...]:
-    """The rows of a CSV file with numbers and booleans parsed ('' -> None)."""
-    with open(path, newline="") as fh:
-        return tuple({k: _number(v) for k, v in row.items()} for row in csv.DictReader(fh))
+    """The rows of a CSV file with numbers and booleans parsed ('' -> None); a StateFileError
+    naming the file when it does not parse (module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("path", f"file not found: {path}")
+    return tuple({k: _number(v) for k, v in row.items()} for row in _rows(path, _header))
 
 
-def _json(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError("path", f"{path.parent} has no {path.name}") from None
-    except json.JSONDecodeError as exc:
-        raise InputError("path", f"{path} is not valid JSON ({exc})") from None
+def _json(path: Path, needs: tuple[str, ...] = ()) -> dict:
+    """The JSON object of ``path`` with the keys ``needs``, through the checked loader."""
+    if not path.is_file():
+        raise InputError("path", f"{path.parent} has no {path.name}")
+    return _needs(path, state.read_json(path, ADVICE, "path"), needs)
+
+
+def _needs(path: Path, data: dict, keys: tuple[str, ...]) -> dict:
+    missing = [k for k in keys if k not in data]
+    if missing:
+        raise StateFileError(path, f"has no {', '.join(map(repr, missing))}; {ADVICE}", "path")
+    return data
 
 
 def _scene(path: Path, name: str | None):
@@ -131,11 +167,17 @@ def _dir(path) -> Path:
     return path
 
 
+def _summary_error(path: Path, exc: Exception) -> StateFileError:
+    """A summary.json / branch.json whose keys parse but hold values of another type."""
+    what = f"key {exc.args[0]!r} missing" if isinstance(exc, KeyError) else str(exc)[:80]
+    return StateFileError(path, f"holds a value of the wrong type ({what}); {ADVICE}", "path")
+
+
 def load_result(path: str | Path, *, disc: bool = True) -> Result:
     """The :class:`Result` of a ``solve`` directory (module docstring). ``disc=False``: no
     discretisation rebuilt (``Result.disc`` None; faster for large 3D meshes)."""
     path = _dir(path)
-    summary = _json(path / "summary.json")
+    summary = _json(path / "summary.json", ("outcome", "iterations", "n_nodes"))
     if "scheme" in summary:
         raise InputError("path", f"{path} is a flow directory; use vo.load_flow (or vo.load)")
     npz = path / "phi.npz"
@@ -147,23 +189,29 @@ def load_result(path: str | Path, *, disc: bool = True) -> Result:
     if disc and scene is not None:
         from vesicle_opt.mesh import discretize  # the meshes: only when a discretisation is rebuilt
         discretisation = discretize(scene)
-    nan = float("nan")
-    get = {k: summary.get(k) for k in _FIELDS}
+    try:
+        return _result(summary, data, discretisation, scene)
+    except (KeyError, TypeError, ValueError) as exc:  # a value of another type than a solve writes
+        raise _summary_error(path / "summary.json", exc) from None
+
+
+def _result(summary: dict, data: dict, discretisation, scene) -> Result:
+    def num(key: str, default: float = float("nan")) -> float:
+        value = summary.get(key)
+        return default if value is None else float(value)
+
+    opt = {k: summary.get(k) for k in ("method", "M", "penalized_energy", "status")}
     extra = {k: v for k, v in summary.items() if k not in _FIELDS and k not in ("scene", "outcome")}
     return Result(
         phi=np.asarray(data["phi"], float), w=data.get("w"),
-        energy=nan if get["energy"] is None else get["energy"],
-        volume_residual=nan if get["volume_residual"] is None else get["volume_residual"],
-        area_residual=nan if get["area_residual"] is None else get["area_residual"],
-        lambda_volume=nan if get["lambda_volume"] is None else get["lambda_volume"],
-        lambda_area=nan if get["lambda_area"] is None else get["lambda_area"],
-        kkt_residual=nan if get["kkt_residual"] is None else get["kkt_residual"],
-        status=get["status"], success=bool(get["success"]), converged=bool(get["converged"]),
-        outcome=Status(summary["outcome"]), iterations=int(get["iterations"]),
-        wall_time_s=nan if get["wall_time_s"] is None else get["wall_time_s"],
-        derivative_time_s=get["derivative_time_s"] or 0.0, other_time_s=get["other_time_s"] or 0.0,
-        n_nodes=int(get["n_nodes"]), hessian_nnz_per_row=get["hessian_nnz_per_row"] or 0.0,
-        method=get["method"], M=get["M"], penalized_energy=get["penalized_energy"],
+        energy=num("energy"), volume_residual=num("volume_residual"), area_residual=num("area_residual"),
+        lambda_volume=num("lambda_volume"), lambda_area=num("lambda_area"), kkt_residual=num("kkt_residual"),
+        status=opt["status"], success=bool(summary.get("success")), converged=bool(summary.get("converged")),
+        outcome=Status(summary["outcome"]), iterations=int(summary["iterations"]),
+        wall_time_s=num("wall_time_s"), derivative_time_s=num("derivative_time_s", 0.0),
+        other_time_s=num("other_time_s", 0.0), n_nodes=int(summary["n_nodes"]),
+        hessian_nnz_per_row=num("hessian_nnz_per_row", 0.0),
+        method=opt["method"], M=opt["M"], penalized_energy=opt["penalized_energy"],
         extra=extra, disc=discretisation, scene=scene)
 
 
@@ -173,7 +221,14 @@ def load_flow(path: str | Path) -> FlowRecord:
     summary = _json(path / "summary.json")
     if "scheme" not in summary:
         raise InputError("path", f"{path} is not a flow directory (its summary.json has no 'scheme')")
+    _needs(path / "summary.json", summary, ("energy", "status", "steps"))  # what FlowRecord's properties read
+    try:
+        float(summary["energy"]), Status(summary["status"]), int(summary["steps"])
+    except (TypeError, ValueError) as exc:
+        raise _summary_error(path / "summary.json", exc) from None
     data = fields.read(path / "phi.npz")
+    if "nodes" not in data or "t" not in data:
+        raise StateFileError(path / "phi.npz", f"has no 'nodes' or 't': not a flow's field; {ADVICE}", "path")
     hist = path / "history.csv"
     return FlowRecord(path, summary, np.asarray(data["phi"], float), np.asarray(data["nodes"], float),
                       float(data["t"]), read_csv(hist) if hist.exists() else (),
@@ -182,23 +237,36 @@ def load_flow(path: str | Path) -> FlowRecord:
 
 def load_branch(path: str | Path) -> "Branch":
     """The :class:`~vesicle_opt.branch.Branch` of a ``branch`` directory (module docstring); a run
-    that did not finish (killed) has ``stopped`` {0: "unfinished"}."""
+    that did not finish (killed) has ``stopped`` {0: "unfinished"}. branch.csv is checked as a
+    resume checks it (its columns those of ``branch.store.COLUMNS`` or, from an older version, a
+    subset; every value of its type; the points in order)."""
     from vesicle_opt.branch.run import Branch  # the branch package: only when a branch is read back
-    from vesicle_opt.branch.store import parse  # the same reason: with a branch read back only
+    from vesicle_opt.branch.store import COLUMNS, check_row, parse  # the same reason: a branch read back
     from vesicle_opt.scene.schema import from_dict  # the schema: only when a scene is read back
     path = _dir(path)
-    meta = _json(path / "branch.json")
-    with open(path / "branch.csv", newline="") as fh:
-        rows = tuple(parse(r) for r in csv.DictReader(fh))
-    stopped = {int(k): v for k, v in meta.get("stopped", {"0": "unfinished"}).items()}
+    meta_path = path / "branch.json"
+    meta = _json(meta_path, ("param", "to", "step", "scene"))
+    csv_path = path / "branch.csv"
+    if not csv_path.is_file():
+        raise InputError("path", f"{path} has no branch.csv")
+
+    def header(names: list[str]) -> str | None:
+        unknown = [n for n in names if n not in COLUMNS]
+        return _header(names) or (f"unknown columns {', '.join(map(repr, unknown[:3]))}" if unknown else None) or \
+            (None if {"point", "branch"} <= set(names) else "no 'point' and 'branch' columns")
+    rows = tuple(parse(r) for r in _rows(csv_path, header, check_row))
+    try:
+        stopped = {int(k): str(v) for k, v in dict(meta.get("stopped", {"0": "unfinished"})).items()}
+        to, step = float(meta["to"]), float(meta["step"])
+    except (TypeError, ValueError) as exc:
+        raise _summary_error(meta_path, exc) from None
     data = meta.get("scene_data")
     scene = from_dict(data, name=meta["scene"]) if isinstance(data, dict) else None
     parents = {}  # the tree (branch.tree): each branch's parent, from the parent column of its first row
     for r in rows:
         parents.setdefault(r["branch"], r.get("parent"))
     parents.update({k: None for k in stopped if k not in parents})  # a branch without rows: a root
-    return Branch(meta["param"], float(meta["to"]), float(meta["step"]), rows, stopped, path, parents,
-                  scene=scene)
+    return Branch(meta["param"], to, step, rows, stopped, path, parents, scene=scene)
 
 
 def load_study(path: str | Path) -> StudyRecord:

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from vesicle_opt import cli
-from vesicle_opt.branch.store import COLUMNS, Store, _text
+from vesicle_opt.branch.store import COLUMNS, Store, texts
 from vesicle_opt.errors import InputError, StateFileError
 from vesicle_opt.flows.api import fingerprint
 from vesicle_opt.flows.run import write_flow
@@ -33,7 +33,7 @@ def branch_csv(n=3) -> str:
     rows = [{"point": k, "branch": 0, "param": "reduced_volume", "target": 0.95 - 0.01 * k, "energy": 5.0 + k,
              "second_order": "not checked", "converged": True, "accepted": True, "iterations": 3, "wraps": "none"}
             for k in range(n)]
-    return ",".join(COLUMNS) + "\n" + "".join(",".join(_text(r.get(c)) for c in COLUMNS) + "\n" for r in rows)
+    return ",".join(COLUMNS) + "\n" + "".join(",".join(texts(r)[c] for c in COLUMNS) + "\n" for r in rows)
 
 
 def study_csv(study="s", n=2) -> str:
@@ -221,11 +221,11 @@ def _branch_property(tmp_path_factory, data):
     again = read_csv(d / "branch.csv", lambda h: None, lambda r, k: None, "")  # the repaired file reads whole
     assert again is None or again[2] is None
     assert [r["point"] for r in rows] == list(range(len(rows)))
-    if truncated:  # whole original rows only (a flipped digit that still reads as a number cannot be
-        # told from a value without a checksum: the other damages are held to "parses, types, order")
-        original = branch_csv(4).splitlines()
-        kept = (d / "branch.csv").read_text().splitlines()
-        assert kept == original[: len(kept)]
+    # whole original rows only, whatever the damage: a flipped digit that still reads as a number is
+    # found by the row's checksum (branch.store's row_crc)
+    original = branch_csv(4).splitlines()
+    kept = (d / "branch.csv").read_text().splitlines()
+    assert kept == original[: len(kept)]
 
 
 def _study_property(tmp_path_factory, data):

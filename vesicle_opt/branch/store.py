@@ -7,6 +7,12 @@ direction extends the run from its last point, ``extends``), ``points/point-NNNN
 grid) and ``points/point-NNNN.vtu`` (ParaView), written *before* their row: a row in the file always
 has its snapshot. A kill leaves at most a torn last line, which the resume cuts off, so no row is
 lost or written twice; snapshots without a row are overwritten by the rerun.
+
+The last column, ``row_crc``, is the CRC-32 of the row's other values (``checksum``; ``wall_time_s``
+left out, so a rerun's rows are equal to the first run's): a character changed inside a row (a
+swapped digit that still reads as a number) is found on resume and on read-back, and refused with
+the line named. A ``branch.csv`` of the previous column set (without it) is resumed: its rows,
+checked as before, are rewritten with their checksums.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ import csv
 import io
 import math
 import os
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +45,10 @@ COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy
            # why a point failed (verify.failure) and the shape check (verify.shape)
            "reason", "certifiable_tol", "shape", "shape_volume_gap", "bulk_volume_share",
            # the p-free Newton-Krylov corrector (branch.nk_free): GMRES iterations of each bordered Newton step
-           "krylov_iterations"]
+           "krylov_iterations",
+           "row_crc"]  # the row's checksum (module docstring), always last
+CHECKSUM = "row_crc"
+UNSUMMED = ("wall_time_s", CHECKSUM)  # the values the checksum leaves out (a timing differs between reruns)
 
 INTS = ("point", "branch", "iterations", "solves", "components", "n", "parent", "index", "detected_at", "critical")
 BOOLS = ("converged", "accepted", "restarted")
@@ -60,7 +70,10 @@ def extends(old: dict, new: dict) -> bool:
     """``new`` asks for the run ``old`` (branch.json) with ``to`` further in the same direction
     (the sign of the first step); its own step may differ (its default depends on ``to``)."""
     same = all(old.get(k) == new.get(k) for k in set(old) | set(new) if k not in ("to", "step"))
-    return same and (float(new["to"]) - float(old["to"])) * float(old["step"]) > 0
+    try:
+        return same and (float(new["to"]) - float(old["to"])) * float(old["step"]) > 0
+    except (KeyError, TypeError, ValueError):  # a branch.json without a numeric to / step: another run's
+        return False
 
 
 def _text(v) -> str:
@@ -75,7 +88,21 @@ def _text(v) -> str:
     return str(v)
 
 
-TEXT = ("second_order_eigenvalues", "second_order_errors", "critical_mode", "krylov_iterations")  # ';'-joined numbers, a file name
+TEXT = ("second_order_eigenvalues", "second_order_errors", "critical_mode", "krylov_iterations", CHECKSUM)
+# ';'-joined numbers, a file name, the checksum's hex digits (never parsed as a number)
+
+
+def checksum(texts: dict) -> str:
+    """The ``row_crc`` of a row given as its CSV texts: CRC-32 (hex) of the values of COLUMNS but
+    ``UNSUMMED``, in order, joined by the unit separator (no value holds it)."""
+    data = "\x1f".join(texts.get(k) or "" for k in COLUMNS if k not in UNSUMMED)
+    return f"{zlib.crc32(data.encode('utf-8')):08x}"
+
+
+def texts(row: dict) -> dict:
+    """A row's CSV texts (``_text`` of each column), its checksum filled in."""
+    out = {k: _text(row.get(k)) for k in COLUMNS if k != CHECKSUM}
+    return {**out, CHECKSUM: checksum(out)}
 
 
 def parse(row: dict) -> dict:
@@ -94,6 +121,17 @@ def parse(row: dict) -> dict:
             except ValueError:
                 out[k] = v
     return out
+
+
+def check_row(row: dict, index: int) -> str | None:
+    """What is wrong with a row of branch.csv (its types; the points numbered 0, 1, ...): the rule
+    of a resume (``Store``) and of a read-back (``readback.load_branch``)."""
+    if row["point"] != str(index):
+        return f"point = {row['point'][:40]!r}, expected {index} (the rows are the points in order)"
+    why = state.typed_row(row, INTS, FLOATS, BOOLS)
+    if why is None and CHECKSUM in row and row[CHECKSUM] != checksum(row):
+        why = f"{CHECKSUM} = {row[CHECKSUM][:12]!r} does not match the row's values (a changed character)"
+    return why
 
 
 class Store:
@@ -141,23 +179,24 @@ class Store:
     def csv_path(self) -> Path:
         return self.out / "branch.csv"
 
-    def _check_row(self, row: dict, index: int) -> str | None:
-        """What is wrong with a row of branch.csv (its types; the points numbered 0, 1, ...)."""
-        if row["point"] != str(index):
-            return f"point = {row['point'][:40]!r}, expected {index} (the rows are the points in order)"
-        return state.typed_row(row, INTS, FLOATS, BOOLS)
-
     def _repair(self) -> list[dict]:
         """The rows of branch.csv, read through the checked loader (``io.state``): a torn last line
         cut off (the file rewritten without it), anything else refused before any work."""
         path = self.csv_path
-        found = state.read_csv(path, lambda h: None if h == COLUMNS else f"{len(h)} columns, the first "
-                               f"{(h or [''])[0][:30]!r}", self._check_row, ADVICE)
+        found = state.read_csv(path, lambda h: None if h in (COLUMNS, COLUMNS[:-1]) else f"{len(h)} columns, "
+                               f"the first {(h or [''])[0][:30]!r}", check_row, ADVICE)
         if found is None:
             path.write_text(",".join(COLUMNS) + "\n")
             return []
-        _, rows, repaired = found
-        if repaired is not None:  # a kill mid-write: the torn line is cut off
+        header, rows, repaired = found
+        if header != COLUMNS:  # the previous column set: the rows (checked) rewritten with their checksums
+            buf = io.StringIO()
+            writer = csv.DictWriter(buf, COLUMNS, lineterminator="\n")
+            writer.writeheader()
+            rows = [{**r, CHECKSUM: checksum(r)} for r in rows]
+            writer.writerows(rows)
+            repaired = buf.getvalue()
+        if repaired is not None:  # a kill mid-write: the torn line is cut off (or the column added)
             tmp = path.with_name(path.name + ".tmp")
             tmp.write_text(repaired)
             os.replace(tmp, path)
@@ -223,12 +262,12 @@ class Store:
                              p=row["target"], **extra)
                 if self.snapshots:
                     _write_vtk(self.out / "points" / f"point-{point:04d}.vtu", disc, result.phi)
-        self._rows.append(parse({k: _text(row.get(k)) for k in COLUMNS}))
+        line = texts(row)
+        self._rows.append(parse(line))
         if self.out is None:
             return
         buf = io.StringIO()
-        csv.DictWriter(buf, COLUMNS, extrasaction="ignore", lineterminator="\n").writerow(
-            {k: _text(row.get(k)) for k in COLUMNS})
+        csv.DictWriter(buf, COLUMNS, extrasaction="ignore", lineterminator="\n").writerow(line)
         with interrupt.deferred(), open(self.csv_path, "a", newline="") as fh:  # a row is written whole
             fh.write(buf.getvalue())
             fh.flush()

@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.errors import InputError
+from vesicle_opt.errors import InputError, StateFileError
+from vesicle_opt.io import state
 from vesicle_opt.io.files import save_npz
 
 FORMAT_VERSION = 1
@@ -71,20 +72,28 @@ def write(path: Path, kind: str, phi: np.ndarray, disc, *, compressed: bool = Fa
         save_npz(path, **data)
 
 
+# the typed keys of a field file, checked on every read (io.state.read_npz): dtype kind, ndim
+_TYPES = {"format_version": ("i", 0), "kind": ("U", 0), "nodes": ("x", 2), "grid_shape": ("i", 1),
+          "box": ("x", 2), "mirror_cells": ("i", 0), "w": ("x", 1), "t": ("n", 0), "p": ("n", 0), "mode": ("x", 1)}
+ADVICE = "not a field file written by vesicle-opt, or a damaged one (rerun the command that wrote it)"
+
+
 def read(path: str | Path) -> dict:
     """The arrays of a field file as a dict (0-d arrays as Python scalars, ``kind`` a str), with
     ``format_version`` 0 for files written before the layout had one; InputError naming the path
-    when it is missing or not such a file."""
+    when it is missing, and its StateFileError (``io.state.read_npz``) when it is not such a file:
+    not an npz, no ``phi``, a key of another type or dimension, or ``nodes`` / ``w`` / ``mode`` of
+    another length than phi."""
     path = Path(path)
-    try:
-        with np.load(path) as z:
-            data = {k: (z[k].item() if z[k].ndim == 0 else z[k]) for k in z.files}
-    except FileNotFoundError:
-        raise InputError("path", f"file not found: {path}") from None
-    except Exception as exc:  # zip errors of a corrupt or foreign file, a directory
-        raise InputError("path", f"{path} is not an .npz file ({type(exc).__name__})") from None
-    if "phi" not in data:
-        raise InputError("path", f"{path} holds no 'phi': not a field written by vesicle-opt")
+    if not path.exists():
+        raise InputError("path", f"file not found: {path}")
+    data = state.read_npz(path, {"phi": ("x", 1)}, ADVICE, "path", optional=_TYPES)
+    n = data["phi"].size
+    for name in ("nodes", "w", "mode"):
+        if name in data and len(data[name]) != n:
+            raise StateFileError(path, f"array {name!r} has {len(data[name])} entries, phi {n}; {ADVICE}", "path")
+    if data.get("kind", KINDS[0]) not in KINDS:
+        raise StateFileError(path, f"kind {str(data['kind'])[:40]!r} is none of {', '.join(KINDS)}; {ADVICE}", "path")
     version = int(data.setdefault("format_version", 0))
     if version > FORMAT_VERSION:
         raise InputError("path", f"{path} has npz format_version {version}; this vesicle_opt reads "

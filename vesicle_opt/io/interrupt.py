@@ -12,12 +12,18 @@ cases") and whether the verb resumes from its files; ``message(signum)`` is the 
 ``interrupted (SIGINT) at step 12; rerun the same command to resume``. ``deferred()`` is a block a
 signal does not split (the staged files' move into ``--out``): a signal received inside it is
 raised at its end. Exit codes: 128 + the signal's number (130 SIGINT, 143 SIGTERM).
+
+``casadi_line_absorbed()``: CasADi reports the exception it turned into a status with a line of its
+own on ``sys.stderr`` (``CasADi - <date> WARNING("KeyboardInterruptException") [.../ipopt_nlp.cpp:132]``,
+written in pieces); inside this block, once a signal was received, that line is dropped, so the
+user sees only the run's own one line. Every other write passes at once (progress bars included).
 """
 
 from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -106,3 +112,49 @@ def message(signum: int) -> str:
     tail = ("rerun the same command to resume" if _state["resume"] else
             "the files in --out were left as they were; rerun the same command to start again")
     return f"interrupted ({name}) {_state['where']}; {tail}"
+
+
+class _CasadiLineFilter:
+    """``sys.stderr`` less CasADi's line for an interrupt (``casadi_line_absorbed``)."""
+
+    PREFIX = "CasADi - "  # CasADi's messages begin with it, written as a piece of its own
+    MARK = "KeyboardInterruptException"
+
+    def __init__(self, stream):
+        self._stream = stream
+        self._held = None  # a CasADi message being written, until its newline
+
+    def write(self, text: str) -> int:
+        if self._held is None and not text.startswith(self.PREFIX):
+            return self._stream.write(text)
+        self._held = (self._held or "") + text
+        if "\n" in self._held:
+            line, _, rest = self._held.partition("\n")
+            self._held = None
+            if not (self.MARK in line and _state["signum"] is not None):
+                self._stream.write(line + "\n")
+            if rest:
+                self.write(rest)
+        return len(text)
+
+    def release(self) -> None:
+        """Write what is held (a CasADi message without its newline yet)."""
+        if self._held:
+            self._stream.write(self._held)
+        self._held = None
+
+    def __getattr__(self, name):  # flush, isatty, fileno, encoding, ...: the stream's own
+        return getattr(self._stream, name)
+
+
+@contextlib.contextmanager
+def casadi_line_absorbed():
+    """The block with ``sys.stderr`` filtered (module docstring); restored after it."""
+    stream = sys.stderr
+    sys.stderr = filtered = _CasadiLineFilter(stream)
+    try:
+        yield
+    finally:
+        filtered.release()
+        if sys.stderr is filtered:  # a block that swapped stderr itself keeps its own swap
+            sys.stderr = stream

@@ -43,35 +43,36 @@ def read_text(path: Path, advice: str, key: str = "--out") -> str:
 
 
 def read_csv(path: Path, check_header: Callable[[list[str]], "str | None"], check_row: CheckRow,
-             advice: str) -> tuple[list[str], list[dict], str | None] | None:
+             advice: str, key: str = "--out") -> tuple[list[str], list[dict], str | None] | None:
     """(header, rows, repaired text or None) of the CSV ``path``; None when it is missing or holds
     nothing (not even a whole header line). The repaired text is the file without its torn last
     line (module docstring); every other defect is a StateFileError naming the line."""
     path = Path(path)
     if not path.exists() or path.stat().st_size == 0:
         return None
-    text = read_text(path, advice)
+    text = read_text(path, advice, key)
     repaired = None
     if not text.endswith("\n"):  # a kill mid-write: the torn line is cut off
         text = repaired = text[: text.rfind("\n") + 1]
     if not text:
         return None
     try:
-        lines = list(csv.reader(io.StringIO(text, newline="")))
+        lines = list(csv.reader(io.StringIO(text, newline=""), strict=True))  # an open quote: an error
     except csv.Error as exc:
-        raise StateFileError(path, f"is not a CSV file ({exc}); {advice}") from None
+        raise StateFileError(path, f"is not a CSV file ({exc}); {advice}", key) from None
     header = lines[0]
     why = check_header(header)
     if why is not None:
-        raise StateFileError(path, f"its header is not this run's ({why}); {advice}")
+        raise StateFileError(path, f"its header is not this run's ({why}); {advice}", key)
     rows = []
     for k, fields in enumerate(lines[1:]):
         if len(fields) != len(header):
-            raise StateFileError(path, f"line {k + 2} has {len(fields)} fields, the header {len(header)}; {advice}")
+            raise StateFileError(path, f"line {k + 2} has {len(fields)} fields, the header {len(header)}; {advice}",
+                                 key)
         row = dict(zip(header, fields))
         why = check_row(row, k)
         if why is not None:
-            raise StateFileError(path, f"line {k + 2}: {why}; {advice}")
+            raise StateFileError(path, f"line {k + 2}: {why}; {advice}", key)
         rows.append(row)
     return header, rows, repaired
 
@@ -96,23 +97,27 @@ def typed_row(row: dict, ints=(), floats=(), bools=()) -> str | None:
     return None
 
 
-def read_json(path: Path, advice: str) -> dict:
+def read_json(path: Path, advice: str, key: str = "--out") -> dict:
     """The JSON object of ``path``, or a StateFileError."""
-    text = read_text(path, advice)
+    text = read_text(path, advice, key)
     try:
         data = json.loads(text)
     except ValueError as exc:
-        raise StateFileError(path, f"is not JSON ({exc.msg} at line {exc.lineno}); {advice}") from None
+        raise StateFileError(path, f"is not JSON ({exc.msg} at line {exc.lineno}); {advice}", key) from None
+    except RecursionError:  # brackets nested past the parser's depth: no run writes that
+        raise StateFileError(path, f"is not JSON (nested too deep); {advice}", key) from None
     if not isinstance(data, dict):
-        raise StateFileError(path, f"is not a JSON object (a {type(data).__name__}); {advice}")
+        raise StateFileError(path, f"is not a JSON object (a {type(data).__name__}); {advice}", key)
     return data
 
 
-def read_npz(path: Path, keys: dict[str, tuple[str, int | None]], advice: str, key: str = "--out") -> dict:
+def read_npz(path: Path, keys: dict[str, tuple[str, int | None]], advice: str, key: str = "--out",
+             optional: dict[str, tuple[str, int | None]] | None = None) -> dict:
     """The arrays of ``path`` (0-d ones as Python scalars). ``keys``: name -> (dtype kind, ndim or
     None), each checked ('f' finite floats, 'n' finite numbers, 'x' any numbers, nan included, 'i'
-    integers, 'U' text); other keys are kept unchecked. A StateFileError when the file is not an
-    npz, a key is missing, or a kind, dimension or value is wrong."""
+    integers, 'U' text); ``optional``: the same for keys that may be absent; other keys are kept
+    unchecked. A StateFileError when the file is not an npz, a key is missing, or a kind, dimension
+    or value is wrong."""
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as z:
@@ -121,7 +126,7 @@ def read_npz(path: Path, keys: dict[str, tuple[str, int | None]], advice: str, k
         # struct, header parsing, MemoryError for a forged shape): each means "not a checkpoint"
         raise StateFileError(path, f"is not an npz file ({type(exc).__name__}: {str(exc)[:80]}); {advice}",
                              key) from None
-    for name, (kind, ndim) in keys.items():
+    for name, (kind, ndim) in {**keys, **{k: v for k, v in (optional or {}).items() if k in data}}.items():
         if name not in data:
             raise StateFileError(path, f"has no array {name!r} (it holds {', '.join(sorted(data)) or 'none'}); "
                                  f"{advice}", key)
