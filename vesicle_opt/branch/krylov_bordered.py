@@ -128,12 +128,13 @@ def _corner_product(corner, y):
 
 
 def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: float, weights,
-           tol: float, phase=(), max_newton: int = MAX_NEWTON, arc_tol: float = 1e-10) -> Free:
+           tol: float, phase=(), max_newton: int = MAX_NEWTON, arc_tol: float = 1e-10, deflation=None) -> Free:
     """Newton from the prediction onto the hyperplane theta^2 <phi - phi_pred, t_phi>_w +
     (p - p_pred) t_p = 0 (t_phi = 0, t_p = 1: Newton at fixed p), with the phase conditions
     <T_i, phi - phi_pred> = 0 for the vectors ``phase`` (multipliers mu_i on -T_i in the
     stationarity). Stops where ``error`` <= tol and the hyperplane and phase rows hold to
-    ``arc_tol`` (relative)."""
+    ``arc_tol`` (relative). ``deflation(phi, dphi)``: the factor of each step (``branch.deflation``:
+    Sherman-Morrison on the undeflated GMRES step, the deflated step is that step rescaled; None: 1)."""
     w = np.asarray(weights, float)
     phi = np.array(phi_pred, float)
     lam, p = np.array(lam_pred, float), float(p_pred)
@@ -172,6 +173,9 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
         eta = min(ETA_MAX, np.sqrt(max(err, 0.0)))
         dx, dy, its, _ = bordered_solve(lin.hvp, lin.pinv, cols, rows, D, -r, g_rhs, eta)
         cnt.krylov.append(its)
+        if deflation is not None:  # the deflated Newton step: the same direction, rescaled
+            f = deflation(phi, dx)
+            dx, dy = f * dx, f * dy
         if not (np.all(np.isfinite(dx)) and np.all(np.isfinite(dy))):
             return Free(phi, p, tuple(lam), False, k, tuple(cnt.krylov), "non-finite step", tuple(mu))
         s = min(1.0, STEP_CAP / max(float(np.max(np.abs(dx))), np.finfo(float).tiny))

@@ -60,6 +60,7 @@ from typing import Callable
 
 from vesicle_opt.backends import choose_backend
 from vesicle_opt.branch import arclength as arc
+from vesicle_opt.branch.deflation import supported as deflation_supported
 from vesicle_opt.branch.events import FOLD, classify
 from vesicle_opt.branch.nk_corrector import TARGET_ITERATIONS as NK_TARGET_ITERATIONS
 from vesicle_opt.branch.params import check_end, check_range, parameter
@@ -194,6 +195,8 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     for name, v in (("--depth", depth), ("--deflate", deflate)):
         if isinstance(v, bool) or not isinstance(v, int) or v < 0:
             raise InputError(name, f"allowed range: an integer >= 0, got {v!r}")
+    if deflate and deflation_supported(scene, backend) is not None:  # before any work: never a silent no-op
+        raise InputError("--deflate", deflation_supported(scene, backend))
     meta = _meta(scene, param, to, step, backend, switch, depth, deflate)
     if explicit and turn != arc.Settings.turn:
         meta["turn"] = float(turn)

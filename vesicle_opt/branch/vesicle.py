@@ -11,7 +11,8 @@ envelope identity's ``dE_dp`` and ``envelope_residual`` (``branch.run`` docstrin
 * ``mode(point, m)``: the m-th eigenvector of the reduced Hessian at a point (``verify.lobpcg``'s
   matrix-free spectrum with its vectors; the check's own least mode for m = 0 elsewhere);
 * ``align(phi, ref)``: on periodic grids the image of phi under translations (the peak of the FFT
-  cross-correlation) and, on square 2D grids, the square's rotations and reflections nearest ref;
+  cross-correlation) and, on square 2D grids, the square's rotations and reflections nearest ref; on
+  mirror grids the exchanges of axes of equal extent and spacing (the octant's x <-> y);
 * ``deflate(p, phi0, known)``: ``branch.deflation`` on the bordered Newton system at fixed p,
   its root certified by the fixed-p IPOPT solve.
 """
@@ -37,8 +38,10 @@ from vesicle_opt.branch.params import Parameter, explicit_derivative
 from vesicle_opt.branch.problem import TreeProblem
 from vesicle_opt.branch.store import Store
 from vesicle_opt.branch.symmetry import align as symmetric_image
+from vesicle_opt.branch.symmetry import align_mirror
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
+from vesicle_opt.mesh.cosine import KIND as MIRROR
 from vesicle_opt.nk.setup import prepare
 from vesicle_opt.scene.schema import Scene
 from vesicle_opt.verify import lobpcg
@@ -320,8 +323,13 @@ class VesicleProblem(TreeProblem):
     def align(self, phi: np.ndarray, ref: np.ndarray) -> np.ndarray:
         """phi's image nearest ref under the grid's symmetries (module docstring)."""
         disc = self.ipopt.disc if self.ipopt is not None else discretize(self.scene)
-        periodic = self.scene.domain.boundary == "periodic" and disc.grid_shape is not None
-        return symmetric_image(phi, ref, disc.grid_shape, disc.box) if periodic else phi
+        if disc.grid_shape is None:
+            return phi
+        if self.scene.domain.boundary == "periodic":
+            return symmetric_image(phi, ref, disc.grid_shape, disc.box)
+        if disc.kind == MIRROR:  # the octant: exchanges of equal axes only (``branch.symmetry``)
+            return align_mirror(phi, ref, disc.grid_shape, disc.box)
+        return phi
 
     def point_row(self, k: int, point: Point, corrector: str) -> tuple[dict, object]:
         res = point.payload
