@@ -53,7 +53,8 @@ from vesicle_opt.model.warm_start import start_field
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import prepare
-from vesicle_opt.nlp import NLP, IpoptOptions, PenaltyNLP, build_nlp, solve_nlp
+from vesicle_opt.nlp import NLP, IpoptOptions, PenaltyNLP, build_nlp, reuse, solve_nlp
+from vesicle_opt.nlp.solve import solve_exact
 from vesicle_opt.result import Result
 from vesicle_opt.scene import Scene
 from vesicle_opt.scene.ranges import resolution_warning
@@ -208,14 +209,24 @@ def _solve(problem, backend, method, x0, options) -> Result:
     check_second_order = scene.solver.method in EXACT_METHODS and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)
-        nlp = nlp or build_nlp(scene, disc)  # refuses infeasible data (one line, before anything is logged)
-        _log_start(scene, chosen, backend, nlp.disc.n_nodes)
-        result = solve_nlp(nlp, options=options, **_ipopt_start(nlp, x0))
+        derivs = None
+        if disc is not None and scene.solver.method == "exact":  # a refined mesh: one graph and solver per mesh
+            check_feasible(*constraint_data(scene, disc), scene, disc)  # before anything is logged
+            opts = options or IpoptOptions.from_scene(scene)
+            nlp, solver, p, start = reuse.point(scene, disc, opts, x0)
+            _log_start(scene, chosen, backend, disc.n_nodes)
+            result = solve_exact(nlp, solver=solver, options=opts, p=p, **(start or _ipopt_start(nlp, x0)))
+            derivs = reuse.derivatives(nlp, solver, p)
+        else:
+            nlp = nlp or build_nlp(scene, disc)  # refuses infeasible data (one line, before anything is logged)
+            _log_start(scene, chosen, backend, nlp.disc.n_nodes)
+            result = solve_nlp(nlp, options=options, **_ipopt_start(nlp, x0))
         # the assembled check (verify.second_order): translations excluded on periodic grids
         if check_second_order and result.converged:
             log.info("%s: second-order check (shift-invert Lanczos on the KKT matrix)", scene.name)
         t0 = time.perf_counter()
-        so = second_order.check(*_exact_point(nlp, result)) if check_second_order and result.converged else None
+        so = (second_order.check(*_exact_point(nlp, result), derivatives=derivs)
+              if check_second_order and result.converged else None)
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
         # built once: the solve and its second-order check (lumped P1 on a periodic tensor box goes

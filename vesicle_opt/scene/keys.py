@@ -22,7 +22,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "mesh.file": ("str", None, "path to a mesh file meshio can read"),
     "mesh.refine": ("str", "none", CHOICES["mesh.refine"]),
     "mesh.levels": ("int", 2, f"1 <= levels <= {LEVELS_MAX} (mesh.refine = 'interface': the band's cells are the box's / 2^levels)"),
-    "mesh.band": ("float", 5.0, f"{BAND_MIN + 1:g} <= band <= {BAND_MAX:g} (units of model.epsilon: the refined band's half-width)"),
+    "mesh.band": ("float", 8.0, f"{BAND_MIN + 1:g} <= band <= {BAND_MAX:g} (units of model.epsilon: the refined band's half-width)"),
     "model.epsilon": ("float", REQUIRED, f"h/{1 / EPS_PER_H_MIN:g} <= epsilon <= {EPS_PER_BOX_MAX:g} x the shortest box side"),
     "model.c0": ("float", 0.0, "any real"),
     "model.rigidity": ("float", 1.0, "> 0"),

@@ -61,7 +61,7 @@ class Mesh:
     file: str | None = None
     refine: str = "none"  # "none" | "interface" (``mesh.refine``: a band about the start's interface)
     levels: int = 2  # mesh.refine = "interface": halvings of the cells in the band
-    band: float = 5.0  # ... and the band's half-width in units of model.epsilon
+    band: float = 8.0  # ... and the band's half-width in units of model.epsilon
 
     def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
         ranges.check_mesh(self)
