@@ -215,7 +215,7 @@ def _solve(problem, backend, method, x0, options) -> Result:
             opts = options or IpoptOptions.from_scene(scene)
             nlp, solver, p, start = reuse.point(scene, disc, opts, x0)
             _log_start(scene, chosen, backend, disc.n_nodes)
-            result = solve_exact(nlp, solver=solver, options=opts, p=p, **(start or _ipopt_start(nlp, x0)))
+            result = reuse.unpinned(solve_exact(nlp, solver=solver, options=opts, p=p, **start))
             derivs = reuse.derivatives(nlp, solver, p)
         else:
             nlp = nlp or build_nlp(scene, disc)  # refuses infeasible data (one line, before anything is logged)

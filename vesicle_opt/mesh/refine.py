@@ -59,7 +59,7 @@ def band_mesh(box, n, distance, width: float, levels: int) -> skfem.MeshTri:
     distance from the interface (1-Lipschitz), ``width`` is the band's half-width (absolute units),
     ``levels`` the number of halvings from h_0 to the fine spacing."""
     h0 = square_side(box, n)
-    mesh = skfem.MeshTri.init_tensor(*[np.linspace(a, b, k + 1) for (a, b), k in zip(box, n)])
+    mesh = mirrored_tensor(box, n)
     for k in range(levels):
         h_next = h0 / 2 ** (k + 1)
         reach = width + GRADE * sum(h0 / 2**j for j in range(k + 1, levels))
@@ -71,6 +71,24 @@ def band_mesh(box, n, distance, width: float, levels: int) -> skfem.MeshTri:
             break
         mesh = mesh.refined(marked)
     return mesh
+
+
+def mirrored_tensor(box, n) -> skfem.MeshTri:
+    """The box's square cells split into right isosceles triangles whose diagonals mirror each other
+    about the box's mid-height (z -> z0 + z1 - z): with an even n_z the mesh, and every refinement of
+    it about an up-down symmetric interface, is symmetric under that reflection, so an up-down
+    symmetric vesicle is exactly stationary along the axial translation (odd) on it."""
+    (r0, r1), (z0, z1) = box
+    nr, nz = n
+    R, Z = np.meshgrid(np.linspace(r0, r1, nr + 1), np.linspace(z0, z1, nz + 1), indexing="ij")
+    p = np.vstack([R.ravel(), Z.ravel()])
+    i, j = np.meshgrid(np.arange(nr), np.arange(nz), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    a, b, c, d = i * (nz + 1) + j, (i + 1) * (nz + 1) + j, i * (nz + 1) + j + 1, (i + 1) * (nz + 1) + j + 1
+    upper = 2 * j + 1 >= nz  # cells above the mid-height: diagonal a-d; below: b-c (its mirror image)
+    t1 = np.where(upper, [a, b, d], [a, b, c])
+    t2 = np.where(upper, [a, d, c], [b, d, c])
+    return skfem.MeshTri(p, np.hstack([t1, t2]))
 
 
 def fine_elements(mesh, h_fine: float) -> np.ndarray:
