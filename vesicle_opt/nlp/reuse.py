@@ -39,13 +39,7 @@ from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
 
 WARM = (("ipopt.warm_start_init_point", "yes"),)  # IPOPT takes the given multipliers (no bounds, no
 # inequalities: nothing else to warm)
-_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # disc -> {key: (nlp, solver)}
-
-
-def _key(scene, options: IpoptOptions, warm: bool):
-    """What the graph and the solver depend on besides the mesh: eps, the rigidity (constants of
-    the graph) and the IPOPT options."""
-    return (scene.model.epsilon, scene.model.rigidity, options, warm)
+_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # disc -> {(eps, rigidity): nlp, (.., options, warm): solver}
 
 
 def axial_translation(disc, phi: np.ndarray) -> np.ndarray:
@@ -83,14 +77,18 @@ def pin_row(disc, phi: np.ndarray) -> np.ndarray:
 
 
 def parametric(scene, disc, options: IpoptOptions, warm: bool):
-    """(parametric NLP, IPOPT solver) of ``disc`` for the scene's eps and rigidity, built once."""
+    """(parametric pinned NLP, IPOPT solver) of ``disc`` for the scene's eps and rigidity (the
+    graph's constants): the graph built once per mesh, a solver once per IPOPT options."""
     entries = _CACHE.setdefault(disc, {})
-    key = _key(scene, options, warm)
+    graph = (scene.model.epsilon, scene.model.rigidity)
+    if graph not in entries:
+        entries[graph] = _pinned(build_exact(scene, disc, check=False, parametric=True))
+    nlp = entries[graph]
+    key = (graph, options, warm)
     if key not in entries:
-        nlp = _pinned(build_exact(scene, disc, check=False, parametric=True))
         opts = dataclasses.replace(options, extra=WARM + tuple(options.extra)) if warm else options
-        entries[key] = (nlp, make_solver(nlp, opts))
-    return entries[key]
+        entries[key] = make_solver(nlp, opts)
+    return nlp, entries[key]
 
 
 def point(scene, disc, options: IpoptOptions, start):
