@@ -146,7 +146,10 @@ def load_result(path: str | Path, *, disc: bool = True) -> Result:
     discretisation = None
     if disc and scene is not None:
         from vesicle_opt.mesh import discretize  # the meshes: only when a discretisation is rebuilt
-        discretisation = discretize(scene)
+        refined = scene.mesh.kind == "axisymmetric" and scene.mesh.refine == "interface"
+        # an interface-refined mesh was built about the solve's start (mesh.band_start), not the
+        # scene alone: it is read back from the result's own phi.vtu (its nodes and triangles)
+        discretisation = _refined_mesh(path, scene) if refined else discretize(scene)
     nan = float("nan")
     get = {k: summary.get(k) for k in _FIELDS}
     extra = {k: v for k, v in summary.items() if k not in _FIELDS and k not in ("scene", "outcome")}
@@ -165,6 +168,22 @@ def load_result(path: str | Path, *, disc: bool = True) -> Result:
         n_nodes=int(get["n_nodes"]), hessian_nnz_per_row=get["hessian_nnz_per_row"] or 0.0,
         method=get["method"], M=get["M"], penalized_energy=get["penalized_energy"],
         extra=extra, disc=discretisation, scene=scene)
+
+
+def _refined_mesh(path: Path, scene):
+    """The discretisation of an interface-refined solve from its phi.vtu (None without one)."""
+    if not (path / "phi.vtu").is_file():
+        return None
+    import meshio  # third-party: only meshes' .vtu files need it
+    import skfem
+
+    from vesicle_opt.mesh import axisymmetric, refine  # the meshes: only when a discretisation is rebuilt
+
+    m = meshio.read(str(path / "phi.vtu"))
+    mesh = skfem.MeshTri(np.ascontiguousarray(m.points[:, :2].T), np.ascontiguousarray(m.cells_dict["triangle"].T))
+    h_fine = refine.square_side(scene.domain.box, scene.mesh.n) / 2**scene.mesh.levels
+    return axisymmetric.assemble(mesh, scene.domain.box, scene.mesh.mass, scene.mesh.quadrature,
+                                 h_fine=h_fine, band=scene.mesh.band)
 
 
 def load_flow(path: str | Path) -> FlowRecord:

@@ -258,3 +258,15 @@ def test_mirrored_mesh_and_the_translation_pin():
     assert res.converged and res.lam_g.size == 2
     # IPOPT's scaled units, against O(1) multipliers of the two constraints (measured ~1e-12)
     assert abs(res.extra["translation_multiplier"]) < 1e-8
+
+
+def test_a_refined_result_reads_back_on_its_own_mesh(tmp_path):
+    """The band mesh depends on the start, not on the scene alone: ``vo.load_result`` rebuilds it from
+    the result's phi.vtu, so the field, the nodes and the functionals come back as written."""
+    res = vo.solve(vo.load_scene("prolate-axisymmetric", {**REFINED, "mesh.levels": 1, "solver.second_order": False}))
+    vo.write_result(res, tmp_path / "out")
+    back = vo.load_result(tmp_path / "out")
+    assert back.disc.n_nodes == res.disc.n_nodes and np.array_equal(back.disc.nodes, res.disc.nodes)
+    assert back.disc.h_fine == res.disc.h_fine and back.disc.band == res.disc.band
+    v = F.evaluate(back.disc, back.phi, 0.1, 0.0)
+    assert v["E"] == pytest.approx(res.energy, rel=1e-12)  # the same mesh and field: round-off
