@@ -6,7 +6,9 @@
 * ``fem``: P1 finite elements on triangles / tetrahedra (scikit-fem);
 * ``spectral``: periodic grids whose Laplacian is applied by FFT (pseudo-spectral, or FD by FFT);
 * ``cosine``: mirror-symmetric grids (spectral with natural boundaries), Laplacian applied by DCT;
-* ``axisymmetric``: P1 on the meridian half-plane with the weight 2 pi r (axisymmetric 3D vesicles).
+* ``axisymmetric``: P1 on the meridian half-plane with the weight 2 pi r (axisymmetric 3D vesicles);
+  ``refine``: its interface-refined graded meshes (``mesh.refine = "interface"``), ``band_start``:
+  where their band is built (the start) and rebuilt (a result that left it).
 """
 
 from __future__ import annotations
