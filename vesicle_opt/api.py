@@ -45,6 +45,7 @@ import numpy as np
 from vesicle_opt import nk_jax, resources
 from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
+from vesicle_opt.mesh import band_start
 from vesicle_opt.mesh.spectral import fft_library, resolve_fft
 from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
@@ -52,11 +53,12 @@ from vesicle_opt.model.warm_start import start_field
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
 from vesicle_opt.nk.setup import prepare
-from vesicle_opt.nlp import NLP, IpoptOptions, PenaltyNLP, build_nlp, solve_nlp
+from vesicle_opt.nlp import NLP, IpoptOptions, PenaltyNLP, build_nlp, reuse, solve_nlp
+from vesicle_opt.nlp.solve import solve_exact
 from vesicle_opt.result import Result
 from vesicle_opt.scene import Scene
 from vesicle_opt.scene.ranges import resolution_warning
-from vesicle_opt.verify import lobpcg, second_order, shape, topology, verdict
+from vesicle_opt.verify import band, lobpcg, second_order, shape, topology, verdict
 
 
 # the methods whose converged result promises A = alpha, B = beta to tol: second-order checked
@@ -153,6 +155,7 @@ def with_reports(result: Result, so, seconds: float = 0.0, scene: Scene | None =
     not converged (``verify.shape.apply``)."""
     result = _second_order(result, so, seconds)
     result = _replace_extra(result, **topology.report(result.disc, result.phi))
+    result = band.apply(result)  # an interface-refined mesh: the interface still in its fine band
     # the physical shape against the targets (verify.shape)
     return shape.apply(result, enforce=True if scene is None else scene.solver.shape_check)
 
@@ -161,7 +164,26 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
           options: IpoptOptions | NewtonKrylovOptions | None = None, throw: bool = False) -> Result:
     """Minimise rigidity * E_h subject to A = alpha, B = beta (or its penalty form); see the module
     docstring. ``backend`` and ``method`` override the scene's ``solver.backend`` / ``solver.method``;
-    ``options`` replaces the scene's solver settings (``IpoptOptions`` or ``NewtonKrylovOptions``)."""
+    ``options`` replaces the scene's solver settings (``IpoptOptions`` or ``NewtonKrylovOptions``).
+    ``mesh.refine = "interface"``: the band is built about the start (``mesh.band_start``), and a
+    result whose interface left it is solved again on a band about it (``band_start.REMESH_ROUNDS``)."""
+    result = _solve(problem, backend, method, x0, options)
+    for _ in range(band_start.REMESH_ROUNDS if isinstance(problem, Scene) else 0):
+        if not band_start.left_band(result):
+            break
+        log.info("%s: the interface left the refined band (%.3g eps from the coarse cells): re-meshed about "
+                 "it", result.scene.name, result.extra["band_margin"])
+        result = _solve(problem, backend, method, result, options)
+    if throw and not result.converged:
+        raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
+                          f"{result.kkt_residual:.3g}, A-alpha {result.volume_residual:.3g}, "
+                          f"B-beta {result.area_residual:.3g}", result)
+    return result
+
+
+def _solve(problem, backend, method, x0, options) -> Result:
+    """One solve of ``solve`` (its docstring), on the band about the start for a refined scene."""
+    disc = None
     if isinstance(problem, NLP):
         nlp, scene = problem, problem.scene
         if backend not in (None, "ipopt"):
@@ -179,25 +201,37 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
             scene = scene.replace(solver=dataclasses.replace(scene.solver, method=method))
         chosen = choose_backend(scene, backend)
         resources.check(scene, chosen)  # the memory estimate, before anything is built
+        if band_start.refined(scene):
+            disc, x0 = band_start.start(scene, x0)
     else:
         raise InputError("problem", f"solve takes a Scene (vesicle_opt.load_scene) or an NLP of build_nlp, "
                          f"got {type(problem).__name__}")
     check_second_order = scene.solver.method in EXACT_METHODS and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)
-        nlp = nlp or build_nlp(scene)  # refuses infeasible data (one line, before anything is logged)
-        _log_start(scene, chosen, backend, nlp.disc.n_nodes)
-        result = solve_nlp(nlp, options=options, **_ipopt_start(nlp, x0))
+        derivs = None
+        if disc is not None and scene.solver.method == "exact":  # a refined mesh: one graph and solver per mesh
+            check_feasible(*constraint_data(scene, disc), scene, disc)  # before anything is logged
+            opts = options or IpoptOptions.from_scene(scene)
+            nlp, solver, p, start = reuse.point(scene, disc, opts, x0)
+            _log_start(scene, chosen, backend, disc.n_nodes)
+            result = reuse.unpinned(solve_exact(nlp, solver=solver, options=opts, p=p, **start))
+            derivs = reuse.derivatives(nlp, solver, p)
+        else:
+            nlp = nlp or build_nlp(scene, disc)  # refuses infeasible data (one line, before anything is logged)
+            _log_start(scene, chosen, backend, nlp.disc.n_nodes)
+            result = solve_nlp(nlp, options=options, **_ipopt_start(nlp, x0))
         # the assembled check (verify.second_order): translations excluded on periodic grids
         if check_second_order and result.converged:
             log.info("%s: second-order check (shift-invert Lanczos on the KKT matrix)", scene.name)
         t0 = time.perf_counter()
-        so = second_order.check(*_exact_point(nlp, result)) if check_second_order and result.converged else None
+        so = (second_order.check(*_exact_point(nlp, result), derivatives=derivs)
+              if check_second_order and result.converged else None)
     else:
         _check_options(options, NewtonKrylovOptions, chosen)
         # built once: the solve and its second-order check (lumped P1 on a periodic tensor box goes
         # to the FFT path it equals unless options.tensor_fft is False: nk.setup.fft_equivalent)
-        setup = prepare(scene, tensor_fft=(options or NewtonKrylovOptions.from_scene(scene)).tensor_fft)
+        setup = prepare(scene, disc, tensor_fft=(options or NewtonKrylovOptions.from_scene(scene)).tensor_fft)
         disc = setup[0]
         check_feasible(*constraint_data(scene, disc), scene, disc)  # before anything is logged
         _log_start(scene, chosen, backend, disc.n_nodes)
@@ -219,9 +253,4 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     if chosen != "ipopt" and getattr(result.disc, "fourier", None) is not None:  # which FFTs the solve ran
         lib = "jax" if scene.solver.array == "jax" else resolve_fft(scene.solver.fft)
         result = _replace_extra(result, fft_library=lib)
-    result = dataclasses.replace(result, scene=scene)  # for vo.write_result (its name, scene.resolved.toml)
-    if throw and not result.converged:
-        raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
-                          f"{result.kkt_residual:.3g}, A-alpha {result.volume_residual:.3g}, "
-                          f"B-beta {result.area_residual:.3g}", result)
-    return result
+    return dataclasses.replace(result, scene=scene)  # for vo.write_result (its name, scene.resolved.toml)

@@ -188,7 +188,10 @@ def load_result(path: str | Path, *, disc: bool = True) -> Result:
     discretisation = None
     if disc and scene is not None:
         from vesicle_opt.mesh import discretize  # the meshes: only when a discretisation is rebuilt
-        discretisation = discretize(scene)
+        refined = scene.mesh.kind == "axisymmetric" and scene.mesh.refine == "interface"
+        # an interface-refined mesh was built about the solve's start (mesh.band_start), not the
+        # scene alone: it is read back from the result's own phi.vtu (its nodes and triangles)
+        discretisation = _refined_mesh(path, scene) if refined else discretize(scene)
     try:
         return _result(summary, data, discretisation, scene)
     except (KeyError, TypeError, ValueError) as exc:  # a value of another type than a solve writes
@@ -213,6 +216,27 @@ def _result(summary: dict, data: dict, discretisation, scene) -> Result:
         hessian_nnz_per_row=num("hessian_nnz_per_row", 0.0),
         method=opt["method"], M=opt["M"], penalized_energy=opt["penalized_energy"],
         extra=extra, disc=discretisation, scene=scene)
+
+
+def _refined_mesh(path: Path, scene):
+    """The discretisation of an interface-refined solve from its phi.vtu (None without one)."""
+    if not (path / "phi.vtu").is_file():
+        return None
+    import meshio  # third-party: only meshes' .vtu files need it
+    import skfem
+
+    from vesicle_opt.mesh import axisymmetric, refine  # the meshes: only when a discretisation is rebuilt
+
+    try:  # a damaged or foreign phi.vtu is refused like any other state file, never a raw exception
+        m = meshio.read(str(path / "phi.vtu"))
+        mesh = skfem.MeshTri(np.ascontiguousarray(m.points[:, :2].T),
+                             np.ascontiguousarray(m.cells_dict["triangle"].T))
+    except Exception as exc:  # meshio raises its own ReadError, KeyError, ValueError, ...
+        raise StateFileError(path / "phi.vtu", f"is not a triangle mesh ({str(exc)[:80]}); {ADVICE}",
+                             "path") from None
+    h_fine = refine.square_side(scene.domain.box, scene.mesh.n) / 2**scene.mesh.levels
+    return axisymmetric.assemble(mesh, scene.domain.box, scene.mesh.mass, scene.mesh.quadrature,
+                                 h_fine=h_fine, band=scene.mesh.band)
 
 
 def load_flow(path: str | Path) -> FlowRecord:

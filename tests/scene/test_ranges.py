@@ -21,7 +21,7 @@ BAD = {
     "solver.max_memory_gb": -1.0,
     "flow.gamma": 0.0, "flow.dt": -1e-3, "flow.t_end": 0.0, "flow.steps": 0, "flow.dt_min": 0.0,
     "flow.dt_max": 0.0, "flow.steady_tol": -1.0, "flow.law_tol": 0.0, "flow.frames": 0,
-    "flow.checkpoint_every": 0, "mesh.n": 2,
+    "flow.checkpoint_every": 0, "mesh.n": 2, "mesh.levels": 9, "mesh.band": 2.0,
 }
 RANGED = [k for k, (kind, _, allowed) in SCHEMA.items()
           if kind in ("float", "float/auto", "int", "ints") and allowed != "any real"]

@@ -42,6 +42,7 @@ from skfem import BilinearForm
 from skfem.helpers import dot, grad
 
 from vesicle_opt.mesh.base import Discretization
+from vesicle_opt.mesh import refine
 from vesicle_opt.mesh.fem import GAUSS_ORDER, gauss_interpolation, max_edge
 
 KIND = "axisymmetric"  # Discretization.kind and mesh.kind
@@ -71,6 +72,9 @@ def cylinder_volume(box) -> float:
 class AxisymmetricDiscretization(Discretization):
     """P1 on the meridian half-plane with the weight 2 pi r (module docstring); nodes are (r, z)."""
 
+    h_fine: float | None = None  # mesh.refine = "interface" (``mesh.refine``): the band's spacing
+    band: float | None = None  # ... and the band's half-width in units of eps (None: uniform mesh)
+
     axisymmetric = True  # (class attribute, not a field) read by output, verdict and feasibility
 
     @property
@@ -88,7 +92,20 @@ class AxisymmetricDiscretization(Discretization):
 def p1(box, n, mass: str = "lumped", quadrature: str = "nodal") -> AxisymmetricDiscretization:
     """The weighted P1 discretisation of the meridian box ``box`` = ((0, R), (z0, z1)), n = (n_r, n_z) cells."""
     axes = [np.linspace(a, b, k + 1) for (a, b), k in zip(box, n)]
-    mesh = skfem.MeshTri.init_tensor(*axes)
+    return assemble(skfem.MeshTri.init_tensor(*axes), box, mass, quadrature)
+
+
+def band_p1(box, n, distance, band: float, levels: int, epsilon: float, mass: str = "lumped",
+            quadrature: str = "nodal") -> AxisymmetricDiscretization:
+    """``p1`` on the interface-refined mesh of ``mesh.refine`` (``refine.band_mesh``): ``n`` square
+    cells refined ``levels`` times within ``band`` x ``epsilon`` of ``distance``'s interface."""
+    mesh = refine.band_mesh(box, n, distance, band * epsilon, levels)
+    h_fine = refine.square_side(box, n) / 2**levels
+    return assemble(mesh, box, mass, quadrature, h_fine=h_fine, band=band)
+
+
+def assemble(mesh, box, mass: str = "lumped", quadrature: str = "nodal", **extra) -> AxisymmetricDiscretization:
+    """K, M, the weighted lumped mass and the quadrature of a meridian triangulation ``mesh`` of ``box``."""
     elem = skfem.ElementTriP1()
     K = skfem.asm(_stiffness, skfem.Basis(mesh, elem, intorder=STIFFNESS_ORDER)).tocsr()
     M = skfem.asm(_mass, skfem.Basis(mesh, elem, intorder=MASS_ORDER)).tocsr()
@@ -101,4 +118,5 @@ def p1(box, n, mass: str = "lumped", quadrature: str = "nodal") -> AxisymmetricD
     return AxisymmetricDiscretization(
         kind=KIND, dim=3, nodes=np.ascontiguousarray(mesh.p.T), weights=weights, K=K, M=M, mass=mass,
         h=max_edge(mesh), volume=cylinder_volume(box), box=tuple(tuple(map(float, b)) for b in box),
-        quad_P=quad_P, quad_w=quad_w, mesh=mesh)
+        quad_P=quad_P, quad_w=quad_w, mesh=mesh, **extra)
+

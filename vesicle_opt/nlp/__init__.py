@@ -5,7 +5,9 @@
 * ``ipopt``: frozen options, one solver built once, one call, its statistics;
 * ``solve``: one certified IPOPT call (exact, or one penalty stage); ``continuation``: the methods
   continuation and augmented on one solver, warm-started stage after stage;
-* ``scp``: a Gauss-Newton SCP baseline with cvxpy (studies only).
+* ``scp``: a Gauss-Newton SCP baseline with cvxpy (studies only);
+* ``reuse``: one parametric NLP and IPOPT solver per interface-refined mesh, reused by every exact
+  solve on it (the front door's warm path), with the axial translation pinned.
 
 ``build_nlp(scene)`` is the raw CasADi door (``.as_dict()`` goes to any ``ca.nlpsol``);
 ``solve_nlp(nlp)`` runs the method the NLP was built for. The front door is ``vesicle_opt.solve``.

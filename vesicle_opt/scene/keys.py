@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from vesicle_opt.scene.ranges import CHOICES, EPS_PER_BOX_MAX, EPS_PER_H_MIN, M_AUTO, M_DEFAULT, M_LIMIT, TOL_RANGE
+from vesicle_opt.scene.ranges import (BAND_MAX, BAND_MIN, CHOICES, EPS_PER_BOX_MAX, EPS_PER_H_MIN, LEVELS_MAX,
+                                       M_AUTO, M_DEFAULT, M_LIMIT, TOL_RANGE)
 from vesicle_opt.scene.shape_spec import SHAPE_KEYS
 
 REQUIRED = object()  # the default of a key a scene must give
@@ -20,6 +21,9 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "mesh.mass": ("str", "lumped", CHOICES["mesh.mass"]),
     "mesh.quadrature": ("str", "nodal", CHOICES["mesh.quadrature"]),
     "mesh.file": ("str", None, "path to a mesh file meshio can read"),
+    "mesh.refine": ("str", "none", CHOICES["mesh.refine"]),
+    "mesh.levels": ("int", 2, f"1 <= levels <= {LEVELS_MAX} (mesh.refine = 'interface': the band's cells are the box's / 2^levels)"),
+    "mesh.band": ("float", 8.0, f"{BAND_MIN + 1:g} <= band <= {BAND_MAX:g} (units of model.epsilon: the refined band's half-width)"),
     "model.epsilon": ("float", REQUIRED, f"h/{1 / EPS_PER_H_MIN:g} <= epsilon <= {EPS_PER_BOX_MAX:g} x the shortest box side"),
     "model.c0": ("float", 0.0, "any real"),
     "model.rigidity": ("float", 1.0, "> 0"),
@@ -60,7 +64,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "flow.checkpoint_every": ("int", 50, ">= 1"),
     "flow.initial": ("str", "projected", CHOICES["flow.initial"]),
 }
-POSITIVE = {"model.epsilon", "model.rigidity", "constraints.beta", "constraints.area",
+POSITIVE = {"model.epsilon", "mesh.band", "model.rigidity", "constraints.beta", "constraints.area",
             "solver.M", "solver.tol", "solver.max_memory_gb",
             "solver.M0", "solver.M_max",
             "flow.gamma", "flow.dt", "flow.t_end", "flow.dt_min", "flow.dt_max", "flow.law_tol"}

@@ -31,16 +31,26 @@ M_DEFAULT = 1e4  # the M that 'auto' starts at (the paper's Table 1 value) and t
 # round-off of phi through the bulk Hessian, ~ eps_mach h^-2, relative to the terms apart) is 1.7e-14
 # at the coarsest bundled grid (torus 16^3) and 3e-13 ... 7e-11 on ellipse-2d 64^2 ... 1024^2 (measured)
 TOL_RANGE = (1e-14, 1e-4)
+SQUARE_TOL = 1e-9  # relative: mesh.refine's square cells, their sides equal to round-off
 # model.epsilon: below h/10 the tanh profile jumps from -1 to +1 between neighbouring nodes to
 # within 1e-6 (no node sees the diffuse interface); above half the box's shortest side the
 # interface is as wide as the box (no vesicle fits)
 EPS_PER_H_MIN, EPS_PER_BOX_MAX = 0.1, 0.5
+# mesh.band (units of eps): the band about the interface where mesh.refine = "interface" keeps the fine
+# cells. A solution whose phi = 0 curve comes within BAND_MIN of a coarser element is not certified
+# (verify.band): with the start's band at 3 eps the tanh prolate's E_h, A, B differ from the uniform
+# fine mesh's by 3.6e-4, 5e-6, 2.5e-6 (relative; 4 eps: 2e-5, 1.6e-6, 1.5e-7), below the h = eps/4
+# discretisation error of E_h (2.4e-3); so a band needs more than BAND_MIN (room to move). BAND_MAX:
+# beyond 20 eps the field is +-1 to 1e-12 and refining further buys nothing.
+BAND_MIN, BAND_MAX = 3.0, 20.0
+LEVELS_MAX = 8  # 2^8 = 256 halvings of the box's cells: beyond, the box's cells are too coarse to carry the bulk
 EPS_PER_H_RECOMMENDED = 2.0  # the README's resolution table: ε/h = 1 is 7.3 % off, 0.5 another shape
 CHOICES = {  # the one list of each choice key's values (scene.keys.SCHEMA shows these)
     "domain.boundary": ("periodic", "natural"),
     "mesh.kind": ("fem-p1", "fd", "spectral", "axisymmetric"),
     "mesh.mass": ("lumped", "consistent"),
     "mesh.quadrature": ("nodal", "gauss"),
+    "mesh.refine": ("none", "interface"),
     "solver.method": ("exact", "penalty", "continuation", "augmented"),
     "solver.backend": ("ipopt", "newton-krylov", "auto"),
     "solver.array": ("numpy", "jax"),
@@ -113,13 +123,14 @@ def spacing(box, n) -> float:
     return max((b - a) / k for (a, b), k in zip(box, n))
 
 
-def check_epsilon(eps, box, n, mesh_file) -> None:
-    """model.epsilon within h / 10 .. half the shortest box side (module docstring)."""
+def check_epsilon(eps, box, n, mesh_file, levels: int = 0) -> None:
+    """model.epsilon within h / 10 .. half the shortest box side (module docstring); ``levels``: the
+    halvings of ``mesh.refine = "interface"`` (h is the band's spacing)."""
     lengths = [b - a for a, b in box]
     if not all(math.isfinite(L) for L in lengths):
         raise InputError("domain.box", f"side lengths must be finite, got {lengths}")
     top = EPS_PER_BOX_MAX * min(lengths)
-    h = spacing(box, n)
+    h = spacing(box, n) / 2**levels
     bottom = EPS_PER_H_MIN * h if mesh_file is None else 0.0  # a mesh file: h unknown here
     if not bottom <= eps <= top:
         raise InputError("model.epsilon", f"allowed range {bottom:.3g} <= epsilon <= {top:.3g} "
@@ -148,6 +159,14 @@ def check_mesh(m) -> None:
         raise InputError("mesh.n", f"must be >= 4 cells per side, got {m.n!r}")
     choice("mesh.mass", m.mass)
     choice("mesh.quadrature", m.quadrature)
+    choice("mesh.refine", m.refine)
+    count("mesh.levels", m.levels)
+    if m.levels > LEVELS_MAX:
+        raise InputError("mesh.levels", f"allowed range 1 <= levels <= {LEVELS_MAX}, got {m.levels!r}")
+    real("mesh.band", m.band, positive=True)
+    if not BAND_MIN + 1 <= m.band <= BAND_MAX:
+        raise InputError("mesh.band", f"allowed range {BAND_MIN + 1:g} <= band <= {BAND_MAX:g} (units of "
+                         f"model.epsilon; a solution must stay {BAND_MIN:g} from the coarse cells), got {m.band!r}")
 
 
 def check_model(m) -> None:
@@ -197,7 +216,9 @@ def check_scene(sc) -> None:
     d, m = sc.domain, sc.mesh
     if len(m.n) != d.dim:
         raise InputError("mesh.n", f"expected an integer or {d.dim} integers, got {m.n!r}")
-    check_epsilon(sc.model.epsilon, d.box, m.n, m.file)
+    check_epsilon(sc.model.epsilon, d.box, m.n, m.file, fine_levels(m))
+    if m.refine == "interface":
+        check_refine(m.kind, d.box, m.n, sc.initial)
     if m.kind == "fd" and d.boundary != "periodic":
         raise InputError("domain.boundary", "mesh.kind 'fd' supports only 'periodic'")
     if m.kind in ("fd", "spectral") and m.mass == "consistent":
@@ -223,11 +244,41 @@ def check_scene(sc) -> None:
         raise InputError("solver.fft", "'pyfftw' needs the optional extra: pip install 'vesicle_opt[fftw]'")
 
 
+def fine_levels(m) -> int:
+    """The halvings of the band's cells: ``mesh.levels`` under ``mesh.refine = "interface"``, else 0."""
+    return m.levels if m.refine == "interface" else 0
+
+
+def check_square(box, n) -> float:
+    """h_0 of square tensor cells (``mesh.refine = "interface"``: right isosceles triangles stay right
+    isosceles under refinement, so no angle is obtuse); InputError naming ``mesh.n`` otherwise."""
+    (r0, r1), (z0, z1) = box
+    hr, hz = (r1 - r0) / n[0], (z1 - z0) / n[1]
+    if abs(hr - hz) > SQUARE_TOL * max(hr, hz):
+        raise InputError("mesh.n", f"mesh.refine = 'interface' needs square cells (right isosceles triangles: "
+                         f"no obtuse angle after refinement), got {hr:.6g} x {hz:.6g} from n = {list(n)} (n = "
+                         f"{[n[0], max(4, round((z1 - z0) / hr))]} is square when the box's z side is a "
+                         f"multiple of {hr:.6g})")
+    return hr
+
+
+def check_refine(kind: str, box, n, initial) -> None:
+    """mesh.refine = "interface": the meridian mesh (mesh.kind 'axisymmetric'), square cells, and a
+    start shape with an interface to refine about (not 'constant', 'noise' or a 'file' field)."""
+    if kind != "axisymmetric":
+        raise InputError("mesh.refine", f"'interface' needs mesh.kind = 'axisymmetric', got {kind!r}")
+    check_square(box, n)
+    if initial is not None and initial.shape in ("constant", "noise", "file"):
+        raise InputError("mesh.refine", f"'interface' refines about the initial shape's interface; initial "
+                         f"shape {initial.shape!r} has none (give a shape, or build the mesh about a field: "
+                         f"vesicle_opt.mesh.discretize(scene, interface=...))")
+
+
 def resolution_warning(sc) -> str | None:
     """One line when eps / h is below the recommended resolution (None otherwise, and for mesh files)."""
     if sc.mesh.file is not None:
         return None
-    ratio = sc.model.epsilon / spacing(sc.domain.box, sc.mesh.n)
+    ratio = sc.model.epsilon / (spacing(sc.domain.box, sc.mesh.n) / 2 ** fine_levels(sc.mesh))
     if ratio >= EPS_PER_H_RECOMMENDED:
         return None
     return (f"{sc.name}: epsilon / h = {ratio:.2g} is below the recommended {EPS_PER_H_RECOMMENDED:g} (the "

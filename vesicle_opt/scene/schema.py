@@ -59,6 +59,9 @@ class Mesh:
     mass: str  # "lumped" | "consistent"
     quadrature: str  # "nodal" | "gauss"
     file: str | None = None
+    refine: str = "none"  # "none" | "interface" (``mesh.refine``: a band about the start's interface)
+    levels: int = 2  # mesh.refine = "interface": halvings of the cells in the band
+    band: float = 8.0  # ... and the band's half-width in units of model.epsilon
 
     def __post_init__(self):  # the ranges wherever it is built or replaced (scene.ranges)
         ranges.check_mesh(self)
@@ -293,7 +296,8 @@ def from_dict(raw: dict, name: str = "scene") -> Scene:
         raise InputError("mesh.quadrature", "'gauss' needs mesh.kind = 'fem-p1' or 'axisymmetric'; use 'nodal'")
     if val["mesh.file"] is not None and val["mesh.kind"] != "fem-p1":
         raise InputError("mesh.file", "a mesh file needs mesh.kind = 'fem-p1'")
-    mesh = Mesh(val["mesh.kind"], tuple(n), val["mesh.mass"], val["mesh.quadrature"], val["mesh.file"])
+    mesh = Mesh(val["mesh.kind"], tuple(n), val["mesh.mass"], val["mesh.quadrature"], val["mesh.file"],
+                val["mesh.refine"], val["mesh.levels"], val["mesh.band"])
     model = Model(val["model.epsilon"], val["model.c0"], val["model.rigidity"])
     target = None
     if val["constraints.target"] is not None:
@@ -346,7 +350,8 @@ def _check_fft(val: dict) -> None:
 def _check_ranges(val: dict, box, n) -> None:
     """solver.tol and model.epsilon within the ranges that mean something (``scene.ranges``)."""
     ranges.check_tol(val["solver.tol"])
-    ranges.check_epsilon(val["model.epsilon"], box, n, val["mesh.file"])
+    levels = val["mesh.levels"] if val["mesh.refine"] == "interface" else 0
+    ranges.check_epsilon(val["model.epsilon"], box, n, val["mesh.file"], levels)
 
 
 def _physical_targets(val: dict, target, dim: int, domain: Domain) -> tuple[float, float]:

@@ -4,5 +4,6 @@
   decides ``converged`` for every backend and method, and the one ``Result`` builder;
 * ``second_order`` (assembled, shift-invert Lanczos) and ``lobpcg`` (matrix-free): minimum or saddle,
   one quantity and one rule (``verdict``);
+* ``band``: an interface-refined mesh's band still holds the result's interface (``mesh.refine``);
 * ``topology``: components, Euler characteristic, periodic wraps; ``metrics``: error norms, orders.
 """

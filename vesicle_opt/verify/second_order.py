@@ -56,11 +56,15 @@ def translation_modes(disc, phi: np.ndarray) -> list[np.ndarray]:
     return FourierGrid(disc.box, disc.grid_shape).derivatives(np.asarray(phi, float))
 
 
-def constraint_rows(nlp, x, trans, Mphi) -> sp.csr_matrix:
-    """Jacobian of all NLP constraints at x, plus the translation rows t_i^T M (phi block only)."""
-    import casadi as ca  # third-party, lazy: only IPOPT paths need it (0.25 s at import)
-    jac = ca.Function("constraint_jacobian", [nlp.x], [ca.jacobian(nlp.g, nlp.x)])
-    J = sp.csr_matrix(jac(x).sparse())
+def constraint_rows(nlp, x, trans, Mphi, jacobian_of=None) -> sp.csr_matrix:
+    """Jacobian of all NLP constraints at x, plus the translation rows t_i^T M (phi block only);
+    ``jacobian_of(x)``: the Jacobian from a function built before (``nlp.reuse.derivatives``)."""
+    if jacobian_of is not None:
+        J = jacobian_of(x)
+    else:
+        import casadi as ca  # third-party, lazy: only IPOPT paths need it (0.25 s at import)
+        jac = ca.Function("constraint_jacobian", [nlp.x], [ca.jacobian(nlp.g, nlp.x)])
+        J = sp.csr_matrix(jac(x).sparse())
     if trans:
         T = np.vstack([Mphi @ t for t in trans])
         T = np.hstack([T, np.zeros((len(trans), J.shape[1] - T.shape[1]))])
@@ -94,7 +98,7 @@ def _floor(reduced, Mphi, solve_mass, n: int, steps: int = POWER_STEPS) -> float
     return EPS * lam
 
 
-def check(nlp, result, n_eig: int = N_EIG) -> SecondOrder:
+def check(nlp, result, n_eig: int = N_EIG, derivatives=None) -> SecondOrder:
     """Smallest eigenvalues by shift-invert Lanczos (ARPACK) on the bordered system
 
         [[H - sigma B, J^T], [J, 0]] [u; y] = [M r; 0],   B = blockdiag(M, 0 for w),
@@ -103,16 +107,19 @@ def check(nlp, result, n_eig: int = N_EIG) -> SecondOrder:
     linear rows M w + K phi = 0 inside J). ARPACK returns the eigenvalues nearest sigma: starting at
     sigma = -mu_ref / 2 (below the soft modes of a minimum), sigma is moved below the least eigenvalue
     found (to twice it) until none lies below sigma, so that a deep saddle reports its least one.
+    ``derivatives``: (hessian_of(x, lam_g), jacobian_of(x)) built before, e.g. the IPOPT solver's own
+    of a parametric NLP reused along a branch (``nlp.reuse.derivatives``); default: built here.
     """
     disc, sc = nlp.disc, nlp.scene
     n = disc.n_nodes
     eps, rig = sc.model.epsilon, sc.model.rigidity
-    H = hessian(nlp, result.x, result.lam_g)
+    hessian_of, jacobian_of = derivatives or (None, None)
+    H = hessian_of(result.x, result.lam_g) if hessian_of else hessian(nlp, result.x, result.lam_g)
     Mphi = sp.csr_matrix(disc.M) if disc.consistent else sp.diags(disc.weights, format="csr")
     nx = H.shape[0]
     B = sp.block_diag([Mphi, sp.csr_matrix((nx - n, nx - n))], format="csr") if nx > n else Mphi
     trans = translation_modes(disc, result.phi)
-    J = constraint_rows(nlp, result.x, trans, Mphi)
+    J = constraint_rows(nlp, result.x, trans, Mphi, jacobian_of)
     mu_ref = V.mu_ref(rig, eps, nlp.beta, disc.dim)
     pad = np.zeros(J.shape[0] + nx - n)
 

@@ -1,0 +1,67 @@
+"""Where the band of an interface-refined mesh (``mesh.refine = "interface"``) is built, and when it
+is built again: the start of a solve and its re-meshing (``vesicle_opt.solve`` uses both).
+
+* No warm start, or a field / path: the band about the scene's ``initial`` shape (``discretize``).
+* A warm start that is a Result on a meridian mesh of the same box: if it is on a refined mesh of
+  the scene's own settings and its interface is still deep in that band (margin >= ``REUSE`` eps,
+  halfway between ``mesh.band`` and ``scene.ranges.BAND_MIN``), its mesh is reused, and with it
+  IPOPT's multipliers (a branch walks on one mesh while its interface moves by less than that);
+  otherwise a band about its phi = 0 curve, its field interpolated onto the new mesh.
+* :func:`left_band`: a result that is not certified because its interface left the band
+  (``verify.band``); the front door then re-meshes about it and solves again, at most
+  ``REMESH_ROUNDS`` times, and reports the last result whatever it is.
+"""
+
+from __future__ import annotations
+
+import math
+
+from vesicle_opt.result import Status
+from vesicle_opt.scene.ranges import BAND_MIN
+
+REMESH_ROUNDS = 3  # re-mesh and solve again at most this often (each round starts at the last field)
+
+
+def refined(scene) -> bool:
+    """Whether the scene asks for an interface-refined meridian mesh."""
+    return scene.mesh.kind == "axisymmetric" and scene.mesh.refine == "interface"
+
+
+def reuse_margin(band: float) -> float:
+    """The margin (eps) down to which a warm start's own refined mesh is reused: halfway between the
+    band and ``BAND_MIN`` (so a re-used mesh leaves room before the check fails)."""
+    return (band + BAND_MIN) / 2
+
+
+def _same_mesh_settings(scene, disc) -> bool:
+    from vesicle_opt.mesh.refine import square_side  # scikit-fem: loaded for refined scenes only
+
+    m = scene.mesh
+    h_fine = square_side(scene.domain.box, m.n) / 2**m.levels
+    return (disc.band == m.band and math.isclose(disc.h_fine, h_fine, rel_tol=1e-9)
+            and disc.mass == m.mass and disc.quadrature == m.quadrature)
+
+
+def start(scene, x0):
+    """(disc, x0) for a refined scene (module docstring)."""
+    from vesicle_opt.mesh import discretize, refine  # scikit-fem: loaded for refined scenes only
+
+    disc = getattr(x0, "disc", None)
+    if disc is None or not getattr(disc, "axisymmetric", False) or not hasattr(x0, "phi") \
+            or tuple(map(tuple, disc.box)) != tuple(tuple(map(float, b)) for b in scene.domain.box):
+        return discretize(scene), x0
+    eps = scene.model.epsilon
+    if getattr(disc, "band", None) is not None and _same_mesh_settings(scene, disc) \
+            and refine.band_margin(disc.mesh, x0.phi, disc.h_fine, eps) >= reuse_margin(scene.mesh.band):
+        return disc, x0
+    edge = disc.h_fine if getattr(disc, "band", None) is not None else disc.h  # x0's edges at its interface
+    distance = refine.remesh_distance(disc.mesh, x0.phi, math.sqrt(2.0) * edge)
+    new = discretize(scene, interface=distance)
+    return new, refine.transfer(disc.mesh, x0.phi, new.nodes)
+
+
+def left_band(result) -> bool:
+    """Not certified only because its interface left the band (``verify.band``)."""
+    margin = result.extra.get("band_margin")
+    return (margin is not None and margin < BAND_MIN and result.outcome == Status.NOT_CERTIFIED
+            and str(result.extra.get("reason", "")).startswith("the interface left the refined band"))

@@ -1,0 +1,140 @@
+"""One parametric NLP and one IPOPT solver per mesh, reused by every exact solve on that mesh.
+
+A branch walked through the front door (``solve(scene_v, x0=previous_result)``) on an
+interface-refined meridian mesh (``mesh.band_start`` reuses the previous result's mesh while its
+interface stays in the band) solves the same discrete problem (6)-(8) with other targets (alpha,
+beta) or another C. Building its CasADi graph and IPOPT solver again at each point cost more than
+the warm solve itself (measured at eps/R0 = 0.02, 12 k nodes: graph 0.11 s, ``nlpsol`` 0.14 s, the
+second-order check's Hessian graph 0.09 s, against 0.2-0.3 s of IPOPT iterations). So, per mesh
+(``weakref``: the entry dies with the mesh), this module keeps
+
+* the parametric NLP (``nlp.exact.build_exact(parametric=True)``, p = (alpha, beta, C, f_scale): at
+  each point the NLP the front door would build, ``nlp.exact.at_point``) and its IPOPT solver;
+* a pin: one linear row c . phi = d holding the axial translation at the start's position (c the
+  start's mass-weighted d_z phi, ``pin_row``). Between natural walls the translation is only nearly
+  null (+-1e-5 mu_ref on the mesh); unpinned, IPOPT spent 34-59 iterations sliding along it at
+  eps/R0 = 0.02 (regularised, tiny decreases). On an up-down mirrored mesh (``refine.mirrored_tensor``)
+  an up-down symmetric vesicle is exactly stationary along it, so the pin's multiplier vanishes; the
+  certificate recomputes stationarity without the row (a held, non-stationary position fails it)
+  and ``extra["translation_multiplier"]`` records it;
+* IPOPT's own derivative functions ``nlp_hess_l`` and ``nlp_jac_g`` of that solver, which the
+  assembled second-order check (``verify.second_order.check``) evaluates instead of building its own
+  Hessian graph (the same matrix: 0.0 apart, measured).
+
+The warm start takes the previous point's physical multipliers (``lambda_volume``,
+``lambda_area``) converted to this point's scaled rows, with ``ipopt.warm_start_init_point``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import weakref
+
+import numpy as np
+import scipy.sparse as sp
+
+from vesicle_opt.model.problem import constraint_data
+from vesicle_opt.nlp.exact import at_point, build_exact, parameter_values
+from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
+
+WARM = (("ipopt.warm_start_init_point", "yes"),)  # IPOPT takes the given multipliers (no bounds, no
+# inequalities: nothing else to warm)
+_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # disc -> {(eps, rigidity): nlp, (.., options, warm): solver}
+
+
+def axial_translation(disc, phi: np.ndarray) -> np.ndarray:
+    """d_z phi at the nodes of a meridian mesh: the P1 gradient's z component of each triangle,
+    averaged over the triangles at a node with their areas as weights (the axial translation's
+    tangent, the near-null mode the pin holds)."""
+    p, t = disc.mesh.p, disc.mesh.t
+    x = p[:, t]
+    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    det = e1[0] * e2[1] - e1[1] * e2[0]
+    f = np.asarray(phi, float)[t]
+    gz = ((f[1] - f[0]) * -e2[0] + (f[2] - f[0]) * e1[0]) / det  # z component of grad of the P1 interpolant
+    area = np.abs(det) / 2
+    num = np.bincount(t.ravel(), np.tile(area * gz, 3), minlength=disc.n_nodes)
+    den = np.bincount(t.ravel(), np.tile(area, 3), minlength=disc.n_nodes)
+    return num / den
+
+
+def _pinned(nlp):
+    """The parametric NLP with one more linear row c . phi - d = 0, (c, d) appended to its parameters
+    (module docstring: the axial translation held at the start's position)."""
+    import casadi as ca  # third-party, lazy: only the IPOPT path builds graphs (0.25 s at import)
+    n = nlp.disc.n_nodes
+    c, d = ca.MX.sym("translation", n), ca.MX.sym("translation_at", 1)
+    return dataclasses.replace(nlp, g=ca.vertcat(nlp.g, ca.dot(c, nlp.x[:n]) - d), p=ca.vertcat(nlp.p, c, d),
+                               lbg=np.zeros(nlp.lbg.size + 1), ubg=np.zeros(nlp.ubg.size + 1))
+
+
+def pin_row(disc, phi: np.ndarray) -> np.ndarray:
+    """c = m d_z phi / sum m |d_z phi| (the translation's mass-weighted tangent at ``phi``, c . phi an
+    O(1) position) and d = c . phi: the values the pin's parameters take."""
+    c = disc.weights * axial_translation(disc, phi)
+    c = c / max(float(np.abs(c).sum()), 1e-300)
+    return np.concatenate([c, [c @ phi]])
+
+
+def parametric(scene, disc, options: IpoptOptions, warm: bool):
+    """(parametric pinned NLP, IPOPT solver) of ``disc`` for the scene's eps and rigidity (the
+    graph's constants): the graph built once per mesh, a solver once per IPOPT options."""
+    entries = _CACHE.setdefault(disc, {})
+    graph = (scene.model.epsilon, scene.model.rigidity)
+    if graph not in entries:
+        entries[graph] = _pinned(build_exact(scene, disc, check=False, parametric=True))
+    nlp = entries[graph]
+    key = (graph, options, warm)
+    if key not in entries:
+        opts = dataclasses.replace(options, extra=WARM + tuple(options.extra)) if warm else options
+        entries[key] = make_solver(nlp, opts)
+    return nlp, entries[key]
+
+
+def point(scene, disc, options: IpoptOptions, start):
+    """(NLP of this point, solver, p, IPOPT start kwargs) for an exact solve of ``scene`` on ``disc``
+    from ``start`` (a Result on ``disc``: warm, its multipliers; a field: cold)."""
+    warm = getattr(start, "lambda_volume", None) is not None and getattr(start, "disc", None) is disc \
+        and np.isfinite(start.lambda_volume) and np.isfinite(start.lambda_area)
+    nlp_p, solver = parametric(scene, disc, options, warm)
+    alpha, beta = constraint_data(scene, disc)
+    nlp = at_point(nlp_p, scene, alpha, beta)
+    if warm:
+        x0 = np.asarray(start.x, float) if start.x is not None and start.x.size == nlp.x0.size else nlp.from_phi(start.phi)
+    elif getattr(start, "phi", start) is not None:
+        x0 = nlp.from_phi(np.asarray(getattr(start, "phi", start), float).ravel())
+    else:
+        x0 = nlp.x0
+    p = np.concatenate([parameter_values(scene, disc, alpha, beta), pin_row(disc, x0[:disc.n_nodes])])
+    kw = {"x0": x0}
+    if warm:  # the physical multipliers in this point's scaled rows (NLP.multipliers inverted); the pin's at 0
+        kw["lam_g0"] = np.concatenate([-np.array([start.lambda_volume, start.lambda_area]) * nlp.g_scale / nlp.f_scale,
+                                       np.zeros(nlp.lbg.size - 2)])
+    return nlp, solver, p, kw
+
+
+def unpinned(result):
+    """The result in the unpinned NLP's layout (as the front door's), the pin's multiplier (IPOPT's
+    scaled units) in ``extra["translation_multiplier"]``: the certificate recomputed stationarity
+    without the row, so a pin that held a non-stationary position shows as kkt_residual."""
+    if result.lam_g is None or result.lam_g.size < 3:
+        return result
+    return dataclasses.replace(result, lam_g=result.lam_g[:-1],
+                               extra={**result.extra, "translation_multiplier": float(result.lam_g[-1])})
+
+
+def derivatives(nlp, solver, p):
+    """(hessian_of(x, lam_g), jacobian_of(x)) for ``verify.second_order.check`` from the solver's
+    own functions at the parameters p, without the pin (the check sees the unpinned tangent space,
+    the translation included): the physical Hessian of the Lagrangian (f_scale times IPOPT's, its
+    upper triangle mirrored; the pin is linear) and the Jacobian of the two constraints."""
+    hess, jac = solver.get_function("nlp_hess_l"), solver.get_function("nlp_jac_g")
+
+    def hessian_of(x, lam_g):
+        lam = np.concatenate([np.asarray(lam_g, float).ravel()[:2], [0.0]])
+        H = sp.csr_matrix(hess(x, p, 1.0, lam).sparse())
+        return (H + sp.triu(H, 1).T).tocsr() * nlp.f_scale  # IPOPT's is the upper triangle
+
+    def jacobian_of(x):
+        return sp.csr_matrix(jac(x, p)[1].sparse())[:2]
+    return hessian_of, jacobian_of
