@@ -97,7 +97,7 @@ def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: Ipo
         if nxt is not None and i + 1 < len(sched) and nxt == sched[i + 1]:
             i += 1
         elif nxt is not None:
-            sched, i = [M, nxt], 0  # the last stage, at the certifiable M
+            sched, i = [M, nxt], 1  # the last stage, at the certifiable M (nothing after it)
         M = nxt
     failed = sum(not r.success for r in stages)
     info = {"failed_stages": failed, **extrapolation([stage_record(r) for r in stages])}
