@@ -66,6 +66,8 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
         M, mu, prev, secant = float(s.M), np.zeros(2), (math.inf, math.inf), DualSecant()
         if floor is not None:
             for Mk in ramp_schedule(s, M):  # warm-up stages at mu = 0 (model.penalty.ramp_schedule)
+                if Mk >= M:  # M was lowered to the certifiable M by an earlier ramp stage's floor
+                    break
                 pt, status = run(Mk, mu)
                 if not np.all(np.isfinite(pt.phi)):
                     return stages

@@ -149,6 +149,8 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
     t0 = time.perf_counter()
     ramp_its = 0
     for Mk in ramp_schedule(s, M):  # warm starts up to M (a cold start at M = 1e4 took 63 iterations)
+        if Mk >= M:  # M was lowered to the certifiable M by an earlier ramp stage's floor
+            break
         r = solve_stage(nlp, solver, nlp.parameters(Mk), x0=x, lam_x0=lam_x, lam_g0=lam_g, tol=tol,
                         method="augmented", exact_constraints=True)
         ramp_its += r.iterations
