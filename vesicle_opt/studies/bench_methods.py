@@ -46,7 +46,7 @@ import time
 import warnings
 from pathlib import Path
 
-from vesicle_opt.scene import bundled
+from vesicle_opt.scene import bundled, load
 from vesicle_opt.scene.ranges import CHOICES
 from vesicle_opt.studies._common import human
 from vesicle_opt.studies.runner import run_into
@@ -69,7 +69,6 @@ EXTRA = ["exit", "exits", "outcome", "wall_median", "wall_runs", "load_runs", "e
 
 def scene_dims() -> dict[str, int]:
     """Bundled scene name -> its mesh's dimension (the box's pairs: 2 on the axisymmetric meridian)."""
-    from vesicle_opt.scene import load
     out = {}
     for name in bundled.names():
         with warnings.catch_warnings():
