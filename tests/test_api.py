@@ -237,8 +237,8 @@ def test_nk_continuation_stages_carry_their_own_counts():
     """history['stages'] holds each stage's Newton steps and times; the run's are their sums here
     (32^2, eps 0.4: no coarse level, so every Newton step belongs to a stage)."""
     sc = load_scene("ellipse-2d", ["mesh.n=32", "model.epsilon=0.4", "solver.method='continuation'",
-                                   "solver.M_max=1e3", "solver.second_order=false"])
-    r = S.solve(sc, backend="newton-krylov", throw=True)
+                                   "solver.M0=10.0", "solver.M_max=1e3", "solver.second_order=false"])
+    r = S.solve(sc, backend="newton-krylov", throw=True)  # M0 = 10 (the default is 100): three stages
     stages = r.history["stages"]
     assert [s["M"] for s in stages] == [10.0, 100.0, 1000.0]
     # the run's also counts the augmented polish after the stages (issue 25; nlp.continuation.polish_stage)

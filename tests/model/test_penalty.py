@@ -147,6 +147,27 @@ def test_richardson_is_exact_on_its_polynomials_and_next_stage_stops_at_the_floo
     assert penalty_retry(1e8, 2e-4, 1e-8, False) is None
 
 
+def test_extrapolation_error_is_the_change_from_one_order_less_with_two_stages_too():
+    """Two stages (a floor-capped schedule: circle-2d stops at M = 270) give order 1; its error estimate
+    is the change from the last stage's own value (order 0), not nan; on v = 3 + 0.7/M - 5/M^2 it bounds
+    the true error (the 1/M^2 term left over) here, and with three stages the estimate is the change
+    from order 1."""
+    from vesicle_opt.model.penalty import extrapolation
+
+    def law(M):
+        return 3.0 + 0.7 / M - 5.0 / M**2
+
+    two = extrapolation([{"M": M, "energy": law(M), "lambda_volume": 0.0, "lambda_area": 0.0,
+                          "converged": True} for M in (1e2, 2.7e2)])
+    assert two["extrapolation_order"] == 1
+    assert two["energy_extrapolation_error"] == pytest.approx(abs(two["energy_extrapolated"] - law(2.7e2)), rel=1e-12)
+    assert abs(two["energy_extrapolated"] - 3.0) <= two["energy_extrapolation_error"]
+    three = extrapolation([{"M": M, "energy": law(M), "lambda_volume": 0.0, "lambda_area": 0.0,
+                            "converged": True} for M in (1e2, 1e3, 2.7e3)])
+    assert three["extrapolation_order"] == 2 and three["energy_extrapolated"] == pytest.approx(3.0, rel=1e-13)
+    assert 0 < three["energy_extrapolation_error"] < two["energy_extrapolation_error"]
+
+
 def test_dual_secant_reaches_the_root_of_a_linear_dual_in_few_steps():
     """c(mu) = J (mu - mu*) with a non-diagonal J (the AL's dual, linearised): the first step is the
     first-order mu - M c; Broyden then converges superlinearly, far faster than the first-order

@@ -92,7 +92,10 @@ def test_front_door_stage_methods_fd_2d(method):
     warm ramp, then three secant stages at M = 1e4 (37 Newton steps each). Before the floors
     reached nk_jax, its continuation ran past the floor and its augmented skipped the ramp
     (energy 2.6300 against numpy's 2.6879, another KKT point)."""
-    rn, rj = _compare(("ellipse-2d", "mesh.n=32", f"solver.method='{method}'"))
+    # M0 = 10 (the default is 100 since issue 25's bench_methods): on this eps/h = 0.8 grid the cold
+    # first stage at M = 100 is so ill-resolved that the two arrays' round-off picks different KKT
+    # points (measured E 2.6300 numpy, 2.2355 jax); from M = 10 both reach 2.68760 in 39 Newton steps
+    rn, rj = _compare(("ellipse-2d", "mesh.n=32", f"solver.method='{method}'", "solver.M0=10.0"))
     assert rj.extra["stages"] == rn.extra["stages"] and rj.method == rn.method == method
     assert [s["status"] for s in rj.history["stages"]] == [s["status"] for s in rn.history["stages"]]
     # the stage M's: the schedule's exactly, the floor-planned last one from each array's own round-off

@@ -151,7 +151,9 @@ def extrapolation(stages: list[dict]) -> dict:
     """Theorem 3.2's O(1/M) law from the certified stages of a continuation (``history['stages']``
     records, M increasing): energy and multipliers extrapolated to M = inf by ``richardson`` of the
     highest order the stages allow (at most 2, from the last three), and the change from one order
-    less as an error estimate (``energy_extrapolation_error``). Empty with fewer than two stages."""
+    less as an error estimate (``energy_extrapolation_error``; from two stages the change from the last
+    stage's own value: circle-2d, capped at M = 270 by its floor, 5.8e-6 against the true 1e-5).
+    Empty with fewer than two stages."""
     good = [s for s in stages if s.get("converged") and s.get("M")]
     if len(good) < 2:
         return {}
@@ -162,8 +164,7 @@ def extrapolation(stages: list[dict]) -> dict:
         vals = [s[key] for s in good]
         out[f"{key}_extrapolated"] = richardson(Ms, vals, order)
         if key == "energy":
-            out["energy_extrapolation_error"] = abs(out["energy_extrapolated"] - richardson(Ms, vals, order - 1)) \
-                if order > 1 else float("nan")
+            out["energy_extrapolation_error"] = abs(out["energy_extrapolated"] - richardson(Ms, vals, order - 1))
     return out
 
 

@@ -66,6 +66,8 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
         M, mu, prev, secant = s.M_value, np.zeros(2), (math.inf, math.inf), DualSecant()
         if floor is not None:
             for Mk in ramp_schedule(s, M):  # warm-up stages at mu = 0 (model.penalty.ramp_schedule)
+                if Mk >= M:  # M was lowered to the certifiable M by an earlier ramp stage's floor
+                    break
                 pt, status = run(Mk, mu)
                 if not np.all(np.isfinite(pt.phi)):
                     return stages
@@ -102,7 +104,7 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
         if nxt is not None and i + 1 < len(sched) and nxt == sched[i + 1]:
             i += 1
         elif nxt is not None:
-            sched, i = [M, nxt], 0  # the last stage, at the certifiable M
+            sched, i = [M, nxt], 1  # the last stage, at the certifiable M (nothing after it)
         M = nxt
     if method == "continuation" and floor is not None and stages[-1].status == "converged":
         ext = extrapolation([{"M": st.M[0], "energy": obj.rig * st.pt.E, "lambda_volume": st.pt.mu[0],

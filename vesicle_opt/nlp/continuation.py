@@ -97,7 +97,7 @@ def continuation(nlp: PenaltyNLP, Ms: list[float] | None = None, *, options: Ipo
         if nxt is not None and i + 1 < len(sched) and nxt == sched[i + 1]:
             i += 1
         elif nxt is not None:
-            sched, i = [M, nxt], 0  # the last stage, at the certifiable M
+            sched, i = [M, nxt], 1  # the last stage, at the certifiable M (nothing after it)
         M = nxt
     failed = sum(not r.success for r in stages)
     info = {"failed_stages": failed, **extrapolation([stage_record(r) for r in stages])}
@@ -149,6 +149,8 @@ def augmented_lagrangian(nlp: PenaltyNLP, M: float | None = None, *, options: Ip
     t0 = time.perf_counter()
     ramp_its = 0
     for Mk in ramp_schedule(s, M):  # warm starts up to M (a cold start at M = 1e4 took 63 iterations)
+        if Mk >= M:  # M was lowered to the certifiable M by an earlier ramp stage's floor
+            break
         r = solve_stage(nlp, solver, nlp.parameters(Mk), x0=x, lam_x0=lam_x, lam_g0=lam_g, tol=tol,
                         method="augmented", exact_constraints=True)
         ramp_its += r.iterations

@@ -42,7 +42,7 @@ SCHEMA: dict[str, tuple[str, Any, Any]] = {
     "solver.second_order": ("bool", True, "true or false"),
     "solver.shape_check": ("bool", True, "true or false (false: a wrong shape, verify.shape, is reported, not refused)"),
     "solver.second_order_max_iter": ("int", 300, ">= 1 (LOBPCG iterations per level of the matrix-free check)"),
-    "solver.M0": ("float", 10.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
+    "solver.M0": ("float", 100.0, f"0 < M0 <= M_max <= {M_LIMIT:g}"),
     "solver.M_factor": ("float", 10.0, "> 1"),
     "solver.M_max": ("float", 1e6, f"M0 <= M_max <= {M_LIMIT:g}"),
     "solver.max_outer": ("int", 20, ">= 1"),

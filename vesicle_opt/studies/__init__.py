@@ -24,6 +24,7 @@ from vesicle_opt.io import outdir
 DESCRIPTIONS = {
     "bench_3d": "large-3D path: time, memory, Newton and CG counts against n (torus, NK backend)",
     "bench_jax": "the Newton-Krylov path on JAX: numpy against one and two devices (and a GPU if any)",
+    "bench_methods": "every solver.method in its defaults on every bundled scene: exit, outcome, cost against exact",
     "bench_certificate": "the second-order certificate against the solve: time, memory, verdict (torus, NK)",
     "bench_equilibrium": "IPOPT exact solve: iterations, time, Hessian nnz, memory against mesh size",
     "bench_stationarity": "the stationarity certificate against n: L2 and natural-norm floors and residuals (NK)",

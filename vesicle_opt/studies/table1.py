@@ -13,11 +13,15 @@ paper's penalty form (11) with M = 1e4 (rigidity 10 on E only). Written beside t
   (``verify.topology``, the front door's ``extra``), and phi < 0 on the whole centre axis
   x = y = 0, i.e. a solid torus, not a sphere or a disk;
 * for the exact solves, the least eigenvalues of the reduced Hessian (``verify.lobpcg``, mu/mu_ref in the
-  mass metric): positive
-  with the translations and rotations excluded means a strict local minimum up to the symmetries.
+  mass metric), with only the translations excluded (the exact null modes of the periodic grid; a
+  rotation is no symmetry of the grid, so it stays in the check, as in the front door's verdict) and,
+  for comparison, with the rotations excluded too. ``second_order`` is the verdict with the rotations
+  kept: ``minimum``, or ``marginal`` where the least eigenvalue (the torus' rotation about its axis,
+  flat up to the grid's anisotropy) is zero within its error bound; never a ``saddle``.
 
 ``main(out, quick)`` writes ``table1.csv`` and ``table1.png``; quick = 16^3 and 32^3 only. Returns 0
-when every solve converged, is a torus, and (exact) passed the second-order check; 1 otherwise.
+when every solve converged, is a torus, and (exact) is a ``minimum`` or ``marginal`` with the rotations
+kept; 1 otherwise.
 """
 
 from __future__ import annotations
@@ -44,7 +48,8 @@ PAPER, M_PAPER = TABLE1, TABLE1_M  # the paper's Table 1 (``_common``)
 
 def _solve(n: int, method: str):
     """The front door on the spectral grid; its own second-order check is off, ``_second_order``
-    below runs LOBPCG once with and once without the rotations (and keeps the residuals)."""
+    below runs LOBPCG with the rotations kept and once more with them excluded (and keeps the
+    residuals)."""
     sc = scene.load("torus-table1-3d",
                     ["mesh.kind='spectral'", f"mesh.n={n}", "solver.backend='newton-krylov'",
                      f"solver.method='{method}'", f"solver.M={M_PAPER}", "solver.second_order=false"])
@@ -53,15 +58,22 @@ def _solve(n: int, method: str):
 
 def _second_order(sc, r) -> dict:
     """The front door's matrix-free check (``verify.lobpcg``): eigenvalues mu/mu_ref in the mass metric
-    on the tangent space. With the rotations excluded the least must be positive (``strict_local_min``:
-    the verdict of ``verify.verdict.classify``, a strict local minimum up to the symmetries); with them
-    kept, the least is the rotations' (soft). The residual columns are the eigenvalue error bounds."""
+    on the tangent space. The verdict (``second_order``, of ``verify.verdict.classify``) is the one with
+    only the translations excluded (issue 25: only exact null modes are excluded; the rotations of a
+    periodic grid are near-symmetries that could hide a descent direction): ``strict_local_min`` when
+    it is ``minimum``; ``marginal`` (the rotation flat within the bound) is accepted, a ``saddle`` not.
+    The run with the rotations excluded too is kept for comparison (``eig_min_no_rotations``). The
+    residual columns are the eigenvalue error bounds."""
     setup = prepare(sc, r.disc)
     kept = lobpcg.check(sc, r, setup, rotations=False)
     so = lobpcg.check(sc, r, setup, rotations=True)
     return {"eig_min_no_rotations": so.relative_min_eigenvalue, "eig_min_no_rotations_residual": so.errors[0],
             "eig_min_with_rotations": kept.relative_min_eigenvalue,
-            "eig_min_with_rotations_residual": kept.errors[0], "strict_local_min": so.verdict == "minimum"}
+            "eig_min_with_rotations_residual": kept.errors[0], "second_order": kept.verdict,
+            "second_order_reason": kept.reason, "strict_local_min": kept.verdict == "minimum"}
+
+
+ACCEPTED = ("minimum", "marginal")  # the verdicts an exact row may carry (``_second_order``); never a saddle
 
 
 EXTRA = ["paper_energy", "rel_diff_paper", "penalized_energy", "kkt_dual", "kkt_residual", "converged",
@@ -69,7 +81,7 @@ EXTRA = ["paper_energy", "rel_diff_paper", "penalized_energy", "kkt_dual", "kkt_
          "euler_characteristic", "wraps",
          "eig_min_no_rotations", "eig_min_no_rotations_residual", "eig_min_with_rotations",
          "eig_min_with_rotations_residual", "strict_local_min", "predicted_penalty_energy",
-         "predicted_penalized"]
+         "predicted_penalized", "second_order", "second_order_reason"]
 
 
 def case_rows(case: dict) -> list[dict]:
@@ -116,7 +128,7 @@ def main(out: Path, quick: bool = False) -> int:
     fields = {(n, "exact"): np.load(fields_dir / f"phi-exact-{n}.npz")["phi"] for n in ns}
     _plot(out / "table1.png", rows, fields, ns)
     ok = all(r["converged"] == "True" and r["torus_ok"] == "True"
-             and r.get("strict_local_min", "") in ("True", "") for r in rows)
+             and (r["method"] != "exact" or r.get("second_order") in ACCEPTED) for r in rows)
     return 0 if ok else 1
 
 
