@@ -1,0 +1,103 @@
+"""The transition line in two parameters (``branch.transition``) on a closed form: two branches whose
+energy crossing p*(q) = c(q) is known, continued in q; and the line's files resumed after a kill."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from vesicle_opt.branch.transition import Sample, continue_line, plan
+from vesicle_opt.branch.transition_store import LineStore
+
+
+def c_of(q):  # the crossing's closed form: nonlinear in q, so the secant predictor is not exact
+    return 0.65 - 0.17 * q + 0.05 * q * q
+
+
+class Crossing:
+    """Branches a and b of E_x(u; p, q) = e_x(p, q) + |u - u_x(p, q)|^2 / 2 on R^2, with
+    e_a = p^2 + q and e_b = e_a - (p - c(q)) exp(p): Delta = e_a - e_b = (p - c(q)) exp(p), zero at
+    p = c(q) only; u_a = (p, q), u_b = (-p, q). A solve is one Newton step (exact: E is quadratic in
+    u); ``fail_at``: a q where branch b's solve fails (an honest failure)."""
+
+    disc = SimpleNamespace(grid_shape=None, box=[[0.0, 1.0]], nodes=[[0.0], [1.0]], dim=1)
+
+    def __init__(self, fail_at=None):
+        self.fail_at, self.solves = fail_at, 0
+
+    def solve(self, x, p, q, phi0, lam0):
+        self.solves += 1
+        u = np.array([p if x == "a" else -p, q])
+        e = p * p + q
+        de_dp, de_dq = 2 * p, 1.0
+        if x == "b":
+            e -= (p - c_of(q)) * math.exp(p)
+            de_dp -= (1 + p - c_of(q)) * math.exp(p)
+            de_dq += (-0.17 + 0.1 * q) * math.exp(p)
+        ok = not (x == "b" and self.fail_at is not None and abs(q - self.fail_at) < 1e-12)
+        row = {"outcome": "converged" if ok else "max_iterations", "reason": None if ok else "toy failure",
+               "reduced_energy": e, "f": e, "c0_reduced": 2 * q}
+        return Sample(p, q, u, e, ok, (de_dp, 0.0), de_dp, de_dq, row)
+
+
+VALUES = [-0.5, -0.25, 0.25, 0.5, 0.75, 1.0]
+
+
+def test_the_continued_line_is_the_closed_form():
+    toy = Crossing()
+    rows = continue_line(toy, 0.0, 0.70, 0.5, VALUES, 0.02, LineStore(None, {}, toy.disc, "q", "p"))
+    assert [r["value"] for r in rows] == [q for _, q in plan(0.0, VALUES)]
+    assert all(r["converged"] and r["a_converged"] and r["b_converged"] for r in rows)
+    for r in rows:
+        # 4-point cubic spline of Delta = (p - c) e^p with samples dp = 0.02 apart: interpolation
+        # error ~ |Delta''''| dp^4 / 24 ~ 3e-8 in Delta, / |Delta'| ~ e^0.65 in p (measured: 8e-9 at
+        # the start, whose samples are not centred; <= 2e-11 after)
+        assert r["target"] == pytest.approx(c_of(r["value"]), abs=2e-8)
+        assert r["gap"] < 1e-7  # the same error in Delta, relative to E ~ 0.4 .. 1.4
+    # the predictor (tangent, then secant) lands within the Newton step's reach: 4 samples a q
+    assert all(r["samples"] == 4 for r in rows[1:]), [r["samples"] for r in rows]
+    up = [r for r in rows if r["direction"] == "up"]
+    # the tangent from the envelope derivatives is exact to first order: its error is c''/2 dq^2
+    assert up[0]["predicted"] - up[0]["target"] == pytest.approx(-0.05 * 0.25**2, abs=1e-7)
+    # the secant through q - dq, q - 2 dq misses the quadratic c by c''/2 (dq)(2 dq) exactly
+    assert all(r["predicted"] - r["target"] == pytest.approx(-0.05 * 0.25 * 0.5, abs=1e-7) for r in up[1:])
+
+
+def test_a_failure_ends_its_direction_only():
+    toy = Crossing(fail_at=0.5)
+    rows = continue_line(toy, 0.0, 0.70, 0.5, VALUES, 0.02, LineStore(None, {}, toy.disc, "q", "p"))
+    bad = [r for r in rows if not r["converged"]]
+    assert [r["value"] for r in bad] == [0.5] and bad[0]["reason"].startswith("branch b not certified")
+    assert bad[0]["outcome"] == "max_iterations" and bad[0]["target"] is None  # never a crossing
+    assert [r["value"] for r in rows if r["direction"] == "up"] == [0.25, 0.5]  # 0.75, 1.0 not tried
+    assert [r["value"] for r in rows if r["direction"] == "down"] == [-0.25, -0.5]
+
+
+@pytest.mark.parametrize("cut", [1, 3, 5])
+def test_resume_after_a_kill_loses_and_duplicates_no_row(tmp_path, cut):
+    def run(out):
+        toy = Crossing()
+        store = LineStore(out, {"toy": "crossing", "values": VALUES}, toy.disc, "q", "p")
+        return continue_line(toy, 0.0, 0.70, 0.5, VALUES, 0.02, store), toy.solves
+
+    whole, solves = run(tmp_path / "whole")
+    out = tmp_path / "cut"
+    run(out)
+    lines = (out / "transition_line.csv").read_text().splitlines(keepends=True)
+    # killed while writing row `cut`: the rows before it whole, half of its line
+    (out / "transition_line.csv").write_text("".join(lines[: cut + 1]) + lines[cut + 1][:25])
+    resumed, more = run(out)
+    key = lambda r: {k: v for k, v in r.items() if k != "wall_time_s"}  # noqa: E731
+    assert [key(r) for r in resumed] == [key(r) for r in whole]
+    assert more < solves  # the rows before the cut were not recomputed
+    assert (out / "transition_line.csv").read_text().count("\n") == len(whole) + 1
+
+
+def test_a_resume_under_other_arguments_is_refused(tmp_path):
+    toy = Crossing()
+    LineStore(tmp_path, {"values": [1.0]}, toy.disc, "q", "p")
+    with pytest.raises(Exception, match="other values"):
+        LineStore(tmp_path, {"values": [2.0]}, toy.disc, "q", "p")
