@@ -101,3 +101,23 @@ def test_a_resume_under_other_arguments_is_refused(tmp_path):
     LineStore(tmp_path, {"values": [1.0]}, toy.disc, "q", "p")
     with pytest.raises(Exception, match="other values"):
         LineStore(tmp_path, {"values": [2.0]}, toy.disc, "q", "p")
+
+
+@pytest.mark.parametrize("args, flag", [
+    (["--param", "reduced_volume", "--to", "0.7"], "--second"),  # no second parameter
+    (["--param", "reduced_volume", "--to", "0.7", "--second", "reduced_volume", "--values", "0.1"], "--second"),
+    (["--param", "c0", "--to", "0.7", "--second", "c0", "--values", "0.1"], "--param"),
+    (["--param", "reduced_volume", "--to", "0.7", "--second", "c0"], "--values"),
+    (["--param", "reduced_volume", "--to", "0.7", "--second", "c0", "--values", "0.1", "--set",
+      "mesh.n=[10,20]", "--transition", "model.epsilon=0.2"], "--transition"),  # not the same problem
+    (["--param", "reduced_volume", "--to", "1.5", "--second", "c0", "--values", "0.1"], "--to"),
+])
+def test_bad_transition_input_is_one_line_exit_2_before_any_work(tmp_path, capsys, args, flag):
+    from vesicle_opt.cli import main
+    out = tmp_path / "out"
+    out.mkdir()
+    transition = [] if "--transition" in args else ["--transition", "initial.semi_axes=[1.3,1.3,0.5]"]
+    code = main(["branch", "prolate-axisymmetric", "--out", str(out), *transition, *args])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and flag in err[0], err
+    assert list(out.iterdir()) == []  # nothing written

@@ -17,7 +17,9 @@ direction of ``values``:
   envelope derivatives, samples at that estimate and +- dp (extended outward, up to ``EXTEND``
   more steps, until Delta changes sign), the crossing located on the samples by cubic splines and
   brentq (``branch.crossing``) and both branches re-solved there as certified points; ``gap`` =
-  |Delta| / |E| at those points says how well the spline located it.
+  |Delta| / |E| at those points says how well the spline located it. A crossing found farther
+  than dp from its prediction is located again from samples centred on it (``RECENTRE`` rounds):
+  the spline is then interpolating, not extrapolating, at p*.
 
 The start (q0) is located the same way from the scenes' own p, walking towards ``towards`` with
 steps dp, cold from the scenes' initial shapes. A failed solve ends the line in that direction
@@ -38,6 +40,7 @@ import numpy as np
 
 from vesicle_opt.branch.crossing import crossing
 
+RECENTRE = 2  # rounds of samples re-centred on a crossing found farther than dp from its prediction
 EXTEND = 6  # samples beyond the first three before the line gives up at a q (Delta of one sign)
 BRANCHES = ("a", "b")
 
@@ -228,9 +231,13 @@ def continue_line(solver, q0: float, p0: float, towards: float, values, dp: floa
         if line == "start":
             found = local_crossing(solver, q, p0, dp, None, towards, in_range)
         else:
-            base = past[-1]
-            found = local_crossing(solver, q, predict(past[-2:] if len(past) >= 2 else past, q), dp,
-                                   base.points, None, in_range)
+            found = local_crossing(solver, q, predict(past[-2:], q), dp, past[-1].points, None, in_range)
+        for _ in range(RECENTRE):  # p* more than dp from the prediction: the samples were not around it
+            if not found.converged or abs(found.p - found.predicted) <= dp:
+                break
+            again = local_crossing(solver, q, found.p, dp, found.points, None, in_range)
+            found = dataclasses.replace(again, predicted=found.predicted, samples=found.samples + again.samples,
+                                        solves=found.solves + again.solves, wall=found.wall + again.wall)
         row = store.append(i, direction, found)
         if progress is not None:
             progress(row)

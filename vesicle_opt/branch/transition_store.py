@@ -23,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.branch.store import _text, parse
 from vesicle_opt.branch.transition import BRANCHES, Found, Sample
 from vesicle_opt.errors import InputError
 from vesicle_opt.io import fields, interrupt, state
@@ -45,6 +44,36 @@ FLOATS = ("value", "target", "predicted", "gap", "energy", "reduced_energy", "f"
                                            "lambda_volume", "lambda_area", "dE_dp", "dE_dq", "kkt_residual",
                                            "certifiable_tol", "second_order_min_eigenvalue"))
 ADVICE = "move it away or give another --out (nothing there was changed)"
+
+
+def _text(v) -> str:
+    """A value as the CSV holds it: '' for None and non-finite numbers, true/false, repr of floats."""
+    if v is None:
+        return ""
+    if isinstance(v, (bool, np.bool_)):
+        return "true" if v else "false"
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v)) if np.isfinite(v) else ""
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    return str(v)
+
+
+def parse(row: dict) -> dict:
+    """A CSV row with numbers and booleans back in their types ('' -> None), by this file's columns."""
+    out = {}
+    for k, v in row.items():
+        if v == "" or v is None:
+            out[k] = None
+        elif k in BOOLS:
+            out[k] = v == "true"
+        elif k in INTS:
+            out[k] = int(v)
+        elif k in FLOATS:
+            out[k] = float(v)
+        else:
+            out[k] = v
+    return out
 
 
 def row_of(i: int, direction: str, found: Found, second: str, param: str) -> dict:

@@ -42,6 +42,8 @@ def crossing(c0: float, bracket: tuple[float, float] = (0.55, 0.75), n_modes: in
     def diff(v):
         for b in BRANCHES:
             sols[b] = S.solve(float(v), float(c0), starts[b], n_modes)
+            if not sols[b].converged:  # the warm start left the shapes: from the c0 = 0 shape at v
+                sols[b] = S.solve(float(v), float(c0), _start(float(v), b, n_modes), n_modes)
             if sols[b].converged:
                 starts[b] = sols[b].a
         return sols["prolate"].f - sols["oblate"].f
@@ -52,7 +54,15 @@ def crossing(c0: float, bracket: tuple[float, float] = (0.55, 0.75), n_modes: in
             "f_oblate": sols["oblate"].f, "converged": all(s.converged for s in sols.values())}
 
 
-def line(c0s, bracket: tuple[float, float] = (0.55, 0.75), n_modes: int = 16) -> list[dict]:
-    """``crossing`` at each c0 in order, the solves warm from the previous c0's."""
+def line(c0s, bracket: tuple[float, float] = (0.55, 0.75), n_modes: int = 16, width: float = 0.03) -> list[dict]:
+    """``crossing`` at each c0 in order, the solves warm from the previous c0's; after the first,
+    in the bracket v_pred +- ``width`` around the secant (the previous v with one) of the line."""
     starts: dict = {}
-    return [crossing(c, bracket, n_modes, starts) for c in c0s]
+    out: list[dict] = []
+    for c in c0s:
+        if out:
+            v = out[-1]["v"] if len(out) < 2 else out[-1]["v"] + (c - out[-1]["c0"]) * (
+                out[-1]["v"] - out[-2]["v"]) / (out[-1]["c0"] - out[-2]["c0"])
+            bracket = (v - width, v + width)
+        out.append(crossing(c, bracket, n_modes, starts))
+    return out
