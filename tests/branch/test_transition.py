@@ -130,7 +130,8 @@ def s_of(q):  # the fold's closed form
 class FoldToy:
     """E(x, y; p, q) = x^3/3 - (p - s(q)) x + (y - 1)^2/2: the stable branch x = sqrt(p - s(q)) for
     p >= s(q), a fold at p = s(q) where the least Hessian eigenvalue mu = 2x vanishes, mu^2 = 4 (p - s)
-    exactly; E = -(2/3) (p - s)^(3/2) on the branch, 0 at the fold. No real point below the fold."""
+    exactly; dE/dp = -x, so p = s + (dE/dp)^2 exactly; E = -(2/3) (p - s)^(3/2) on the branch, 0 at
+    the fold. No real point below the fold."""
 
     def __init__(self):
         self.solves = 0
@@ -142,7 +143,7 @@ class FoldToy:
             return Sample(p, q, np.zeros(2), math.nan, False, row={"outcome": "max_iterations", "reason": "toy"})
         u = np.array([math.sqrt(d), 1.0])
         mu = min(2 * u[0], 1.0)
-        return Sample(p, q, u, -2 / 3 * d**1.5, True, (0.0, 0.0), None, None,
+        return Sample(p, q, u, -2 / 3 * d**1.5, True, (0.0, 0.0), -u[0], None,  # dE/dp = -x (envelope)
                       {"second_order_min_eigenvalue": mu})
 
 
@@ -153,9 +154,10 @@ def test_the_continued_fold_line_is_the_closed_form():
     folds = fold_line(toy, 0.0, 0.25, [0.25, 0.5, -0.25, -0.5], 0.01, +1)
     assert [f.q for f in folds] == [0.0, 0.25, 0.5, -0.25, -0.5] and all(f.converged for f in folds)
     for f in folds:
-        # mu^2 linear in p: the quadratic fit's root is exact to round-off (measured <= 1e-15)
+        # p = s + g^2 exactly: the parabola's vertex is s to round-off (measured <= 1e-15)
         assert f.p == pytest.approx(s_of(f.q), abs=1e-12)
-        assert f.energy == pytest.approx(0.0, abs=1e-12)  # E = -(2/3) t^3: in the fit's span
+        assert f.energy == pytest.approx(0.0, abs=1e-12)  # dE = g p'(g) dg integrated exactly
+        assert f.p_mu == pytest.approx(s_of(f.q), abs=1e-12)  # the cross-check: mu^2 = 4 (p - s)
         assert f.nearest.p > f.p and f.nearest.converged
     overshoot = FoldToy()
     f = fold_line(overshoot, 0.0, 0.18, [], 0.01, +1)[0]
@@ -165,8 +167,9 @@ def test_the_continued_fold_line_is_the_closed_form():
 def test_a_branch_without_a_fold_is_not_given_one():
     from vesicle_opt.branch.fold_continuation import local_fold
 
-    class Stable(FoldToy):  # mu = 1 everywhere: no turning point
+    class Stable(FoldToy):  # E = p^2 / 2 + ..., dE/dp = p: p(g) = g, no turning point
         def solve(self, x, p, q, phi0, lam0):
-            return Sample(p, q, np.zeros(2), p, True, (0.0, 0.0), row={"second_order_min_eigenvalue": 1.0})
+            return Sample(p, q, np.zeros(2), p * p / 2, True, (0.0, 0.0), p, None,
+                          {"second_order_min_eigenvalue": 1.0})
     f = local_fold(Stable(), 0.0, 0.5, 0.01, None, +1)
     assert not f.converged and f.p is None and "no fold" in f.reason

@@ -2,17 +2,20 @@
 branch, re-located at each q from warm fixed-p solves on its stable side (a continuation, where
 ``branch.lines.sweep`` builds a whole diagram per q).
 
-At a generic fold the least eigenvalue mu of the reduced Hessian at fixed p (the check of the
-certificate, ``second_order_min_eigenvalue``) vanishes like sqrt|p - p_f|: mu^2 is smooth and
-linear in p to first order, mu^2 = k (p - p_f) + O((p - p_f)^2). ``local_fold`` solves the branch
-at p_k = p_pred + s k dp, k = 1, 2, 3 (s = +1 when the branch exists above the fold, -1 below), from
-the farthest to the nearest, each warm from the last; the quadratic through (p_k, mu_k^2) has its
-root nearest p_1 at p_f (error O(dp^3)). The energy there: E = E_f + c2 t^2 + c3 t^3 in
-t = sqrt|p - p_f| (the branch's expansion about a fold) through the three samples. A sample that
-fails or is not a minimum (mu <= 0: the prediction overshot the fold) shifts the samples 1, 2, 4,
-... dp away (up to ``EXTEND`` times); a fold found more than 2 dp beyond p_1 is located again from
-samples next to it (``RECENTRE``). The next q's prediction: the secant through the last two folds
-(the last fold with one). Every sample is a certified point; the fold itself is not one (the
+At a fold the branch turns in p: along it p is a smooth function of a coordinate with a vertex at
+the fold. The coordinate used is the envelope derivative g = dE/dp (``branch.params``: lambda_V
+dalpha/dp + dE/dp|_phi, smooth through the fold and monotone along a generic one), so
+p = p_f + k (g - g_f)^2 + O((g - g_f)^3). ``local_fold`` solves the branch at p_k = p_pred + s k dp,
+k = 3, 2, 1 (s = +1 when the branch exists above the fold, -1 below), from the farthest to the
+nearest, each warm from the last, and takes the vertex of the parabola p(g) through the three:
+p_f (error O(dp^(3/2)) from the cubic term) and, integrating dE = g dp = g p'(g) dg along it, the
+energy E_f. Cross-check (``p_mu``): at a generic fold the least eigenvalue mu of the reduced
+Hessian (``second_order_min_eigenvalue``) vanishes like sqrt|p - p_f|, so mu^2 linear through the
+samples vanishes near p_f; it does not where the critical mode is not the turn's (a symmetric
+turning point whose eigenvalue touches zero on both sheets). A sample that fails or is not a
+minimum (mu <= 0: the prediction overshot the fold) shifts the samples 1, 2, 4, ... dp away (up to
+``EXTEND`` times); a fold found more than 2 dp beyond p_1 is located again from samples next to it
+(``RECENTRE``). The next q's prediction: the secant through the last two folds (the last fold with one). Every sample is a certified point; the fold itself is not one (the
 Hessian is singular there): ``nearest`` is the certified sample next to it.
 
 ``solver.solve(x, p, q, phi0, lam0) -> branch.transition.Sample`` (x ignored; the Sample's
@@ -31,6 +34,7 @@ from vesicle_opt.branch.transition import Sample
 
 EXTEND = 5  # shifts of the samples, doubling: up to 16 dp beyond the prediction
 RECENTRE = 2
+REACH = 16  # a vertex farther than this many dp beyond the nearest sample is not taken for a fold
 
 
 @dataclasses.dataclass
@@ -43,6 +47,8 @@ class Fold:
     samples: int
     wall: float
     reason: str | None = None
+    dE_dp: float | None = None  # at the fold (the parabola's vertex)
+    p_mu: float | None = None  # the cross-check: where mu^2, linear through the samples, vanishes
 
     @property
     def converged(self) -> bool:
@@ -76,18 +82,24 @@ def local_fold(solver, q: float, p_pred: float, dp: float, warm: Sample | None, 
     else:
         return Fold(q, None, None, p_pred, src, solves, time.perf_counter() - t0, f"no minimum next to the fold {why}")
     p = np.array([s.p for s in pts])
-    m2 = np.array([_mu(s) ** 2 for s in pts])
-    c = np.polyfit(p - p[-1], m2, 2)
-    roots = [r.real for r in np.roots(c) if abs(r.imag) < 1e-12] if abs(c[0]) > 1e-300 else [-c[2] / c[1]]
-    roots = [r for r in roots if r * side <= 0]  # beyond the nearest sample, towards the fold
-    if not roots:
+    g = np.array([np.nan if s.dE_dp is None else s.dE_dp for s in pts], float)
+    if not np.all(np.isfinite(g)) or np.ptp(g) == 0:
         return Fold(q, None, None, p_pred, pts[-1], solves, time.perf_counter() - t0,
-                    "mu^2 does not reach zero beyond the samples (no fold there)")
-    p_f = p[-1] + max(roots, key=lambda r: r * side)  # the root nearest the samples
-    t = np.sqrt(np.abs(p - p_f))
-    A = np.column_stack([np.ones(3), t**2, t**3])
-    e_f = float(np.linalg.solve(A, [s.energy for s in pts])[0])
-    return Fold(q, float(p_f), e_f, p_pred, pts[-1], solves, time.perf_counter() - t0)
+                    "no envelope derivative dE/dp at the samples (the fold's coordinate)")
+    a, b, c = np.polyfit(g, p, 2)
+    if a * side <= 0:  # the parabola opens away from the branch: no turn on this side
+        return Fold(q, None, None, p_pred, pts[-1], solves, time.perf_counter() - t0,
+                    "p(dE/dp) does not turn towards the samples (no fold there)")
+    g_f = -b / (2 * a)
+    p_f = c - b * b / (4 * a)
+    if not (side * (p_f - p[-1]) <= 0 and abs(p_f - p[-1]) <= REACH * dp):  # a flat parabola's far vertex
+        return Fold(q, None, None, p_pred, pts[-1], solves, time.perf_counter() - t0,
+                    f"p(dE/dp) has no vertex within {REACH} dp beyond the samples (no fold there)")
+    prim = lambda t: 2 * a / 3 * t**3 + b / 2 * t**2  # noqa: E731  (E = int g dp = int g p'(g) dg)
+    e_f = float(np.mean([s.energy + prim(g_f) - prim(gk) for s, gk in zip(pts, g)]))
+    mu2 = np.polyfit(p - p[-1], [_mu(s) ** 2 for s in pts], 1)  # the cross-check: mu^2 linear in p
+    p_mu = float(p[-1] - mu2[1] / mu2[0]) if mu2[0] != 0 else math.nan
+    return Fold(q, float(p_f), e_f, p_pred, pts[-1], solves, time.perf_counter() - t0, None, float(g_f), p_mu)
 
 
 def fold_line(solver, q0: float, p0: float, values, dp: float, side: float, warm: Sample | None = None,

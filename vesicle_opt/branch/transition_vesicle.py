@@ -60,21 +60,30 @@ class Line:
 
 
 class VesicleCrossing:
-    """The two branches' point solves (module docstring)."""
+    """The branches' point solves at (p, q) (module docstring): ``param`` p and ``second`` q, one of
+    them the reduced volume and the other c0 (a crossing: p = v; a fold line in c0: p = c0)."""
 
-    def __init__(self, scene_a: Scene, scene_b: Scene, options=None):
-        self.base = {"a": scene_a, "b": scene_b}
+    def __init__(self, scene_a: Scene, scene_b: Scene | None = None, options=None, param: str = "reduced_volume",
+                 second: str = "c0"):
+        self.base = {"a": scene_a, "b": scene_b if scene_b is not None else scene_a}
+        self.param, self.second = param, second
         self.vpar = parameter(scene_a, "reduced_volume")
         self.qpar = parameter(scene_a, "c0")
-        self.corr = {x: IpoptCorrector(sc, options) for x, sc in self.base.items()}
-        self.disc = self.corr["a"].disc
+        self.options, self._corr = options, {}
+        self.disc = self.corr("a").disc
+
+    def corr(self, x: str) -> IpoptCorrector:
+        if x not in self._corr:  # built on first use: a fold line uses one
+            self._corr[x] = IpoptCorrector(self.base[x], self.options)
+        return self._corr[x]
 
     def scene_at(self, p: float, q: float) -> Scene:
-        return self.vpar.scene_at(self.qpar.scene_at(self.base["a"], q), p)
+        val = {self.param: p, self.second: q}  # c0 first: its scene_at resets the constraints
+        return self.vpar.scene_at(self.qpar.scene_at(self.base["a"], val["c0"]), val["reduced_volume"])
 
     def solve(self, x: str, p: float, q: float, phi0, lam0) -> Sample:
         t0 = time.perf_counter()
-        corr, sc = self.corr[x], self.scene_at(p, q)
+        corr, sc = self.corr(x), self.scene_at(p, q)
         try:
             if phi0 is None:  # the start: cold from the branch's own initial shape
                 res = corr.solve(sc, corr.nlp.split(corr.nlp.x0)[0], None, feasibility=True)
@@ -94,8 +103,9 @@ class VesicleCrossing:
                     "wall_time_s": time.perf_counter() - t0})
         if not res.converged and not row.get("reason"):
             row["reason"] = res.status
-        dE_dp = res.lambda_volume * self.vpar.dalpha() + res.lambda_area * self.vpar.dbeta()
-        dE_dq = explicit_derivative("c0", res, sc)
+        d = {"reduced_volume": res.lambda_volume * self.vpar.dalpha() + res.lambda_area * self.vpar.dbeta(),
+             "c0": explicit_derivative("c0", res, sc)}  # the envelope identity (branch.params)
+        dE_dp, dE_dq = d[self.param], d[self.second]
         return Sample(float(p), float(q), np.asarray(res.phi, float), float(res.energy), bool(res.converged),
                       (res.lambda_volume, res.lambda_area), dE_dp, dE_dq, row)
 
@@ -150,3 +160,19 @@ def transition_line(scene_a: Scene, scene_b: Scene, second: str = "c0", values=(
         from vesicle_opt.branch import phase_figure  # matplotlib with the figure only
         phase_figure.plot(line.points(), solver.disc, lambda i, x: store.phi(i, x), Path(out) / "phase_diagram.png")
     return line
+
+
+def fold_line(scene: Scene, param: str, second: str, values, *, at: float, step: float, side: float,
+              options=None, progress=None) -> list:
+    """The fold of the branch of ``scene`` in ``param`` (reduced_volume or c0) near ``at`` continued in
+    ``second`` (the other one) from the scene's value to each of ``values``
+    (``branch.fold_continuation``): samples ``|step|`` apart on the side ``side`` (+1: the branch
+    exists above the fold). Returns the ``Fold`` records (p None where none was found, and why)."""
+    require_scene(scene)
+    if param not in ("reduced_volume", "c0") or second not in ("reduced_volume", "c0") or param == second:
+        raise InputError("--second", f"a fold line runs in one of reduced_volume, c0 and is continued in the "
+                         f"other, got {param!r}, {second!r}")
+    from vesicle_opt.branch.fold_continuation import fold_line as continue_fold
+    solver = VesicleCrossing(scene, None, options, param, second)
+    q0 = parameter(scene, second).start
+    return continue_fold(solver, q0, float(at), [float(v) for v in values], float(step), side, progress=progress)
