@@ -15,7 +15,8 @@ samples vanishes near p_f; it does not where the critical mode is not the turn's
 turning point whose eigenvalue touches zero on both sheets). A sample that fails or is not a
 minimum (mu <= 0: the prediction overshot the fold) shifts the samples 1, 2, 4, ... dp away (up to
 ``EXTEND`` times); a fold found more than 2 dp beyond p_1 is located again from samples next to it
-(``RECENTRE``). The next q's prediction: the secant through the last two folds (the last fold with one). Every sample is a certified point; the fold itself is not one (the
+(``RECENTRE``). The next q's prediction: the secant through the last two folds (the last fold with
+one). Every sample is a certified point; the fold itself is not one (the
 Hessian is singular there): ``nearest`` is the certified sample next to it.
 
 ``solver.solve(x, p, q, phi0, lam0) -> branch.transition.Sample`` (x ignored; the Sample's
@@ -78,7 +79,8 @@ def local_fold(solver, q: float, p_pred: float, dp: float, warm: Sample | None, 
             src = s
         if why is None:
             break
-        shift = 2 * shift or 1  # overshot the fold (or failed next to it): 1, 2, 4, ... dp back, warm from the last good
+        shift = 2 * shift or 1  # overshot the fold (or failed next to it): 1, 2, 4, ... dp back, warm
+        # from the last good sample
     else:
         return Fold(q, None, None, p_pred, src, solves, time.perf_counter() - t0, f"no minimum next to the fold {why}")
     p = np.array([s.p for s in pts])

@@ -44,7 +44,8 @@ import numpy as np
 from vesicle_opt.branch.crossing import crossing
 
 POLISH = 2  # Newton steps on Delta at the certified points after the spline, while gap > GAP_TOL
-GAP_TOL = 1e-9  # |E_a - E_b| / |E|: ~10x the energies' own precision at IPOPT tol 1e-8 (measured 1e-10)
+GAP_TOL = 1e-9  # |E_a - E_b| / |E|: above the solves' energy noise at IPOPT tol 1e-8 (gaps 2e-11 .. 2e-10 measured on
+# the meridian line D(c0), eps = 0.05) and below what the spline leaves where samples are far (5e-4 at a cold start)
 RECENTRE = 2  # rounds of samples re-centred on a crossing found farther than dp from its prediction
 EXTEND = 6  # samples beyond the first three before the line gives up at a q (Delta of one sign)
 BRANCHES = ("a", "b")
@@ -129,7 +130,8 @@ def local_crossing(solver, q: float, p_pred: float, dp: float, warm: dict | None
             nsolves[0] += 1
             if not s.converged:
                 fail[x] = s
-                return f"branch {x} not certified at p = {p:.8g} (q = {q:.6g}): {s.row.get('reason') or s.row.get('outcome')}"
+                why = s.row.get("reason") or s.row.get("outcome")
+                return f"branch {x} not certified at p = {p:.8g} (q = {q:.6g}): {why}"
             pts[x].append(s)
         return None
 

@@ -119,7 +119,8 @@ class LineStore:
         try:
             (self.out / "points").mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise InputError("--out", f"cannot use {str(out)!r} as the output directory ({exc.strerror or exc})") from None
+            raise InputError("--out", f"cannot use {str(out)!r} as the output directory "
+                             f"({exc.strerror or exc})") from None
         meta_path = self.out / "transition.json"
         if meta_path.exists():
             old = state.read_json(meta_path, ADVICE)

@@ -163,11 +163,13 @@ def transition_line(scene_a: Scene, scene_b: Scene, second: str = "c0", values=(
 
 
 def fold_line(scene: Scene, param: str, second: str, values, *, at: float, step: float, side: float,
-              options=None, progress=None) -> list:
+              warm=None, options=None, progress=None) -> list:
     """The fold of the branch of ``scene`` in ``param`` (reduced_volume or c0) near ``at`` continued in
     ``second`` (the other one) from the scene's value to each of ``values``
     (``branch.fold_continuation``): samples ``|step|`` apart on the side ``side`` (+1: the branch
-    exists above the fold). Returns the ``Fold`` records (p None where none was found, and why)."""
+    exists above the fold); ``warm``: a field on the branch near the fold (e.g. a branch run's point
+    before its located fold, ``Branch.field``), else cold from the scene's initial shape. Returns
+    the ``Fold`` records (p None where none was found, and why)."""
     require_scene(scene)
     if param not in ("reduced_volume", "c0") or second not in ("reduced_volume", "c0") or param == second:
         raise InputError("--second", f"a fold line runs in one of reduced_volume, c0 and is continued in the "
@@ -175,4 +177,5 @@ def fold_line(scene: Scene, param: str, second: str, values, *, at: float, step:
     from vesicle_opt.branch.fold_continuation import fold_line as continue_fold
     solver = VesicleCrossing(scene, None, options, param, second)
     q0 = parameter(scene, second).start
-    return continue_fold(solver, q0, float(at), [float(v) for v in values], float(step), side, progress=progress)
+    w = None if warm is None else Sample(float(at), q0, np.asarray(warm, float), math.nan, True)
+    return continue_fold(solver, q0, float(at), [float(v) for v in values], float(step), side, w, progress)
