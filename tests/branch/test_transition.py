@@ -173,3 +173,17 @@ def test_a_branch_without_a_fold_is_not_given_one():
                           {"second_order_min_eigenvalue": 1.0})
     f = local_fold(Stable(), 0.0, 0.5, 0.01, None, +1)
     assert not f.converged and f.p is None and "no fold" in f.reason
+
+
+def test_a_gap_the_polish_cannot_close_is_reported_not_hidden():
+    class Jumpy(Crossing):  # branch b's state jumps by 1e-3 in E at p = c(q): Delta never crosses zero
+        def solve(self, x, p, q, phi0, lam0):
+            s = super().solve(x, p, q, phi0, lam0)
+            if x == "b" and p < c_of(q):
+                s.energy += 1e-3
+            return s
+    toy = Jumpy()
+    rows = continue_line(toy, 0.0, 0.70, 0.5, [], 0.02, LineStore(None, {}, toy.disc, "q", "p"))
+    r = rows[0]
+    assert r["converged"] and r["outcome"] == "located_to_gap" and r["gap"] > 1e-6
+    assert "uncertain by" in r["reason"]

@@ -23,6 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+CUP = 0.1  # dimples differing by this fraction of the height: a cup (as the phase_diagram study's)
 PICTURES = 3  # crossings drawn with their two shapes: the ends and the middle of the line
 
 
@@ -34,29 +35,38 @@ def _curves(disc, phi):
 
 
 def form(curves) -> str | None:
-    """"prolate" (height > width) or "oblate" of one curve from the axis to the axis; None else."""
-    if not curves or len(curves) != 1:
+    """The form of one meridian curve from the axis to the axis: "cup" when one pole's dimple (its
+    depth below the curve's extreme z on its side) exceeds the other's by ``CUP`` of the height (up-
+    down asymmetric: a stomatocyte-like state), else "prolate" (height > width) or "oblate"; None
+    for anything else (no curve, several, a torus)."""
+    if not curves or len(curves) != 1 or curves[0][0][0] > 1e-9 or curves[0][-1][0] > 1e-9:
         return None
     r, z = curves[0][:, 0], curves[0][:, 1]
-    return "prolate" if float(z.max() - z.min()) > 2 * float(r.max()) else "oblate"
+    height = float(z.max() - z.min())
+    lo, hi = sorted((float(z[0]), float(z[-1])))
+    if abs((lo - float(z.min())) - (float(z.max()) - hi)) > CUP * height:
+        return "cup"
+    return "prolate" if height > 2 * float(r.max()) else "oblate"
 
 
 def plot(points: list[dict], disc, phi_of, path: Path, folds: list[list[tuple[float, float]]] = (),
-         reference: list[tuple[float, float]] | None = None, title: str = "") -> None:
+         reference: list[tuple[float, float]] | None = None, title: str = "", others=()) -> None:
     """Draw ``points`` (certified line rows, by c0; ``phi_of(row, "a"|"b")`` their fields) to
     ``path`` (module docstring); ``folds``: lines of (v, c0_reduced); ``reference``: the sharp
-    line as (v, c0_reduced)."""
+    line as (v, c0_reduced); ``others``: (label, [(v, c0_reduced)]) more crossings as markers
+    (e.g. another resolution's)."""
     pts = sorted(points, key=lambda r: r["c0_reduced"] if r.get("c0_reduced") is not None else r["value"])
     if not pts:
         return
     cy = np.array([r["c0_reduced"] if r.get("c0_reduced") is not None else r["value"] for r in pts], float)
     vx = np.array([r["target"] for r in pts], float)
     shapes = {x: [_curves(disc, phi_of(r["row"], x)) for r in pts] for x in ("a", "b")}
-    names = {x: next((form(c) for c in shapes[x] if form(c)), x) for x in ("a", "b")}
+    names = {x: next((form(c) for c in shapes[x] if form(c) in ("prolate", "oblate")), x) for x in ("a", "b")}
     slope = np.mean([r["a_dE_dp"] - r["b_dE_dp"] for r in pts if r.get("a_dE_dp") is not None] or [0.0])
     above, below = ("a", "b") if slope < 0 else ("b", "a")
     fig, ax = plt.subplots(figsize=(7.0, 5.0))
-    vs = list(vx) + [v for v, _ in reference or []] + [v for f in folds for v, _ in f]
+    vs = list(vx) + [v for v, _ in reference or []] + [v for f in folds for v, _ in f] + \
+        [v for _, o in others for v, _ in o]
     lo, hi = min(vs) - 0.06, max(vs) + 0.06
     ax.fill_betweenx(cy, vx, hi, color="C0", alpha=0.12)
     ax.fill_betweenx(cy, lo, vx, color="C3", alpha=0.12)
@@ -66,6 +76,9 @@ def plot(points: list[dict], disc, phi_of, path: Path, folds: list[list[tuple[fl
     if reference:
         rv, rc = zip(*sorted(reference, key=lambda t: t[1]))
         ax.plot(rv, rc, "k:", label="sharp interface")
+    for k, (label, o) in enumerate(others):
+        ov, oc = zip(*o)
+        ax.plot(ov, oc, "s", mfc="none", color=f"C{k + 4}", label=label)
     for k, fold in enumerate(folds):
         fv, fc = zip(*fold)
         ax.plot(fv, fc, "--", color="C2", label="fold line" if k == 0 else None)

@@ -10,7 +10,8 @@ off, anything else refused; so a resumed line loses and duplicates no row.
 
 Columns: the crossing (``target`` = p*, ``value`` = q, ``gap`` = |E_a - E_b| / |E| at the two
 certified points, ``predicted`` p*, ``energy``/``reduced_energy``/``f``/``c0_reduced`` of branch a
-there, ``converged`` both certified, ``outcome``/``reason``/``certifiable_tol`` as branch rows
+there, ``converged`` both certified, ``outcome`` (``converged``; ``located_to_gap`` where both are certified but the gap
+exceeds ``GAP_ACCEPT``)/``reason``/``certifiable_tol`` as branch rows
 have them) and per branch, prefixed ``a_`` / ``b_``, the point's report (``PER_BRANCH``).
 """
 
@@ -43,6 +44,8 @@ FLOATS = ("value", "target", "predicted", "gap", "energy", "reduced_energy", "f"
     f"{x}_{k}" for x in BRANCHES for k in ("target", "energy", "reduced_energy", "f", "reduced_volume",
                                            "lambda_volume", "lambda_area", "dE_dp", "dE_dq", "kkt_residual",
                                            "certifiable_tol", "second_order_min_eigenvalue"))
+GAP_ACCEPT = 1e-6  # a crossing with a larger relative gap is reported as "located_to_gap" (its points are
+# certified, but not at one energy: the polish's Newton steps did not close it, so the states jumped)
 ADVICE = "move it away or give another --out (nothing there was changed)"
 
 
@@ -94,8 +97,15 @@ def row_of(i: int, direction: str, found: Found, second: str, param: str) -> dic
     if a is not None and found.p is not None:
         row.update({"energy": a.energy, "reduced_energy": a.row.get("reduced_energy", a.energy),
                     "f": a.row.get("f"), "c0_reduced": a.row.get("c0_reduced")})
-    if found.converged:
+    if found.converged and (found.gap or 0.0) <= GAP_ACCEPT:
         row["outcome"] = "converged"
+    elif found.converged:  # both certified, but not at one energy: the location is as good as the gap
+        a, b = found.points["a"], found.points["b"]
+        slope = None if a.dE_dp is None or b.dE_dp is None else abs(a.dE_dp - b.dE_dp)
+        dv = "" if not slope else f"; {param} uncertain by ~{abs(a.energy - b.energy) / slope:.2g}"
+        row["outcome"] = "located_to_gap"
+        row["reason"] = (f"|E_a - E_b| / |E| = {found.gap:.2g} after the Newton polish (> {GAP_ACCEPT:g}): a state "
+                         f"changed between the samples{dv}")
     else:
         bad = next((found.points[x] for x in BRANCHES if x in found.points and not found.points[x].converged), None)
         row["outcome"] = (bad.row.get("outcome") if bad is not None else None) or "no_crossing"
