@@ -176,11 +176,11 @@ def test_a_branch_without_a_fold_is_not_given_one():
 
 
 def test_a_gap_the_polish_cannot_close_is_reported_not_hidden():
-    class Jumpy(Crossing):  # branch b's state jumps by 1e-3 in E at p = c(q): Delta never crosses zero
+    class Jumpy(Crossing):  # branch b's energy carries 1e-3 of state noise (its derivative does not see it)
         def solve(self, x, p, q, phi0, lam0):
             s = super().solve(x, p, q, phi0, lam0)
-            if x == "b" and p < c_of(q):
-                s.energy += 1e-3
+            if x == "b":
+                s.energy += 1e-3 * math.sin(1e6 * p)
             return s
     toy = Jumpy()
     rows = continue_line(toy, 0.0, 0.70, 0.5, [], 0.02, LineStore(None, {}, toy.disc, "q", "p"))
