@@ -76,10 +76,11 @@ def test_a_failure_ends_its_direction_only():
     assert [r["value"] for r in rows if r["direction"] == "down"] == [-0.25, -0.5]
 
 
-@pytest.mark.parametrize("cut", [1, 3, 5])
-def test_resume_after_a_kill_loses_and_duplicates_no_row(tmp_path, cut):
+@pytest.mark.parametrize("cut, fail_at", [(1, None), (3, None), (5, None), (1, 0.5), (2, 0.5), (3, 0.5)])
+def test_resume_after_a_kill_loses_and_duplicates_no_row(tmp_path, cut, fail_at):
+    # fail_at 0.5: the up direction stops at its second value, so the plan indices of the rows skip
     def run(out):
-        toy = Crossing()
+        toy = Crossing(fail_at)
         store = LineStore(out, {"toy": "crossing", "values": VALUES}, toy.disc, "q", "p")
         return continue_line(toy, 0.0, 0.70, 0.5, VALUES, 0.02, store), toy.solves
 

@@ -7,7 +7,7 @@ from vesicle_opt.sharp import axisymmetric as A
 from vesicle_opt.sharp import crossing_line as L
 
 
-@pytest.mark.slow  # ~60 s: two brentq walks of SLSQP solves
+@pytest.mark.slow  # ~85 CPU-s (measured): two brentq walks of SLSQP solves
 def test_the_line_starts_at_the_symmetric_codes_crossing_and_falls_with_c0():
     v_ref, f_ref = A.crossing(12)
     line = L.line([0.0, 0.1], n_modes=24)

@@ -229,7 +229,7 @@ def continue_line(solver, q0: float, p0: float, towards: float, values, dp: floa
     (``branch.transition_store.LineStore``: rows and the two fields of each, resumed), stopping a
     direction at its first failure. Returns the rows."""
     steps = plan(q0, values)
-    rows = store.rows()
+    done = {r["row"]: r for r in store.rows()}  # by plan index: a stopped direction leaves indices out
     history: dict[str, list[Found]] = {"start": [], "up": [], "down": []}
     stopped: set[str] = set()
     for i, (direction, q) in enumerate(steps):
@@ -238,8 +238,8 @@ def continue_line(solver, q0: float, p0: float, towards: float, values, dp: floa
             break
         if line in stopped:
             continue
-        if i < len(rows):  # done before a kill: its crossing, read back
-            r = rows[i]
+        if i in done:  # done before a kill: its crossing, read back
+            r = done[i]
             if not r["converged"]:
                 stopped.add(line)
                 continue

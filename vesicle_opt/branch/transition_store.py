@@ -138,6 +138,7 @@ class LineStore:
                 diff = sorted(k for k in set(old) | set(meta) if old.get(k) != meta.get(k))
                 raise InputError("--out", f"{self.out} holds a transition line with other {', '.join(diff)}; "
                                  "give another directory (nothing there was changed)")
+        self._last = -1
         self._rows = self._read()
         if not meta_path.exists():
             write_json(meta_path, meta)
@@ -160,11 +161,15 @@ class LineStore:
             os.replace(tmp, path)
         return [parse(r) for r in rows]
 
-    @staticmethod
-    def _check_row(row: dict, index: int) -> str | None:
-        if row["row"] != str(index):
-            return f"row = {row['row'][:40]!r}, expected {index} (the rows in order)"
-        return state.typed_row(row, INTS, FLOATS, BOOLS)
+    def _check_row(self, row: dict, index: int) -> str | None:
+        """Typed columns, and ``row`` (the plan index) increasing: a direction that stopped leaves
+        its later indices out."""
+        why = state.typed_row(row, INTS, FLOATS, BOOLS)
+        if why is None and (row["row"] == "" or int(row["row"]) <= self._last):
+            return f"row = {row['row'][:40]!r}, expected an index above {self._last} (the rows in order)"
+        if why is None:
+            self._last = int(row["row"])
+        return why
 
     def rows(self) -> list[dict]:
         return list(self._rows)
