@@ -82,12 +82,13 @@ def plot(points: list[dict], disc, phi_of, path: Path, folds: list[list[tuple[fl
     for k, fold in enumerate(folds):
         fv, fc = zip(*fold)
         ax.plot(fv, fc, "--", color="C2", label="fold line" if k == 0 else None)
-    span = max(float(cy.max() - cy.min()), 0.1)
-    ylo, yhi = float(cy.min()) - 0.2 * span, float(cy.max()) + 0.2 * span
+    cs = list(cy) + [c for _, c in reference or []] + [c for _, o in others for _, c in o]
+    span = max(max(cs) - min(cs), 0.1)
+    ylo, yhi = min(cs) - 0.15 * span, max(cs) + 0.15 * span
     picks = sorted({0, len(pts) // 2, len(pts) - 1})[:PICTURES]
-    for i in picks:  # fixed-size insets (axes fractions) beside the crossing: a left, b right
+    for i in picks:  # fixed-size insets (axes fractions) beside the crossing, each in its own region
         xf, yf = (vx[i] - lo) / (hi - lo), (cy[i] - ylo) / (yhi - ylo)
-        for x, dx in (("a", -1), ("b", +1)):
+        for x, dx in ((below, -1), (above, +1)):
             curves = shapes[x][i]
             if not curves:
                 continue
