@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from vesicle_opt.branch.transition import Sample
+from vesicle_opt.branch.transition import Sample, plan
 
 EXTEND = 5  # shifts of the samples, doubling: up to 16 dp beyond the prediction
 RECENTRE = 2
@@ -109,7 +109,6 @@ def fold_line(solver, q0: float, p0: float, values, dp: float, side: float, warm
     """The fold at q0 (from ``p0``) and at each q of ``values`` outward from q0 (up, then down), each
     predicted by the secant of its direction and warm from the previous fold's nearest sample; a
     failure ends its direction."""
-    from vesicle_opt.branch.transition import plan  # the same order as a transition line
     out: list[Fold] = []
     hist: dict[str, list[Fold]] = {}
     for direction, q in plan(q0, values):

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
+from vesicle_opt.branch.fold_continuation import fold_line as continue_fold
 from vesicle_opt.branch.params import check_end, check_range, explicit_derivative, parameter
 from vesicle_opt.branch.transition import Sample, continue_line
 from vesicle_opt.branch.transition_store import LineStore
@@ -174,7 +175,6 @@ def fold_line(scene: Scene, param: str, second: str, values, *, at: float, step:
     if param not in ("reduced_volume", "c0") or second not in ("reduced_volume", "c0") or param == second:
         raise InputError("--second", f"a fold line runs in one of reduced_volume, c0 and is continued in the "
                          f"other, got {param!r}, {second!r}")
-    from vesicle_opt.branch.fold_continuation import fold_line as continue_fold
     solver = VesicleCrossing(scene, None, options, param, second)
     q0 = parameter(scene, second).start
     w = None if warm is None else Sample(float(at), q0, np.asarray(warm, float), math.nan, True)
