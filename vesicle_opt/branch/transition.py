@@ -190,7 +190,7 @@ def local_crossing(solver, q: float, p_pred: float, dp: float, warm: dict | None
             final[k] = s
             if not s.converged:
                 return done(f"branch {k} not certified at the crossing p = {p_star:.8g}: "
-                            f"{s.row.get('reason') or s.row.get('outcome')}", p_star, final)
+                            f"{s.row.get('reason') or s.row.get('outcome')}", None, final)  # no crossing
         a, b = final["a"], final["b"]
         gap = abs(a.energy - b.energy) / max(abs(a.energy), abs(b.energy), 1e-300)
         if it == POLISH or gap <= GAP_TOL or a.dE_dp is None or b.dE_dp is None or a.dE_dp == b.dE_dp:
