@@ -20,11 +20,16 @@
   ``problem`` (``problem``: the rows side; ``vesicle``: the vesicle's correctors); ``lines``: fold
   lines in a second parameter by sweeps of diagrams;
 * ``crossing``: where two branches cross (cubic splines) and its eps -> 0 extrapolation;
+* ``transition``: that crossing continued in a second parameter (a first-order transition line,
+  e.g. prolate/oblate in (v, c0)); ``transition_store``: its CSV and fields, resumed;
+  ``transition_vesicle``: ``transition_line(scene_a, scene_b, "c0", values, to=, step=, out=)``;
+  ``phase_figure``: the (v, c0) phase-diagram PNG;
 * ``diagram``: the energy-diagram PNG (matplotlib is imported there only).
 """
 
 from vesicle_opt.branch.params import PARAMS
 from vesicle_opt.branch.run import Branch, branch
 from vesicle_opt.branch.store import COLUMNS
+from vesicle_opt.branch.transition_vesicle import Line, transition_line
 
-__all__ = ["PARAMS", "COLUMNS", "Branch", "branch"]
+__all__ = ["PARAMS", "COLUMNS", "Branch", "branch", "Line", "transition_line"]

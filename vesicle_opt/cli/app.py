@@ -171,6 +171,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "as a line in fold_line.csv")
     b.add_argument("--values", type=lambda t: [float(x) for x in t.split(",") if x.strip()], default=None,
                    metavar="Q1,Q2,...", help="the values of --second (comma-separated)")
+    b.add_argument("--transition", action="append", default=None, metavar="KEY=VALUE",
+                   help="the other branch: the scene with these overrides too (e.g. initial.semi_axes=[1.3,1.3,0.5]); "
+                        "with --second c0 --values, the energy crossing of the two branches in reduced_volume, "
+                        "searched from the scene's towards --to in samples |--step| apart and continued to each "
+                        "value (transition_line.csv, phase_diagram.png); repeatable")
     _add_verbosity(b)
     b.set_defaults(func=cmd_branch)
     return p

@@ -137,6 +137,8 @@ def cmd_branch(args) -> int:
     for flag, v in (("--depth", args.depth), ("--deflate", args.deflate)):  # before any work
         if v < 0:
             raise InputError(flag, f"allowed range: an integer >= 0, got {v!r}")
+    if args.transition is not None:
+        return _transition(args)
     check_line(args.param, args.second, args.values)
     sc = load_scene(args.scene, args.set)
     sharp = None if args.sharp is None else sharp_reference(args.sharp, sc, args.param)  # checked first
@@ -166,3 +168,27 @@ def cmd_branch(args) -> int:
                                               for r in b.rows[-1:] if not r["converged"]))
     print(f"{sc.name}: {len(pts)} points, stopped {b.stopped}, {verdict} -> {args.out}/branch.csv")
     return 0 if b.converged else 1
+
+
+def _transition(args) -> int:
+    """``vesicle-opt branch SCENE --param reduced_volume --to V --step DV --transition KEY=VALUE
+    --second c0 --values Q1,...``: the transition line (``branch.transition_vesicle``), one line per
+    crossing on stderr, transition_line.csv in --out (resumed after a kill)."""
+    from vesicle_opt.branch.transition_vesicle import check, transition_line  # the line's modules only
+    if args.second is None:  # before any scene is read
+        raise InputError("--second", "missing: --transition needs the second parameter (c0) of its line")
+    a = load_scene(args.scene, args.set)
+    b = load_scene(args.scene, list(args.set) + list(args.transition))
+    check(a, b, args.param, args.second, args.values, args.to, args.step)
+
+    def show(r):
+        why = "" if r["converged"] else f" ({r.get('outcome')}: {r.get('reason')})"
+        print(f"crossing {r['row']} [{r['direction']}] {r['second']} = {r['value']:.6g}: converged={r['converged']}"
+              f"{why}, reduced_volume={r.get('target')}, f={r.get('f')}, gap={r.get('gap')}, solves={r['solves']}",
+              file=sys.stderr)
+    with _preflight(a, args.out, choose_backend(a)) as out:
+        line = transition_line(a, b, args.second, args.values, step=args.step, to=args.to, out=out, progress=show)
+    pts = line.points()
+    print(f"{a.name}: {len(pts)} certified crossings of {len(line.rows)} over {args.second} = "
+          f"{', '.join(f'{v:g}' for v in args.values)} -> {args.out}/transition_line.csv")
+    return 0 if line.converged and len(line.rows) == len(set(args.values) - {a.model.c0}) + 1 else 1
