@@ -40,6 +40,7 @@ from vesicle_opt.io.meridian import meridian_curves, phase_field_of
 from vesicle_opt.mesh import discretize
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp
+from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._common import plt, savefig
 from vesicle_opt.studies.runner import run_into
 
@@ -48,18 +49,32 @@ log = logging.getLogger(__name__)
 NAME = "phase_diagram"
 BRANCHES = ("prolate", "oblate")
 WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
-FULL = {"epsilons": (0.1, 0.070711, 0.05), "eps_over_h": 3.0, "vs": (0.75, 0.7, 0.65, 0.6, 0.55), "n_modes": 16}
+FULL = {"epsilons": (0.1, 0.070711, 0.05), "eps_over_h": 3.0, "vs": (0.75, 0.7, 0.65, 0.6, 0.55), "n_modes": 16,
+        # the oblate/stomatocyte row: eps small enough that the oblate's dimples stay apart near v = 0.59
+        # (its centre is 0.22 R0 thick there; at eps = 0.05 the oblate at v = 0.62 is not one: f 1.77, measured)
+        "stomatocyte_epsilons": (0.05, 0.04, 0.03), "oblate_low_vs": (0.63, 0.62, 0.61, 0.6, 0.59, 0.58, 0.57, 0.56),
+        "stomatocyte_modes": 32}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "vs": (0.7, 0.65), "n_modes": 8}
 CUP = 0.1  # a pole dimple deeper than the other by this fraction of the height: a cup (stomatocyte)
 COLUMNS = ["branch", "shape", "c0", "target_v", "epsilon", "n", "h", "f", "c0_reduced", "reduced_volume", "sharp_f",
            "f_minus_sharp", "converged", "second_order", "second_order_min_eigenvalue", "topology",
-           "kkt_residual", "iterations", "wall_time_s", "seed", "status"]
+           "kkt_residual", "iterations", "wall_time_s", "seed", "status", "kind", "side", "lambda", "walk"]
 
 
 def cases(quick: bool) -> list[dict]:
     cfg = QUICK if quick else FULL
-    return [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "eps_over_h": cfg["eps_over_h"],
-             "vs": list(cfg["vs"]), "n_modes": cfg["n_modes"]} for b in BRANCHES for eps in cfg["epsilons"]]
+    out = [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "eps_over_h": cfg["eps_over_h"],
+            "vs": list(cfg["vs"]), "n_modes": cfg["n_modes"]} for b in BRANCHES for eps in cfg["epsilons"]]
+    if quick:
+        return out
+    out.append({"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]})
+    for eps in cfg["stomatocyte_epsilons"]:
+        out.append({"case": f"stomatocyte-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps,
+                    "eps_over_h": cfg["eps_over_h"], "n_modes": 24})
+        if eps not in cfg["epsilons"]:
+            out.append({"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps,
+                        "eps_over_h": cfg["eps_over_h"], "vs": list(cfg["oblate_low_vs"]), "n_modes": cfg["n_modes"]})
+    return out
 
 
 def shape_of(disc, phi) -> str:
@@ -90,7 +105,45 @@ def _box(meridians, eps: float) -> list[list[float]]:
     return [[0.0, r_max + pad], [z_lo - pad, z_hi + pad]]
 
 
+def _stomatocyte_row(res, v: float, eps: float, n, box, sharp_f: float, seed: str, side: str, walk: str) -> dict:
+    """A study row of a stomatocyte point: a Result (the seed) or a branch row (the walks)."""
+    if isinstance(res, dict):
+        q = res
+        ok = str(q.get("converged")) in ("True", "true") and str(q.get("accepted")) in ("True", "true")
+        f = _num(q.get("f", q.get("reduced_energy")))
+        return {"branch": "stomatocyte", "shape": None, "c0": 0.0, "target_v": v, "epsilon": eps,
+                "n": "x".join(map(str, n)), "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
+                "c0_reduced": q.get("c0_reduced"), "reduced_volume": q.get("reduced_volume"), "sharp_f": sharp_f,
+                "f_minus_sharp": f - sharp_f, "converged": ok, "second_order": q.get("second_order"),
+                "second_order_min_eigenvalue": q.get("second_order_min_eigenvalue"), "topology": q.get("topology"),
+                "kkt_residual": q.get("kkt_residual"), "iterations": q.get("iterations"),
+                "wall_time_s": q.get("wall_time_s"), "seed": seed, "status": q.get("corrector"), "kind": "point",
+                "side": side, "lambda": q.get("dE_dp"), "walk": walk}
+    row = _row("stomatocyte", res, v, eps, n, box, sharp_f, seed)
+    row.update({"kind": "point", "side": side, "walk": walk})
+    return row
+
+
+def _row(which, res, v, eps, n, box, sharp_f, seed) -> dict:
+    ex = res.extra
+    f = ex.get("f", math.nan)
+    return {"branch": which, "shape": shape_of(res.disc, res.phi) if res.converged else None, "c0": 0.0,
+            "target_v": v, "epsilon": eps, "n": "x".join(map(str, n)),
+            "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
+            "c0_reduced": ex.get("c0_reduced"), "reduced_volume": ex.get("reduced_volume"),
+            "sharp_f": sharp_f, "f_minus_sharp": f - sharp_f,
+            "converged": res.converged, "second_order": ex.get("second_order"),
+            "second_order_min_eigenvalue": ex.get("second_order_min_eigenvalue"),
+            "topology": ex.get("topology"), "kkt_residual": res.kkt_residual,
+            "iterations": res.iterations, "wall_time_s": res.wall_time_s, "seed": seed,
+            "status": res.outcome, "kind": "point", "side": ""}
+
+
 def run(case: dict) -> list[dict]:
+    if case["branch"] == "stomatocyte":
+        if case["epsilon"] == 0:
+            return stoma.sharp_case(case)
+        return stoma.phase_case(case, _stomatocyte_row)
     eps, which = case["epsilon"], case["branch"]
     refs = sharp.branch(case["vs"], which, case["n_modes"], second_order=False)
     meridians = [ref.meridian(2048) for ref in refs]
@@ -108,17 +161,7 @@ def run(case: dict) -> list[dict]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
             res = solve(sc, x0=start)
-        ex = res.extra
-        f = ex.get("f", math.nan)
-        rows.append({"branch": which, "shape": shape_of(res.disc, res.phi) if res.converged else None, "c0": 0.0, "target_v": v, "epsilon": eps, "n": "x".join(map(str, n)),
-                     "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
-                     "c0_reduced": ex.get("c0_reduced"), "reduced_volume": ex.get("reduced_volume"),
-                     "sharp_f": ref.reduced_energy, "f_minus_sharp": f - ref.reduced_energy,
-                     "converged": res.converged, "second_order": ex.get("second_order"),
-                     "second_order_min_eigenvalue": ex.get("second_order_min_eigenvalue"),
-                     "topology": ex.get("topology"), "kkt_residual": res.kkt_residual,
-                     "iterations": res.iterations, "wall_time_s": res.wall_time_s, "seed": seed,
-                     "status": res.outcome})
+        rows.append(_row(which, res, v, eps, n, box, ref.reduced_energy, seed))
         if res.converged:
             start, seed = res.phi, "previous point"
     return rows
@@ -145,11 +188,59 @@ def summarise(rows: list[dict]) -> dict:
     out = {"crossings": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()}}
     if len(per_eps) >= 2:
         out["extrapolated"] = extrapolate_crossing(per_eps)
+    out.update(stomatocyte_summary(rows))
     one_eps = [r for r in rows if _num(r["epsilon"]) == max(_num(q["epsilon"]) for q in rows)]
     ref = {b: sorted([r for r in one_eps if r["branch"] == b], key=lambda r: _num(r["target_v"])) for b in BRANCHES}
     x = crossing(*[[_num(r[k]) for r in ref[b]] for b in BRANCHES for k in ("target_v", "sharp_f")])
     if x is not None:  # the sharp branches' crossing through the same points (a spline, as the phase field's)
         out["sharp_crossing_at_these_points"] = {"v": x["reduced_volume"], "f": x["reduced_energy"]}
+    return out
+
+
+PUBLISHED = {"prolate/oblate": (0.650, 1.830), "oblate/stomatocyte": (0.59, 1.98), "stomatocyte fold": (0.66, 1.96),
+             "pear/prolate c0=2.4": (0.746, 0.107)}  # Seifert, Berndl & Lipowsky 1991, read off their
+# figures (+-0.005 in v, +-0.01 in f; the oblate/stomatocyte f between 1.96 and 2.0: its middle)
+
+
+def _stomatocyte_transitions(rows: list[dict], eps: float) -> dict:
+    """At one eps: the stomatocyte's fold (``_stomatocyte.fold_of`` on the up walk in walk order) and
+    its crossing with the oblate (spline crossing of its lower side and the oblate's points)."""
+    st = [r for r in rows if r["branch"] == "stomatocyte" and _num(r["epsilon"]) == eps
+          and str(r.get("kind", "point")) == "point" and str(r.get("converged")) == "True"]
+    out = {}
+    up = [r for r in st if r.get("walk") == "up"]  # in walk order (the CSV keeps a case's rows in order)
+    fv = stoma.fold_of(*[[_num(r[k]) for r in up] for k in ("reduced_volume", "f", "lambda")]) if len(up) >= 3 else None
+    if fv is not None:
+        out["fold"] = {"reduced_volume": fv[0], "reduced_energy": fv[1]}
+    lower = {round(_num(r["reduced_volume"]), 9): _num(r["f"]) for r in st if r.get("side") == "lower"}
+    obl = {round(_num(r["reduced_volume"]), 9): _num(r["f"]) for r in rows if r["branch"] == "oblate"
+           and _num(r["epsilon"]) == eps and str(r.get("converged")) == "True" and r.get("shape") == "oblate"}
+    if len(lower) >= 2 and len(obl) >= 2:
+        x = crossing(list(lower), list(lower.values()), list(obl), list(obl.values()))
+        if x is not None:
+            out["crossing"] = x
+    return out
+
+
+def stomatocyte_summary(rows: list[dict]) -> dict:
+    """The stomatocyte's fold and oblate/stomatocyte crossing per eps > 0, their eps -> 0 limits
+    (``extrapolate_crossing``: free-order Richardson through three eps and its order, p = 2 through the
+    two finest), the sharp ones (eps = 0 rows of kind fold / crossing) and the published values."""
+    per = {"fold": {}, "crossing": {}}
+    for eps in sorted({_num(r["epsilon"]) for r in rows if r["branch"] == "stomatocyte"} - {0.0}, reverse=True):
+        for k, x in _stomatocyte_transitions(rows, eps).items():
+            per[k][eps] = x
+    out = {}
+    for k, name in (("fold", "stomatocyte fold"), ("crossing", "oblate/stomatocyte")):
+        key = "stomatocyte_fold" if k == "fold" else "oblate_stomatocyte_crossing"
+        sharp_rows = [r for r in rows if r["branch"] == "stomatocyte" and r.get("kind") == k]
+        entry = {"per_eps": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per[k].items()},
+                 "published": {"v": PUBLISHED[name][0], "f": PUBLISHED[name][1]}}
+        if sharp_rows:
+            entry["sharp"] = {"v": _num(sharp_rows[0]["reduced_volume"]), "f": _num(sharp_rows[0]["f"])}
+        if len(per[k]) >= 2:
+            entry["extrapolated"] = extrapolate_crossing(per[k])
+        out[key] = entry
     return out
 
 
