@@ -248,7 +248,8 @@ def figure(rows: list[dict], summary: dict, path: Path) -> None:
     pyplot = plt()
     fig, ax = pyplot.subplots(figsize=(6, 4.5))
     for b, colour in zip(BRANCHES, ("C0", "C3")):
-        sel = sorted([r for r in rows if r["branch"] == b], key=lambda r: _num(r["target_v"]))
+        sel = sorted([r for r in rows if r["branch"] == b and math.isfinite(_num(r.get("sharp_f")))],
+                     key=lambda r: _num(r["target_v"]))
         ax.plot([_num(r["target_v"]) for r in sel], [_num(r["sharp_f"]) for r in sel], "-", color=colour,
                 label=f"{b}, sharp")
         for eps in sorted({_num(r["epsilon"]) for r in sel}):
@@ -257,11 +258,60 @@ def figure(rows: list[dict], summary: dict, path: Path) -> None:
                     ms=4, alpha=0.5 + 0.5 * (eps == min(_num(q["epsilon"]) for q in sel)), label=f"{b}, eps {eps:g}")
     for e, x in summary.get("crossings", {}).items():
         ax.plot(x["v"], x["f"], "kx")
+    _stomatocyte_panel(ax, rows, summary)
+    for name, (v, f) in PUBLISHED.items():
+        if "c0=2.4" not in name:
+            ax.plot(v, f, "s", mfc="none", mec="k", ms=8)
+    ax.plot([], [], "s", mfc="none", mec="k", label="published (SBL 1991)")
     ax.set_xlabel("reduced volume v")
     ax.set_ylabel("f = F / 8 pi kappa")
-    ax.set_title("c0 = 0: prolate and oblate (meridian half-plane)")
-    ax.legend(fontsize=7)
+    ax.set_title("c0 = 0: prolate, oblate, stomatocyte (meridian half-plane)")
+    ax.legend(fontsize=6, loc="upper right")
+    _meridian_insets(fig, rows)
     savefig(fig, path)
+
+
+def _stomatocyte_panel(ax, rows: list[dict], summary: dict) -> None:
+    """The stomatocyte: sharp lower/upper sides (eps = 0 rows), phase-field points per eps, and the
+    fold / oblate crossing (sharp: stars, per eps: plus signs, eps -> 0: a diamond)."""
+    st = [r for r in rows if r["branch"] == "stomatocyte" and str(r.get("converged")) == "True"]
+    for side, style in (("lower", "-"), ("upper", ":")):
+        pts = sorted([(_num(r["reduced_volume"]), _num(r["f"])) for r in st if _num(r["epsilon"]) == 0
+                      and r.get("kind") == "point" and r.get("side") == side])
+        if pts:
+            ax.plot(*zip(*pts), style, color="C2", label=f"stomatocyte, sharp ({side})")
+    for eps in sorted({_num(r["epsilon"]) for r in st} - {0.0}):
+        pts = [(_num(r["reduced_volume"]), _num(r["f"])) for r in st if _num(r["epsilon"]) == eps and r.get("kind") == "point"]
+        ax.plot(*zip(*pts), "^", color="C2", ms=3, alpha=0.7, label=f"stomatocyte, eps {eps:g}")
+    for key in ("stomatocyte_fold", "oblate_stomatocyte_crossing"):
+        entry = summary.get(key, {})
+        if "sharp" in entry:
+            ax.plot(entry["sharp"]["v"], entry["sharp"]["f"], "*", color="k", ms=8)
+        for x in entry.get("per_eps", {}).values():
+            ax.plot(x["v"], x["f"], "+", color="C2")
+        ext = entry.get("extrapolated", {})
+        if math.isfinite(_num(ext.get("reduced_volume_p2"))):
+            ax.plot(ext["reduced_volume_p2"], ext["reduced_energy_p2"], "D", mfc="none", mec="C2")
+
+
+def _meridian_insets(fig, rows: list[dict]) -> None:
+    """Small meridian pictures of the sharp prolate (v 0.65), oblate (0.65) and stomatocyte (0.62)."""
+    shapes = []
+    try:
+        for which in BRANCHES:
+            shapes.append((which, sharp.solve(0.65, which, 12, second_order=False).meridian(256)))
+        if any(r["branch"] == "stomatocyte" for r in rows):
+            from vesicle_opt.sharp.stomatocyte import start_point
+            shapes.append(("stomatocyte", start_point(stoma.V_SEED, 0.0, 16).meridian(256)))
+    except Exception as exc:  # noqa: BLE001 - a picture is decoration: say so, draw the rest
+        log.warning(f"phase_diagram: meridian insets skipped ({type(exc).__name__}: {exc})")
+    for i, (name, (r, z)) in enumerate(shapes):
+        ins = fig.add_axes([0.14 + 0.1 * i, 0.66, 0.09, 0.2])
+        ins.plot(r, z, "k-", lw=0.8)
+        ins.plot(-r, z, "k-", lw=0.8)
+        ins.set_aspect("equal")
+        ins.axis("off")
+        ins.set_title(name, fontsize=6)
 
 
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
