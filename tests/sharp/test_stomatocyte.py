@@ -71,3 +71,19 @@ def test_fold_and_crossing_against_the_published_values():
     o = A.solve(vx, "oblate", 12, second_order=False)
     assert o.reduced_energy == pytest.approx(fx, abs=1e-6)  # 24 modes' error at this v (N=24 vs 12: ~1e-7)
     assert math.isfinite(ref["up_walk"][0][2])
+
+
+@pytest.mark.slow  # 700 s at load 10 (2 cores): the oblate scan, the branch point's secant, the switched branch to its fold
+def test_switching_at_the_oblate_branch_point_reaches_the_stomatocyte():
+    """No seed: the oblate's least odd eigenvalue changes sign near v = 0.51 (the literature's
+    branch point); stepping off along its eigenvector and continuing up in v reaches the fold of
+    the branch that the cup start reaches (the same (v, f) to the continuation's accuracy)."""
+    from vesicle_opt.sharp import stomatocyte_switch as W
+    out = W.stomatocyte_by_switching((0.6, 0.55, 0.5), 0.0, 24)
+    v_bp, f_bp = out["branch_point"]
+    assert v_bp == pytest.approx(0.51, abs=0.005)  # measured 0.51044 (f 2.19287)
+    assert out["scan"][0][1] > 0 > out["scan"][-1][1]
+    # the fold of reference(0.0, 24) from the cup start: (0.6603760379079, 1.9633077520607); the same
+    # branch and discretisation: measured 6e-14 apart, here allowed the fold secant's tolerance on t_v
+    assert out["fold"][0] == pytest.approx(0.6603760379079, abs=1e-9)
+    assert out["fold"][1] == pytest.approx(1.9633077520607, abs=1e-9)

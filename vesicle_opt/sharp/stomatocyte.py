@@ -278,6 +278,8 @@ def crossing(points: list[Point], c0: float, oblate_start=None) -> tuple[float, 
     v0, v1, d0, d1 = p.v, q.v, diffs[i], diffs[i + 1]
     sa, oa = p.a, obl[id(p)].a
     for _ in range(40):
+        if d1 == d0:  # converged to round-off (or a flat difference: the last iterate is as good)
+            return float(v1), float(newton(sa, v1, c0, n).f)
         v2 = v1 - d1 * (v1 - v0) / (d1 - d0)
         s2, o2 = newton(sa, v2, c0, n), newton(oa, v2, c0, n)
         d2 = s2.f - o2.f

@@ -33,9 +33,10 @@ from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import stomatocyte as sharp_s
 
 V_SEED = 0.62  # the seed's reduced volume: the lower side, 0.04 below the sharp fold (0.6604)
-V_UP, V_DOWN = 0.70, 0.565  # the walks' ends: above the fold (never reached: the walk turns), below the crossing
+V_UP, V_DOWN = 0.70, 0.575  # the walks' ends: above the fold (never reached: the walk turns), below the crossing
 STEP = 0.01  # the walks' first v step
-MAX_POINTS = 14  # per walk: the up walk reaches the fold in ~5 points and turns back
+MAX_POINTS = 26  # per walk: at eps = 0.05 the up walk was still 0.01 below its fold after 14 points (the
+# arclength steps shrink near it: dv 4e-4 a step)
 WALL = 12.0  # walls this many eps from the seed's sharp shape (as the study's other cases)
 
 

@@ -51,9 +51,10 @@ BRANCHES = ("prolate", "oblate")
 WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
 FULL = {"epsilons": (0.1, 0.070711, 0.05), "eps_over_h": 3.0, "vs": (0.75, 0.7, 0.65, 0.6, 0.55), "n_modes": 16,
         # the oblate/stomatocyte row: eps small enough that the oblate's dimples stay apart near v = 0.59
-        # (its centre is 0.22 R0 thick there; at eps = 0.05 the oblate at v = 0.62 is not one: f 1.77, measured)
-        "stomatocyte_epsilons": (0.05, 0.04, 0.03), "oblate_low_vs": (0.63, 0.62, 0.61, 0.6, 0.59, 0.58, 0.57, 0.56),
-        "stomatocyte_modes": 32}
+        # (its centre is 0.22 R0 thick there; at eps = 0.05 the oblate at v = 0.62 is not one: f 1.77, and
+        # at eps = 0.03 it is a torus at v = 0.58, measured), at eps/h = 2 (the time this machine has)
+        "stomatocyte_epsilons": (0.04, 0.03, 0.025), "stomatocyte_eps_over_h": 2.0, "stomatocyte_modes": 32,
+        "oblate_low_vs": (0.64, 0.63, 0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58)}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "vs": (0.7, 0.65), "n_modes": 8}
 CUP = 0.1  # a pole dimple deeper than the other by this fraction of the height: a cup (stomatocyte)
 COLUMNS = ["branch", "shape", "c0", "target_v", "epsilon", "n", "h", "f", "c0_reduced", "reduced_volume", "sharp_f",
@@ -67,13 +68,14 @@ def cases(quick: bool) -> list[dict]:
             "vs": list(cfg["vs"]), "n_modes": cfg["n_modes"]} for b in BRANCHES for eps in cfg["epsilons"]]
     if quick:
         return out
-    out.append({"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]})
-    for eps in cfg["stomatocyte_epsilons"]:
-        out.append({"case": f"stomatocyte-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps,
-                    "eps_over_h": cfg["eps_over_h"], "n_modes": 24})
-        if eps not in cfg["epsilons"]:
-            out.append({"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps,
-                        "eps_over_h": cfg["eps_over_h"], "vs": list(cfg["oblate_low_vs"]), "n_modes": cfg["n_modes"]})
+    low = [{"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]}]
+    for eps in sorted(cfg["stomatocyte_epsilons"]):  # the finest (longest) first
+        low.append({"case": f"stomatocyte-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps,
+                    "eps_over_h": cfg["stomatocyte_eps_over_h"], "n_modes": 24})
+        low.append({"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps,
+                    "eps_over_h": cfg["stomatocyte_eps_over_h"], "vs": list(cfg["oblate_low_vs"]),
+                    "n_modes": cfg["n_modes"]})
+    out = low + out  # the long cases first (the pool takes them in order)
     return out
 
 
