@@ -84,7 +84,7 @@ def cup_start(n_modes: int, r_in: float = 0.5, rho: float = 0.2, alpha: float = 
     return np.linalg.lstsq(A, psi - s, rcond=None)[0]
 
 
-class _System:
+class KKTSystem:
     """G, its Jacobian and v, f at (a, lam, v) for one (N, c0)."""
 
     def __init__(self, n_modes: int, c0: float, m: int | None = None):
@@ -117,7 +117,7 @@ class _System:
         return J, dv
 
 
-def _multipliers(sys: _System, a) -> np.ndarray:
+def _multipliers(sys: KKTSystem, a) -> np.ndarray:
     gf, gv, gc = sys.g.grads(a, sys.c0)
     return np.linalg.lstsq(np.column_stack([gv, gc]), gf, rcond=None)[0]
 
@@ -148,7 +148,7 @@ def newton(a0, v: float, c0: float = 0.0, n_modes: int | None = None, lam0=None)
     n = n_modes or len(a0)
     a = np.zeros(n)
     a[: min(n, len(a0))] = np.asarray(a0, float)[:n]
-    sys = _System(n, c0)
+    sys = KKTSystem(n, c0)
     lam = _multipliers(sys, a) if lam0 is None else np.asarray(lam0, float)
 
     def step(x):
@@ -168,7 +168,7 @@ def _norm(r) -> float:
     return val if np.isfinite(val) else math.inf
 
 
-def _tangent(sys: _System, p: Point, previous: np.ndarray | None) -> np.ndarray:
+def _tangent(sys: KKTSystem, p: Point, previous: np.ndarray | None) -> np.ndarray:
     J, dv = sys.jacobian(p.a, p.lam)
     full = np.column_stack([J, dv])
     t = np.linalg.svd(full)[2][-1]
@@ -177,7 +177,7 @@ def _tangent(sys: _System, p: Point, previous: np.ndarray | None) -> np.ndarray:
     return t
 
 
-def _arclength_step(sys: _System, p: Point, ds: float) -> Point:
+def arclength_step(sys: KKTSystem, p: Point, ds: float) -> Point:
     """The point at pseudo-arclength ``ds`` along p.t: Newton on (G, t . (y - y_pred)) in y = (a, lam, v)."""
     n = sys.n
     y0 = np.concatenate([p.a, p.lam, [p.v]])
@@ -203,7 +203,7 @@ def continue_branch(start: Point, c0: float, ds: float, steps: int, direction: f
     """``steps`` pseudo-arclength steps of length ``ds`` from ``start`` (v increasing at first when
     ``direction`` > 0); the step is halved (down to ds / 64) where the corrector fails. Stops early when
     ``stop(point)``."""
-    sys = _System(len(start.a), c0)
+    sys = KKTSystem(len(start.a), c0)
     p = dataclasses.replace(start, t=_tangent(sys, start, None))
     if p.t[-1] * direction < 0:
         p = dataclasses.replace(p, t=-p.t)
@@ -212,7 +212,7 @@ def continue_branch(start: Point, c0: float, ds: float, steps: int, direction: f
         h = ds
         while True:
             try:
-                p = _arclength_step(sys, p, h)
+                p = arclength_step(sys, p, h)
                 break
             except NotConverged:
                 h /= 2
@@ -227,7 +227,7 @@ def continue_branch(start: Point, c0: float, ds: float, steps: int, direction: f
 def fold(points: list[Point], c0: float) -> Point:
     """The turning point in v of a continued branch: between the last two points whose tangents' v
     components differ in sign, the arclength at which that component vanishes (secant iteration)."""
-    sys = _System(len(points[0].a), c0)
+    sys = KKTSystem(len(points[0].a), c0)
     for p, q in zip(points, points[1:]):
         if p.t[-1] * q.t[-1] <= 0:
             break
@@ -239,7 +239,7 @@ def fold(points: list[Point], c0: float) -> Point:
     best = q
     for _ in range(30):
         s2 = s1 - g1 * (s1 - s0) / (g1 - g0)
-        best = _arclength_step(sys, p, s2)
+        best = arclength_step(sys, p, s2)
         if abs(best.t[-1]) < 1e-10:
             break
         s0, g0, s1, g1 = s1, g1, s2, best.t[-1]

@@ -7,7 +7,7 @@ the least eigenvalue of the odd part, ``odd_eigenvalue``, changes sign where a b
 shapes leaves the oblate (a pitchfork: the shapes +-w are images under z -> -z). ``branch_point``
 brackets that change on a scan in v and bisects it (secant on the eigenvalue); ``switch`` steps off
 the oblate along the critical odd eigenvector w by the amplitude s, solving G = 0 with the extra
-equation w . (a - a_b) = s (``stomatocyte._arclength_step`` with the tangent (w, 0, 0)), and continues
+equation w . (a - a_b) = s (``stomatocyte.arclength_step`` with the tangent (w, 0, 0)), and continues
 the new branch in v (``continue_branch``) until its fold, which the seeded branch of
 ``stomatocyte.reference`` also reaches: the same branch, found from the oblate alone.
 """
@@ -21,7 +21,7 @@ import numpy as np
 from vesicle_opt.sharp import stomatocyte as st
 
 
-def _reduced(sys: st._System, p: st.Point) -> tuple[np.ndarray, np.ndarray]:
+def _reduced(sys: st.KKTSystem, p: st.Point) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues and eigenvectors (in a-space) of the Hessian of the Lagrangian on the constraints'
     tangent space at p."""
     J, _ = sys.jacobian(p.a, p.lam)
@@ -32,7 +32,7 @@ def _reduced(sys: st._System, p: st.Point) -> tuple[np.ndarray, np.ndarray]:
     return w, Z @ y
 
 
-def odd_eigenvalue(sys: st._System, p: st.Point) -> tuple[float, np.ndarray]:
+def odd_eigenvalue(sys: st.KKTSystem, p: st.Point) -> tuple[float, np.ndarray]:
     """The least eigenvalue whose eigenvector lies in the odd wavenumbers (>= 99 % of its norm), and
     that eigenvector (unit norm)."""
     w, vecs = _reduced(sys, p)
@@ -48,7 +48,7 @@ def branch_point(vs, c0: float = 0.0, n_modes: int = 24, tol: float = 1e-7) -> d
     (descending, oblates by Newton warm-started along the scan), its sign change bisected by the
     secant to |v step| < ``tol``. Returns {"v", "f", "point" (the oblate there), "mode", "scan":
     [(v, odd eigenvalue), ...]}; ValueError without a sign change."""
-    sys = st._System(n_modes, c0)
+    sys = st.KKTSystem(n_modes, c0)
     scan, prev, start = [], None, None
     for v in vs:
         o = st.oblate_point(float(v), c0, n_modes, start)
@@ -78,9 +78,9 @@ def switch(bp: dict, c0: float = 0.0, amplitude: float = 0.05) -> st.Point:
     the branch point ``bp`` (module docstring), with its branch tangent."""
     p = bp["point"]
     n = len(p.a)
-    sys = st._System(n, c0)
+    sys = st.KKTSystem(n, c0)
     t = np.concatenate([bp["mode"], [0.0, 0.0, 0.0]])
-    q = st._arclength_step(sys, dataclasses.replace(p, t=t), amplitude)
+    q = st.arclength_step(sys, dataclasses.replace(p, t=t), amplitude)
     return q
 
 
