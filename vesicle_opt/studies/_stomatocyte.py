@@ -3,9 +3,13 @@
 
 Phase field: the branch is SEEDED (column ``seed``): the first point, at v = ``V_SEED`` (the lower side
 of the fold), starts from the tanh profile of the sharp stomatocyte there (``io.meridian.phase_field_of``),
-as the prolate and oblate cases start from their sharp shapes. Neither the oblate's branch point (where
-the up-down symmetric oblate loses stability to the cup) nor deflation from the oblate reached it on
-this mesh at the eps tried (docs/guide/axisymmetric.md, "Stomatocytes"). From the seed the branch
+as the prolate and oblate cases start from their sharp shapes. The sharp stomatocyte itself is reached
+without a seed, by switching at the sharp oblate's branch point (``sharp.stomatocyte_switch``: v =
+0.51044); the phase field has no such route here yet: at the eps this machine affords (>= 0.025) the
+meridian oblate's dimples meet (a torus) above v = 0.51 (at v = 0.58 for eps = 0.03, measured), and
+one deflation attempt from the meridian "oblate" at eps = 0.05, v = 0.62 started from a state that
+was no oblate (f 1.772 against the sharp 1.904) and was stopped after 10 min without a root.
+From the seed the branch
 package walks (``branch.branch``, IPOPT, exact constraints; near the fold the pseudo-arclength
 corrector with p free): up in v past the fold and back along its upper side, and down in v for the
 crossing with the oblate. Every point is certified with its second-order verdict (axisymmetric

@@ -19,9 +19,18 @@ extrapolation, ``branch.crossing.extrapolate_crossing``; the sharp crossing), ``
 (f against v per eps, the sharp branches, the crossings). Full: eps = 0.1, 0.0707, 0.05 at
 eps/h = 3, v = 0.75 ... 0.55, sharp references with 16 modes and ``sharp.axisymmetric.crossing``.
 Quick: eps = 0.1 at eps/h = 2, v = 0.7, 0.65, sharp references with 8 modes: the plumbing (at
-eps = 0.1 the oblate seeds' dimples meet, tori: no crossing), in ~20 s. Not here yet: the
-stomatocyte branch and c0 = 2.4 (pears; see ``sharp.spontaneous``, whose pear seeds a phase-field
-pear whose neck the phase field pinches at eps >= 0.05: docs/guide/axisymmetric.md).
+eps = 0.1 the oblate seeds' dimples meet, tori: no crossing), in ~20 s.
+
+The stomatocyte (``studies._stomatocyte``; full run only): the sharp branch, its fold and its
+crossing with the oblate (``sharp.stomatocyte``, 32 modes; eps = 0 rows of kind point / fold /
+crossing), and per eps in ``stomatocyte_epsilons`` (eps/h = 2) the phase-field branch seeded with
+the sharp stomatocyte at v = 0.62 and walked by the branch package past its fold (IPOPT, p free near
+it) and down to v = 0.575, with an oblate walk on a finer v grid (``oblate_low_vs``) for the crossing.
+``stomatocyte_summary``: the fold and the oblate/stomatocyte crossing per eps, their eps -> 0 limit
+(``extrapolate_crossing``: free order through three eps, p = 2 through the finest two), the sharp
+and the published values (``PUBLISHED``). Not here yet: c0 = 2.4 (pears; see ``sharp.spontaneous``,
+whose pear seeds a phase-field pear whose neck the phase field pinches at eps >= 0.05:
+docs/guide/axisymmetric.md), and the runner's dask executor from the CLI.
 """
 
 from __future__ import annotations
@@ -325,6 +334,9 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     (out / f"{NAME}_summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     for e, x in summary["crossings"].items():
         log.info(f"eps {e}: crossing v = {x['v']:.5f}, f = {x['f']:.5f} (sharp {v_s:.5f}, {f_s:.5f})")
+    for key in ("stomatocyte_fold", "oblate_stomatocyte_crossing"):
+        for e, x in summary.get(key, {}).get("per_eps", {}).items():
+            log.info(f"eps {e}: {key} v = {x['v']:.5f}, f = {x['f']:.5f}")
     if good:
         figure(good, summary, out / f"{NAME}.png")
     certified = all(str(r.get("converged")) == "True" for r in good)
