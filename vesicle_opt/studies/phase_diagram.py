@@ -257,14 +257,16 @@ def stomatocyte_summary(rows: list[dict]) -> dict:
 
 def figure(rows: list[dict], summary: dict, path: Path) -> None:
     pyplot = plt()
-    fig, ax = pyplot.subplots(figsize=(6, 4.5))
+    fig = pyplot.figure(figsize=(6.5, 6))
+    ax = fig.add_axes([0.12, 0.3, 0.84, 0.64])
     for b, colour in zip(BRANCHES, ("C0", "C3")):
         sel = sorted([r for r in rows if r["branch"] == b and math.isfinite(_num(r.get("sharp_f")))],
                      key=lambda r: _num(r["target_v"]))
         ax.plot([_num(r["target_v"]) for r in sel], [_num(r["sharp_f"]) for r in sel], "-", color=colour,
                 label=f"{b}, sharp")
         for eps in sorted({_num(r["epsilon"]) for r in sel}):
-            pts = [r for r in sel if _num(r["epsilon"]) == eps and str(r["converged"]) == "True"]
+            pts = [r for r in sel if _num(r["epsilon"]) == eps and str(r["converged"]) == "True"
+                   and r.get("shape") in (b, None, "")]  # a torus or a cup is not this branch's point
             ax.plot([_num(r["reduced_volume"]) for r in pts], [_num(r["f"]) for r in pts], "o--", color=colour,
                     ms=4, alpha=0.5 + 0.5 * (eps == min(_num(q["epsilon"]) for q in sel)), label=f"{b}, eps {eps:g}")
     for e, x in summary.get("crossings", {}).items():
@@ -279,7 +281,9 @@ def figure(rows: list[dict], summary: dict, path: Path) -> None:
     ax.set_title("c0 = 0: prolate, oblate, stomatocyte (meridian half-plane)")
     ax.legend(fontsize=6, loc="upper right")
     _meridian_insets(fig, rows)
-    savefig(fig, path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # tight_layout skips the placed axes: they are placed by hand
+        savefig(fig, path)
 
 
 def _stomatocyte_panel(ax, rows: list[dict], summary: dict) -> None:
@@ -306,7 +310,8 @@ def _stomatocyte_panel(ax, rows: list[dict], summary: dict) -> None:
 
 
 def _meridian_insets(fig, rows: list[dict]) -> None:
-    """Small meridian pictures of the sharp prolate (v 0.65), oblate (0.65) and stomatocyte (0.62)."""
+    """Small meridian pictures (below the axes) of the sharp prolate (v 0.65), oblate (0.65) and
+    stomatocyte (0.62)."""
     shapes = []
     try:
         for which in BRANCHES:
@@ -317,12 +322,12 @@ def _meridian_insets(fig, rows: list[dict]) -> None:
     except Exception as exc:  # noqa: BLE001 - a picture is decoration: say so, draw the rest
         log.warning(f"phase_diagram: meridian insets skipped ({type(exc).__name__}: {exc})")
     for i, (name, (r, z)) in enumerate(shapes):
-        ins = fig.add_axes([0.14 + 0.1 * i, 0.66, 0.09, 0.2])
+        ins = fig.add_axes([0.12 + 0.22 * i, 0.02, 0.18, 0.17])
         ins.plot(r, z, "k-", lw=0.8)
         ins.plot(-r, z, "k-", lw=0.8)
         ins.set_aspect("equal")
         ins.axis("off")
-        ins.set_title(name, fontsize=6)
+        ins.set_title(name, fontsize=7)
 
 
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
