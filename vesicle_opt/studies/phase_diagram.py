@@ -315,7 +315,7 @@ def _meridian_insets(fig, rows: list[dict]) -> None:
     shapes = []
     try:
         for which in BRANCHES:
-            shapes.append((which, sharp.solve(0.65, which, 12, second_order=False).meridian(256)))
+            shapes.append((which, sharp.solve(0.65, which, 8, second_order=False).meridian(256)))
         if any(r["branch"] == "stomatocyte" for r in rows):
             from vesicle_opt.sharp.stomatocyte import start_point
             shapes.append(("stomatocyte", start_point(stoma.V_SEED, 0.0, 16).meridian(256)))
