@@ -57,7 +57,7 @@ def test_fold_of_a_parabola_in_the_multiplier():
         assert abs(ff - fs) < 2 * a * dl**3  # the cubic term over the three points
 
 
-@pytest.mark.slow  # ~150 s: the continuation through the fold and the crossing's secant at 24 modes
+@pytest.mark.slow  # 40 s at load 2 (150 s at load 9): the continuation through the fold and the crossing's secant at 24 modes
 def test_fold_and_crossing_against_the_published_values():
     """24 modes: fold (0.66038, 1.96331), crossing (0.59026, 1.98116); Seifert, Berndl & Lipowsky
     read (0.66, 1.96) and (0.59, 1.96-2.0) (+-0.005 in v, +-0.01 in f)."""
@@ -73,7 +73,7 @@ def test_fold_and_crossing_against_the_published_values():
     assert math.isfinite(ref["up_walk"][0][2])
 
 
-@pytest.mark.slow  # 700 s at load 10 (2 cores): the oblate scan, the branch point's secant, the switched branch to its fold
+@pytest.mark.slow  # 64 s at load 2 (700 s at load 10): the oblate scan, the branch point's secant, the switched branch to its fold
 def test_switching_at_the_oblate_branch_point_reaches_the_stomatocyte():
     """No seed: the oblate's least odd eigenvalue changes sign near v = 0.51 (the literature's
     branch point); stepping off along its eigenvector and continuing up in v reaches the fold of
