@@ -84,3 +84,35 @@ def test_quick_run(tmp_path):
     summary = json.loads((tmp_path / "phase_diagram_summary.json").read_text())
     assert summary["sharp_crossing_at_these_points"]["v"] == pytest.approx(0.651, abs=0.01)  # 2 points' spline
     assert (tmp_path / "phase_diagram.png").is_file()
+
+
+def test_stomatocyte_summary_on_known_branches():
+    """Synthetic rows per eps: an up walk with v = 0.66 + eps^2 - 3 x^2, f = 1.96 + eps^2 + x^2
+    (x = lambda - 0.5: the fold at (0.66 + eps^2, 1.96 + eps^2), exact for the parabolas), a lower side
+    f = 1.98 + 0.5 (0.59 - v) and an oblate f = 1.98 + eps^2 + 2 (0.59 - v) (crossing at
+    v = 0.59 + eps^2 / 1.5); the summary finds each per eps and extrapolates both to eps = 0 exactly
+    (p = 2 on data exact in eps^2); the sharp rows (eps = 0, kind fold / crossing) pass through."""
+    rows = [{"branch": "stomatocyte", "epsilon": 0.0, "kind": k, "reduced_volume": v, "f": f, "converged": "True"}
+            for k, v, f in (("fold", 0.6604, 1.9633), ("crossing", 0.5903, 1.9812))]
+    for eps in (0.05, 0.04, 0.03):
+        for lam in (0.3, 0.4, 0.5, 0.6, 0.7):
+            x = lam - 0.5
+            rows.append({"branch": "stomatocyte", "epsilon": eps, "kind": "point", "walk": "up", "side": "",
+                         "reduced_volume": 0.66 + eps**2 - 3 * x**2, "f": 1.96 + eps**2 + x**2, "lambda": lam,
+                         "converged": "True"})
+        for v in (0.63, 0.61, 0.59, 0.57):
+            rows.append({"branch": "stomatocyte", "epsilon": eps, "kind": "point", "walk": "down", "side": "lower",
+                         "reduced_volume": v, "f": 1.98 + 0.5 * (0.59 - v), "converged": "True"})
+            rows.append({"branch": "oblate", "epsilon": eps, "shape": "oblate", "reduced_volume": v,
+                         "f": 1.98 + eps**2 + 2 * (0.59 - v), "converged": "True"})
+    s = P.stomatocyte_summary(rows)
+    fold, cross = s["stomatocyte_fold"], s["oblate_stomatocyte_crossing"]
+    for e, x in fold["per_eps"].items():
+        eps = float(e)
+        assert x["v"] == pytest.approx(0.66 + eps**2, abs=1e-12) and x["f"] == pytest.approx(1.96 + eps**2, abs=1e-12)
+    for e, x in cross["per_eps"].items():
+        assert x["v"] == pytest.approx(0.59 + float(e) ** 2 / 1.5, abs=1e-12)  # brentq's xtol, spline exact on lines
+    assert len(fold["per_eps"]) == 3 and len(cross["per_eps"]) == 3
+    assert fold["extrapolated"]["reduced_volume_p2"] == pytest.approx(0.66, abs=1e-9)  # round-off / (1 - r^2)
+    assert cross["extrapolated"]["reduced_volume_p2"] == pytest.approx(0.59, abs=1e-9)
+    assert fold["sharp"] == {"v": 0.6604, "f": 1.9633} and cross["published"] == {"v": 0.59, "f": 1.98}

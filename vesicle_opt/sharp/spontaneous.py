@@ -31,9 +31,11 @@ The pear branch at c0 = 2.4 is reached at v = 0.72 from the symmetric shape kick
 (amplitude 0.3; small kicks decay: the symmetric branch is stable to odd modes there, least odd
 eigenvalue +0.12 at v = 0.725); it crosses the symmetric branch at (0.7416, 0.1043) (linear
 interpolation between v = 0.740 and 0.746), the published (0.746, 0.107) within its reading error.
-Not yet here: a start for the stomatocyte branch. From the cup-shaped starts tried
+The stomatocyte branch: from the cup-shaped starts tried here
 (psi - s = b sin s ((1 - cos s)/2)^p, b = 5, 6) SLSQP went back to the oblate (same f to 1e-15) or
-left the shapes (area <= 0: reported not converged, NaN, never returned as a solution).
+left the shapes (area <= 0: reported not converged, NaN, never returned as a solution); from a
+three-arc cup it reaches the branch, which ``sharp.stomatocyte`` follows through its fold by Newton
+and pseudo-arclength continuation on these same shapes.
 
 numpy and scipy only.
 """

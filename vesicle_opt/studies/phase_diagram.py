@@ -19,9 +19,18 @@ extrapolation, ``branch.crossing.extrapolate_crossing``; the sharp crossing), ``
 (f against v per eps, the sharp branches, the crossings). Full: eps = 0.1, 0.0707, 0.05 at
 eps/h = 3, v = 0.75 ... 0.55, sharp references with 16 modes and ``sharp.axisymmetric.crossing``.
 Quick: eps = 0.1 at eps/h = 2, v = 0.7, 0.65, sharp references with 8 modes: the plumbing (at
-eps = 0.1 the oblate seeds' dimples meet, tori: no crossing), in ~20 s. Not here yet: the
-stomatocyte branch and c0 = 2.4 (pears; see ``sharp.spontaneous``, whose pear seeds a phase-field
-pear whose neck the phase field pinches at eps >= 0.05: docs/guide/axisymmetric.md).
+eps = 0.1 the oblate seeds' dimples meet, tori: no crossing), in ~20 s.
+
+The stomatocyte (``studies._stomatocyte``; full run only): the sharp branch, its fold and its
+crossing with the oblate (``sharp.stomatocyte``, 32 modes; eps = 0 rows of kind point / fold /
+crossing), and per eps in ``stomatocyte_epsilons`` (eps/h = 2) the phase-field branch seeded with
+the sharp stomatocyte at v = 0.62 and walked by the branch package past its fold (IPOPT, p free near
+it) and down to v = 0.575, with an oblate walk on a finer v grid (``oblate_low_vs``) for the crossing.
+``stomatocyte_summary``: the fold and the oblate/stomatocyte crossing per eps, their eps -> 0 limit
+(``extrapolate_crossing``: free order through three eps, p = 2 through the finest two), the sharp
+and the published values (``PUBLISHED``). Not here yet: c0 = 2.4 (pears; see ``sharp.spontaneous``,
+whose pear seeds a phase-field pear whose neck the phase field pinches at eps >= 0.05:
+docs/guide/axisymmetric.md), and the runner's dask executor from the CLI.
 """
 
 from __future__ import annotations
@@ -40,6 +49,7 @@ from vesicle_opt.io.meridian import meridian_curves, phase_field_of
 from vesicle_opt.mesh import discretize
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp
+from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._common import plt, savefig
 from vesicle_opt.studies.runner import run_into
 
@@ -48,18 +58,34 @@ log = logging.getLogger(__name__)
 NAME = "phase_diagram"
 BRANCHES = ("prolate", "oblate")
 WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
-FULL = {"epsilons": (0.1, 0.070711, 0.05), "eps_over_h": 3.0, "vs": (0.75, 0.7, 0.65, 0.6, 0.55), "n_modes": 16}
+FULL = {"epsilons": (0.1, 0.070711, 0.05), "eps_over_h": 3.0, "vs": (0.75, 0.7, 0.65, 0.6, 0.55), "n_modes": 16,
+        # the oblate/stomatocyte row: eps small enough that the oblate's dimples stay apart near v = 0.59
+        # (its centre is 0.22 R0 thick there; at eps = 0.05 the oblate at v = 0.62 is not one: f 1.77, and
+        # at eps = 0.03 it is a torus at v = 0.58, measured), at eps/h = 2 (the time this machine has)
+        "stomatocyte_epsilons": (0.04, 0.03, 0.025), "stomatocyte_eps_over_h": 2.0, "stomatocyte_modes": 32,
+        "oblate_low_vs": (0.64, 0.63, 0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58)}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "vs": (0.7, 0.65), "n_modes": 8}
 CUP = 0.1  # a pole dimple deeper than the other by this fraction of the height: a cup (stomatocyte)
 COLUMNS = ["branch", "shape", "c0", "target_v", "epsilon", "n", "h", "f", "c0_reduced", "reduced_volume", "sharp_f",
            "f_minus_sharp", "converged", "second_order", "second_order_min_eigenvalue", "topology",
-           "kkt_residual", "iterations", "wall_time_s", "seed", "status"]
+           "kkt_residual", "iterations", "wall_time_s", "seed", "status", "kind", "side", "lambda", "walk"]
 
 
 def cases(quick: bool) -> list[dict]:
     cfg = QUICK if quick else FULL
-    return [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "eps_over_h": cfg["eps_over_h"],
-             "vs": list(cfg["vs"]), "n_modes": cfg["n_modes"]} for b in BRANCHES for eps in cfg["epsilons"]]
+    out = [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "eps_over_h": cfg["eps_over_h"],
+            "vs": list(cfg["vs"]), "n_modes": cfg["n_modes"]} for b in BRANCHES for eps in cfg["epsilons"]]
+    if quick:
+        return out
+    low = [{"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]}]
+    for eps in sorted(cfg["stomatocyte_epsilons"]):  # the finest (longest) first
+        low.append({"case": f"stomatocyte-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps,
+                    "eps_over_h": cfg["stomatocyte_eps_over_h"], "n_modes": 24})
+        low.append({"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps,
+                    "eps_over_h": cfg["stomatocyte_eps_over_h"], "vs": list(cfg["oblate_low_vs"]),
+                    "n_modes": cfg["n_modes"]})
+    out = low + out  # the long cases first (the pool takes them in order)
+    return out
 
 
 def shape_of(disc, phi) -> str:
@@ -90,7 +116,45 @@ def _box(meridians, eps: float) -> list[list[float]]:
     return [[0.0, r_max + pad], [z_lo - pad, z_hi + pad]]
 
 
+def _stomatocyte_row(res, v: float, eps: float, n, box, sharp_f: float, seed: str, side: str, walk: str) -> dict:
+    """A study row of a stomatocyte point: a Result (the seed) or a branch row (the walks)."""
+    if isinstance(res, dict):
+        q = res
+        ok = str(q.get("converged")) in ("True", "true") and str(q.get("accepted")) in ("True", "true")
+        f = _num(q.get("f", q.get("reduced_energy")))
+        return {"branch": "stomatocyte", "shape": None, "c0": 0.0, "target_v": v, "epsilon": eps,
+                "n": "x".join(map(str, n)), "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
+                "c0_reduced": q.get("c0_reduced"), "reduced_volume": q.get("reduced_volume"), "sharp_f": sharp_f,
+                "f_minus_sharp": f - sharp_f, "converged": ok, "second_order": q.get("second_order"),
+                "second_order_min_eigenvalue": q.get("second_order_min_eigenvalue"), "topology": q.get("topology"),
+                "kkt_residual": q.get("kkt_residual"), "iterations": q.get("iterations"),
+                "wall_time_s": q.get("wall_time_s"), "seed": seed, "status": q.get("corrector"), "kind": "point",
+                "side": side, "lambda": q.get("dE_dp"), "walk": walk}
+    row = _row("stomatocyte", res, v, eps, n, box, sharp_f, seed)
+    row.update({"kind": "point", "side": side, "walk": walk})
+    return row
+
+
+def _row(which, res, v, eps, n, box, sharp_f, seed) -> dict:
+    ex = res.extra
+    f = ex.get("f", math.nan)
+    return {"branch": which, "shape": shape_of(res.disc, res.phi) if res.converged else None, "c0": 0.0,
+            "target_v": v, "epsilon": eps, "n": "x".join(map(str, n)),
+            "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
+            "c0_reduced": ex.get("c0_reduced"), "reduced_volume": ex.get("reduced_volume"),
+            "sharp_f": sharp_f, "f_minus_sharp": f - sharp_f,
+            "converged": res.converged, "second_order": ex.get("second_order"),
+            "second_order_min_eigenvalue": ex.get("second_order_min_eigenvalue"),
+            "topology": ex.get("topology"), "kkt_residual": res.kkt_residual,
+            "iterations": res.iterations, "wall_time_s": res.wall_time_s, "seed": seed,
+            "status": res.outcome, "kind": "point", "side": ""}
+
+
 def run(case: dict) -> list[dict]:
+    if case["branch"] == "stomatocyte":
+        if case["epsilon"] == 0:
+            return stoma.sharp_case(case)
+        return stoma.phase_case(case, _stomatocyte_row)
     eps, which = case["epsilon"], case["branch"]
     refs = sharp.branch(case["vs"], which, case["n_modes"], second_order=False)
     meridians = [ref.meridian(2048) for ref in refs]
@@ -108,17 +172,7 @@ def run(case: dict) -> list[dict]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
             res = solve(sc, x0=start)
-        ex = res.extra
-        f = ex.get("f", math.nan)
-        rows.append({"branch": which, "shape": shape_of(res.disc, res.phi) if res.converged else None, "c0": 0.0, "target_v": v, "epsilon": eps, "n": "x".join(map(str, n)),
-                     "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
-                     "c0_reduced": ex.get("c0_reduced"), "reduced_volume": ex.get("reduced_volume"),
-                     "sharp_f": ref.reduced_energy, "f_minus_sharp": f - ref.reduced_energy,
-                     "converged": res.converged, "second_order": ex.get("second_order"),
-                     "second_order_min_eigenvalue": ex.get("second_order_min_eigenvalue"),
-                     "topology": ex.get("topology"), "kkt_residual": res.kkt_residual,
-                     "iterations": res.iterations, "wall_time_s": res.wall_time_s, "seed": seed,
-                     "status": res.outcome})
+        rows.append(_row(which, res, v, eps, n, box, ref.reduced_energy, seed))
         if res.converged:
             start, seed = res.phi, "previous point"
     return rows
@@ -145,6 +199,7 @@ def summarise(rows: list[dict]) -> dict:
     out = {"crossings": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()}}
     if len(per_eps) >= 2:
         out["extrapolated"] = extrapolate_crossing(per_eps)
+    out.update(stomatocyte_summary(rows))
     one_eps = [r for r in rows if _num(r["epsilon"]) == max(_num(q["epsilon"]) for q in rows)]
     ref = {b: sorted([r for r in one_eps if r["branch"] == b], key=lambda r: _num(r["target_v"])) for b in BRANCHES}
     x = crossing(*[[_num(r[k]) for r in ref[b]] for b in BRANCHES for k in ("target_v", "sharp_f")])
@@ -153,24 +208,126 @@ def summarise(rows: list[dict]) -> dict:
     return out
 
 
+PUBLISHED = {"prolate/oblate": (0.650, 1.830), "oblate/stomatocyte": (0.59, 1.98), "stomatocyte fold": (0.66, 1.96),
+             "pear/prolate c0=2.4": (0.746, 0.107)}  # Seifert, Berndl & Lipowsky 1991, read off their
+# figures (+-0.005 in v, +-0.01 in f; the oblate/stomatocyte f between 1.96 and 2.0: its middle)
+
+
+def _stomatocyte_transitions(rows: list[dict], eps: float) -> dict:
+    """At one eps: the stomatocyte's fold (``_stomatocyte.fold_of`` on the up walk in walk order) and
+    its crossing with the oblate (spline crossing of its lower side and the oblate's points)."""
+    st = [r for r in rows if r["branch"] == "stomatocyte" and _num(r["epsilon"]) == eps
+          and str(r.get("kind", "point")) == "point" and str(r.get("converged")) == "True"]
+    out = {}
+    up = [r for r in st if r.get("walk") == "up"]  # in walk order (the CSV keeps a case's rows in order)
+    fv = stoma.fold_of(*[[_num(r[k]) for r in up] for k in ("reduced_volume", "f", "lambda")]) if len(up) >= 3 else None
+    if fv is not None:
+        out["fold"] = {"reduced_volume": fv[0], "reduced_energy": fv[1]}
+    lower = {round(_num(r["reduced_volume"]), 9): _num(r["f"]) for r in st if r.get("side") == "lower"}
+    obl = {round(_num(r["reduced_volume"]), 9): _num(r["f"]) for r in rows if r["branch"] == "oblate"
+           and _num(r["epsilon"]) == eps and str(r.get("converged")) == "True" and r.get("shape") == "oblate"}
+    if len(lower) >= 2 and len(obl) >= 2:
+        x = crossing(list(lower), list(lower.values()), list(obl), list(obl.values()))
+        if x is not None:
+            out["crossing"] = x
+    return out
+
+
+def stomatocyte_summary(rows: list[dict]) -> dict:
+    """The stomatocyte's fold and oblate/stomatocyte crossing per eps > 0, their eps -> 0 limits
+    (``extrapolate_crossing``: free-order Richardson through three eps and its order, p = 2 through the
+    two finest), the sharp ones (eps = 0 rows of kind fold / crossing) and the published values."""
+    per = {"fold": {}, "crossing": {}}
+    for eps in sorted({_num(r["epsilon"]) for r in rows if r["branch"] == "stomatocyte"} - {0.0}, reverse=True):
+        for k, x in _stomatocyte_transitions(rows, eps).items():
+            per[k][eps] = x
+    out = {}
+    for k, name in (("fold", "stomatocyte fold"), ("crossing", "oblate/stomatocyte")):
+        key = "stomatocyte_fold" if k == "fold" else "oblate_stomatocyte_crossing"
+        sharp_rows = [r for r in rows if r["branch"] == "stomatocyte" and r.get("kind") == k]
+        entry = {"per_eps": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per[k].items()},
+                 "published": {"v": PUBLISHED[name][0], "f": PUBLISHED[name][1]}}
+        if sharp_rows:
+            entry["sharp"] = {"v": _num(sharp_rows[0]["reduced_volume"]), "f": _num(sharp_rows[0]["f"])}
+        if len(per[k]) >= 2:
+            entry["extrapolated"] = extrapolate_crossing(per[k])
+        out[key] = entry
+    return out
+
+
 def figure(rows: list[dict], summary: dict, path: Path) -> None:
     pyplot = plt()
-    fig, ax = pyplot.subplots(figsize=(6, 4.5))
+    fig = pyplot.figure(figsize=(6.5, 6))
+    ax = fig.add_axes([0.12, 0.3, 0.84, 0.64])
     for b, colour in zip(BRANCHES, ("C0", "C3")):
-        sel = sorted([r for r in rows if r["branch"] == b], key=lambda r: _num(r["target_v"]))
+        sel = sorted([r for r in rows if r["branch"] == b and math.isfinite(_num(r.get("sharp_f")))],
+                     key=lambda r: _num(r["target_v"]))
         ax.plot([_num(r["target_v"]) for r in sel], [_num(r["sharp_f"]) for r in sel], "-", color=colour,
                 label=f"{b}, sharp")
         for eps in sorted({_num(r["epsilon"]) for r in sel}):
-            pts = [r for r in sel if _num(r["epsilon"]) == eps and str(r["converged"]) == "True"]
+            pts = [r for r in sel if _num(r["epsilon"]) == eps and str(r["converged"]) == "True"
+                   and r.get("shape") in (b, None, "")]  # a torus or a cup is not this branch's point
             ax.plot([_num(r["reduced_volume"]) for r in pts], [_num(r["f"]) for r in pts], "o--", color=colour,
                     ms=4, alpha=0.5 + 0.5 * (eps == min(_num(q["epsilon"]) for q in sel)), label=f"{b}, eps {eps:g}")
     for e, x in summary.get("crossings", {}).items():
         ax.plot(x["v"], x["f"], "kx")
+    _stomatocyte_panel(ax, rows, summary)
+    for name, (v, f) in PUBLISHED.items():
+        if "c0=2.4" not in name:
+            ax.plot(v, f, "s", mfc="none", mec="k", ms=8)
+    ax.plot([], [], "s", mfc="none", mec="k", label="published (SBL 1991)")
     ax.set_xlabel("reduced volume v")
     ax.set_ylabel("f = F / 8 pi kappa")
-    ax.set_title("c0 = 0: prolate and oblate (meridian half-plane)")
-    ax.legend(fontsize=7)
-    savefig(fig, path)
+    ax.set_title("c0 = 0: prolate, oblate, stomatocyte (meridian half-plane)")
+    ax.legend(fontsize=6, loc="upper right")
+    _meridian_insets(fig, rows)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # tight_layout skips the placed axes: they are placed by hand
+        savefig(fig, path)
+
+
+def _stomatocyte_panel(ax, rows: list[dict], summary: dict) -> None:
+    """The stomatocyte: sharp lower/upper sides (eps = 0 rows), phase-field points per eps, and the
+    fold / oblate crossing (sharp: stars, per eps: plus signs, eps -> 0: a diamond)."""
+    st = [r for r in rows if r["branch"] == "stomatocyte" and str(r.get("converged")) == "True"]
+    for side, style in (("lower", "-"), ("upper", ":")):
+        pts = sorted([(_num(r["reduced_volume"]), _num(r["f"])) for r in st if _num(r["epsilon"]) == 0
+                      and r.get("kind") == "point" and r.get("side") == side])
+        if pts:
+            ax.plot(*zip(*pts), style, color="C2", label=f"stomatocyte, sharp ({side})")
+    for eps in sorted({_num(r["epsilon"]) for r in st} - {0.0}):
+        pts = [(_num(r["reduced_volume"]), _num(r["f"])) for r in st if _num(r["epsilon"]) == eps and r.get("kind") == "point"]
+        ax.plot(*zip(*pts), "^", color="C2", ms=3, alpha=0.7, label=f"stomatocyte, eps {eps:g}")
+    for key in ("stomatocyte_fold", "oblate_stomatocyte_crossing"):
+        entry = summary.get(key, {})
+        if "sharp" in entry:
+            ax.plot(entry["sharp"]["v"], entry["sharp"]["f"], "*", color="k", ms=8)
+        for x in entry.get("per_eps", {}).values():
+            ax.plot(x["v"], x["f"], "+", color="C2")
+        ext = entry.get("extrapolated", {})
+        if math.isfinite(_num(ext.get("reduced_volume_p2"))):
+            ax.plot(ext["reduced_volume_p2"], ext["reduced_energy_p2"], "D", mfc="none", mec="C2")
+
+
+def _meridian_insets(fig, rows: list[dict]) -> None:
+    """Small meridian pictures (below the axes) of the sharp prolate (v 0.65), oblate (0.65) and
+    stomatocyte (0.62)."""
+    shapes = []
+    try:
+        for which in BRANCHES:
+            shapes.append((which, sharp.solve(0.65, which, 8, second_order=False).meridian(256)))
+        if any(r["branch"] == "stomatocyte" for r in rows):
+            from vesicle_opt.sharp.stomatocyte import start_point
+            shapes.append(("stomatocyte", start_point(stoma.V_SEED, 0.0, 16).meridian(256)))
+    except Exception as exc:  # noqa: BLE001 - a picture is decoration: say so, draw the rest
+        log.warning(f"phase_diagram: meridian insets skipped ({type(exc).__name__}: {exc})")
+    for i, (name, (r, z)) in enumerate(shapes):
+        ins = fig.add_axes([0.12 + 0.22 * i, 0.02, 0.18, 0.17])
+        ins.plot(r, z, "k-", lw=0.8)
+        ins.plot(-r, z, "k-", lw=0.8)
+        ins.set_aspect("equal")
+        ins.axis("off")
+        ins.set_title(name, fontsize=7)
 
 
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
@@ -182,6 +339,9 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     (out / f"{NAME}_summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     for e, x in summary["crossings"].items():
         log.info(f"eps {e}: crossing v = {x['v']:.5f}, f = {x['f']:.5f} (sharp {v_s:.5f}, {f_s:.5f})")
+    for key in ("stomatocyte_fold", "oblate_stomatocyte_crossing"):
+        for e, x in summary.get(key, {}).get("per_eps", {}).items():
+            log.info(f"eps {e}: {key} v = {x['v']:.5f}, f = {x['f']:.5f}")
     if good:
         figure(good, summary, out / f"{NAME}.png")
     certified = all(str(r.get("converged")) == "True" for r in good)
