@@ -36,6 +36,7 @@ import math
 
 import numpy as np
 
+from vesicle_opt.sharp import axisymmetric, spontaneous
 from vesicle_opt.sharp.spontaneous import Geometry, Shape
 
 FD_STEP = 1e-6  # central differences of exact (complex-step) gradients: error ~1e-12 x third derivative
@@ -250,7 +251,6 @@ def oblate_point(v: float, c0: float, n_modes: int, start=None) -> Point:
     """The up-down symmetric (oblate) stationary shape at v: Newton from ``start`` or from
     ``sharp.axisymmetric``'s oblate (its sin(2 j s) coefficients are the even wavenumbers here)."""
     if start is None:
-        from vesicle_opt.sharp import axisymmetric
         ref = axisymmetric.solve(v, "oblate", n_modes // 2, second_order=False)
         start = np.zeros(n_modes)
         start[1::2] = ref.a[: n_modes // 2]
@@ -293,7 +293,6 @@ def start_point(v: float = 0.62, c0: float = 0.0, n_modes: int = 32) -> Point:
     """A point of the stomatocyte branch at ``v`` (the lower side of the fold at c0 = 0): the three-arc
     cup relaxed by SLSQP with 16 modes (Newton from the cup itself diverges), then Newton at 24 and
     ``n_modes`` modes."""
-    from vesicle_opt.sharp import spontaneous
     a = spontaneous.solve(v, c0, cup_start(16), 16).a
     for n in sorted({min(24, n_modes), n_modes}):
         a = newton(a, v, c0, n).a

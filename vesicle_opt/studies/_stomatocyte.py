@@ -31,6 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.api import solve
+from vesicle_opt.branch.run import branch
+from vesicle_opt.io import output
 from vesicle_opt.io.meridian import phase_field_of
 from vesicle_opt.mesh import discretize
 from vesicle_opt.scene import from_dict
@@ -96,8 +98,6 @@ def phase_case(case: dict, point_row) -> list[dict]:
     (module docstring); ``point_row(res_or_row, v, eps, n, box, sharp_f, seed, side, walk)`` makes a
     study row. The walks' rows keep the branch package's ``corrector`` in ``status`` and get
     ``side`` lower/upper (upper: after the walk's largest v)."""
-    from vesicle_opt.branch.run import branch
-    from vesicle_opt.readback import write_result
     eps = case["epsilon"]
     seed_pt = sharp_s.start_point(V_SEED, 0.0, case["n_modes"])
     r, z = seed_pt.meridian(2048)
@@ -114,7 +114,7 @@ def phase_case(case: dict, point_row) -> list[dict]:
     if not res.converged:
         return rows
     with tempfile.TemporaryDirectory() as tmp:
-        write_result(res, tmp, sc)
+        output.write_result(Path(tmp), sc, res.disc, res)  # phi.npz, the walks' start file
         start = _scene(box, n, eps, V_SEED, {"shape": "file", "file": str(Path(tmp) / "phi.npz")}, sc.name)
         for to in (V_UP, V_DOWN):
             with warnings.catch_warnings():

@@ -49,6 +49,7 @@ from vesicle_opt.io.meridian import meridian_curves, phase_field_of
 from vesicle_opt.mesh import discretize
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp
+from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._common import plt, savefig
 from vesicle_opt.studies.runner import run_into
@@ -317,8 +318,7 @@ def _meridian_insets(fig, rows: list[dict]) -> None:
         for which in BRANCHES:
             shapes.append((which, sharp.solve(0.65, which, 8, second_order=False).meridian(256)))
         if any(r["branch"] == "stomatocyte" for r in rows):
-            from vesicle_opt.sharp.stomatocyte import start_point
-            shapes.append(("stomatocyte", start_point(stoma.V_SEED, 0.0, 16).meridian(256)))
+            shapes.append(("stomatocyte", sharp_s.start_point(stoma.V_SEED, 0.0, 16).meridian(256)))
     except Exception as exc:  # noqa: BLE001 - a picture is decoration: say so, draw the rest
         log.warning(f"phase_diagram: meridian insets skipped ({type(exc).__name__}: {exc})")
     for i, (name, (r, z)) in enumerate(shapes):
