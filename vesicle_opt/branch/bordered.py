@@ -42,6 +42,7 @@ CHORD_RATIO = 0.25  # a step reuses the last factorisation (chord) while the ste
 # this fast, else the Jacobian is refreshed (Newton): at 128^2 a factorisation is ~0.9 s, a solve ~0.05 s
 ORDERING = "MMD_AT_PLUS_A"  # SuperLU's symmetric ordering for this symmetric pattern: measured at 128^2
 # 0.85 s and 5.0e6 factor entries against COLAMD's 1.33 s and 7.7e6 (residual 2e-10 for both)
+HALVINGS = 12  # a merit-guarded (deflated) step is halved at most this often (to 2.4e-4 of itself)
 STEP_TOL = 1e-10  # |d phi|_w <= STEP_TOL |phi|_w and |d p| <= STEP_TOL max(1, |p|) ends Newton: the
 # step after it is ~STEP_TOL^2 (quadratic convergence), far below IPOPT's tol 1e-8 on the polish
 
@@ -91,17 +92,34 @@ class BorderedCorrector:
         self._res = ca.Function("bordered_residual", [phi, lam_a, lam_b, p], [R])
         self.n = n
 
-    def fixed(self, phi0, p: float, lam0, deflation=None) -> Newton:
+    def fixed(self, phi0, p: float, lam0, deflation=None, merit=None) -> Newton:
         """Newton at fixed p (the hyperplane p = const: t_phi = 0, t_p = 1) from (phi0, lam0): the
         fallback of the IPOPT corrector, which as a minimiser may wander near a saddle of the
         discrete problem; Newton converges to the KKT point whatever its inertia."""
-        return self.solve(phi0, p, lam0, np.zeros(self.n), 1.0, 0.0, deflation)
+        return self.solve(phi0, p, lam0, np.zeros(self.n), 1.0, 0.0, deflation, merit)
+
+    def _backtrack(self, z, mu, du, trans, phi_pred, t_phi, theta, t_p, p_pred, merit, g0) -> np.ndarray:
+        """du halved until merit(phi) |R| at z + du is below g0 (``solve``); du itself if none is."""
+        n = self.n
+        for _ in range(HALVINGS + 1):
+            zt, mt = z + du[: n + 3], mu + du[n + 3:]
+            R = np.asarray(self._res(zt[:n], zt[n], zt[n + 1], zt[n + 2])).ravel()
+            R[:n] -= sum(m * t for m, t in zip(mt, trans)) if len(trans) else 0.0
+            N = theta**2 * float(self.disc.weights @ ((zt[:n] - phi_pred) * t_phi)) + (zt[n + 2] - p_pred) * t_p
+            g = merit(zt[:n]) * np.linalg.norm(np.concatenate([R, [N], [float(t @ (zt[:n] - phi_pred)) for t in trans]]))
+            if np.isfinite(g) and g < g0:
+                return du
+            du = du / 2
+        return du * 2 ** (HALVINGS + 1)
 
     def solve(self, phi_pred, p_pred: float, lam_pred, t_phi, t_p: float, theta: float,
-              deflation=None) -> Newton:
+              deflation=None, merit=None) -> Newton:
         """Newton from the prediction (phi_pred, p_pred, lam_pred) onto the hyperplane through it
         orthogonal to the tangent (t_phi, t_p) in the metric theta^2 <., .>_w + dp^2.
-        ``deflation(phi, dphi)``: the factor of each step (``branch.deflation``), None: 1."""
+        ``deflation(phi, dphi)``: the factor of each step (``branch.deflation``), None: 1.
+        ``merit(phi)``: a positive weight m(phi) of the residual (the deflation operator M); given, each
+        step is halved (at most ``HALVINGS`` times) until m |R| decreases (a backtracking line search
+        on the deflated residual, Farrell et al.'s globalisation), else taken whole."""
         n, w = self.n, self.disc.weights
         trans = [w * t for t in translation_modes(self.disc, phi_pred)]
         d = len(trans)
@@ -138,6 +156,9 @@ class BorderedCorrector:
                 return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), False, k, "non-finite step")
             if deflation is not None:  # the deflated Newton step: the same direction, rescaled
                 du = du * deflation(z[:n], du[:n])
+            if merit is not None:
+                du = self._backtrack(z, mu, du, trans, phi_pred, t_phi, theta, t_p, p_pred, merit,
+                                     merit(z[:n]) * np.linalg.norm(rhs))
             z = z + du[: n + 3]
             mu = mu + du[n + 3:]
             dphi = np.sqrt(w @ (du[:n] ** 2))

@@ -59,6 +59,17 @@ def factor(phi: np.ndarray, dphi: np.ndarray, known: list[np.ndarray], weights, 
     return 1.0 / den if den != 0 else 1.0
 
 
+def multiplier(phi: np.ndarray, known: list[np.ndarray], weights, align: Callable | None = None) -> float:
+    """M(phi) = prod_i (1 / |phi - r_i|_w^q + sigma) (module docstring): the deflated residual's weight,
+    the merit of the bordered Newton's line search (``branch.bordered``)."""
+    m = 1.0
+    for r in known:
+        e = phi - (align(r, phi) if align is not None else r)
+        n = math.sqrt(float(np.dot(weights, e * e)))
+        m *= (n ** -POWER if n > 0 else math.inf) + SHIFT
+    return m
+
+
 def newton(residual: Callable, jacobian: Callable, u0: np.ndarray, known: list[np.ndarray], weights,
            n_phi: int | None = None, tol: float = 1e-12, max_steps: int = NEWTON_STEPS) -> tuple[np.ndarray, bool, int]:
     """Deflated Newton on a dense residual F(u) (u[:n_phi] the field; all of u by default): (u,
@@ -104,8 +115,8 @@ def _fixed_newton(problem, p: float) -> Callable:
             return nw.converged, nw.phi, nw.lam
         return nk
 
-    def ipopt(start, lam, hook):
-        nw = problem.bordered().fixed(start, p, lam, hook)
+    def ipopt(start, lam, hook, merit=None):
+        nw = problem.bordered().fixed(start, p, lam, hook, merit)
         return nw.converged, nw.phi, nw.lam
     return ipopt
 
@@ -137,7 +148,11 @@ def deflated_vesicle(problem, p: float, phi0: np.ndarray, known: list[np.ndarray
     for start in starts:
         for _ in range(RETRIES):
             lam = least_squares_multipliers(sc, problem.disc, start)
-            ok, phi, lam = newton_at_p(start, lam, lambda phi, d: factor(phi, d, deflated, w, problem.align))
+            hook = lambda phi, d: factor(phi, d, deflated, w, problem.align)  # noqa: E731
+            if problem.nk is None:  # IPOPT's bordered Newton: steps line-searched on |M F| (``bordered``)
+                ok, phi, lam = newton_at_p(start, lam, hook, lambda phi: multiplier(phi, deflated, w, problem.align))
+            else:
+                ok, phi, lam = newton_at_p(start, lam, hook)
             if not ok:
                 break
             pt = problem.solve(p, phi, lam)
