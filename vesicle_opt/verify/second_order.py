@@ -30,6 +30,7 @@ from vesicle_opt.mesh.axisymmetric import axial_translation
 from vesicle_opt.mesh.spectral import FourierGrid
 from vesicle_opt.model import functionals as F
 from vesicle_opt.verify import verdict as V
+from vesicle_opt.verify.axial import overlap as slide_overlap
 from vesicle_opt.verify.block_eig import EPS, error_bounds
 from vesicle_opt.verify.verdict import SecondOrder
 
@@ -180,10 +181,8 @@ def check(nlp, result, n_eig: int = N_EIG, derivatives=None, pin=None) -> Second
     verdict, reason = V.classify(rel, errors[0], rayleigh)
     axial, overlap = float("nan"), float("nan")
     if getattr(disc, "axisymmetric", False):
-        slide = axial_translation(disc, result.phi)
-        axial = rayleigh_of(slide)
-        u, v0 = onto_ab(slide), Vec[:, 0]
-        overlap = float(abs(u @ (Mphi @ v0)) / np.sqrt((u @ (Mphi @ u)) * (v0 @ (Mphi @ v0))))
+        axial = rayleigh_of(axial_translation(disc, result.phi))
+        overlap = slide_overlap(disc, result.phi, Vec[:, 0], eps, sc.model.C, Mphi)
     reason = V.axial_note(verdict, reason, pin is not None, axial, overlap, mu / mu_ref)
     return SecondOrder(verdict, float(mu[0]), rel, tuple(float(m / mu_ref) for m in mu), tuple(rayleigh),
                        float(max(errors)), reason, Vec[:, 0] / np.sqrt(Vec[:, 0] @ (Mphi @ Vec[:, 0])),

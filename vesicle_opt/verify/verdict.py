@@ -126,8 +126,9 @@ def axial_note(verdict: str, reason: str, pinned: bool, axial: float, overlap: f
         note = PINNED
     elif math.isfinite(overlap) and overlap > SLIDE_OVERLAP:
         nxt = f"; the next eigenvalue {mus[1]:.3g} mu_ref" if len(mus) > 1 else ""
-        note = (f"the least mode is the axial slide (overlap {overlap:.3f}, axial_rayleigh {axial:.3g} mu_ref): "
-                f"the vesicle sliding between the end walls, not a shape instability{nxt}")
+        quotient = f", axial_rayleigh {axial:.3g} mu_ref" if math.isfinite(axial) else ""
+        note = (f"the least mode is the axial slide (overlap {overlap:.3f}{quotient}): the vesicle sliding "
+                f"between the end walls, not a shape instability{nxt}")
     return "; ".join(x for x in (reason, note) if x)
 
 
