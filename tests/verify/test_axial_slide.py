@@ -7,10 +7,14 @@ the pin's included ("axial position pinned"): by Cauchy interlacing the pinned l
 between the unpinned first and second. Where no pin was imposed (uniform meshes), the slide stays in
 the check and the reason names it when it is the least mode, with ``axial_rayleigh``."""
 
+import json
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 import vesicle_opt as vo
+from vesicle_opt import cli
 from vesicle_opt.nlp import IpoptOptions, reuse
 from vesicle_opt.verify import second_order
 from vesicle_opt.verify.verdict import PINNED
@@ -41,10 +45,17 @@ def test_pinned_prolate_excludes_the_slide_by_its_constraint():
     assert held.eigenvalues[0] == pytest.approx(free.eigenvalues[1], rel=2e-2)
 
 
-def test_unpinned_slide_is_named_in_the_verdict_on_both_backends():
+def test_unpinned_slide_is_named_in_the_verdict_on_both_backends(tmp_path, capsys):
     scene = vo.load_scene("prolate-axisymmetric", UNIFORM)
-    res, nk = vo.solve(scene), vo.solve(scene, backend="newton-krylov")
-    e = res.extra
+    sets = [a for k, v in UNIFORM.items() for a in ("--set", f"{k}={json.dumps(v)}")]
+    try:
+        cli.main(["solve", "prolate-axisymmetric", *sets, "--out", str(tmp_path / "out")])
+    except SystemExit:
+        pass
+    e = json.loads((tmp_path / "out" / "summary.json").read_text())
+    if e["second_order"] == "saddle":  # the CLI's advice: the slide, not another shape
+        assert "the vesicle slides along the axis" in capsys.readouterr().err
+    res, nk = SimpleNamespace(converged=e["converged"], extra=e), vo.solve(scene, backend="newton-krylov")
     # the verdict is the slide's sign (measured -1.2e-5 here, +1.2e-5 from a start 0.37 higher): the
     # reason says the least mode is the slide and gives the next eigenvalue, the least shape mode's
     assert res.converged and e["second_order"] in ("minimum", "saddle")
