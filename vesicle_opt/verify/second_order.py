@@ -16,6 +16,9 @@ in the matrix-free check: the rotation mode is one of the eigenvalues (measured 
 64^2 ellipse, below the first shape mode 1.28); the rotation generators' own quotients on T are
 reported (``rotation_rayleigh``). Error bounds: the residual norm on T, or Kato-Temple where the
 next eigenvalue is separated (``block_eig.error_bounds``).
+Meridian meshes: the axial slide d_z phi is near-null, not a symmetry, and is never excluded as one;
+where the solve imposed a linear row (the axial pin of ``nlp.reuse``), T is the tangent space of all
+the solve's rows, that one included (``pin``), and ``verdict.axial_note`` says so or names the slide.
 The Hessian comes from the NLP's CasADi graph (the same one IPOPT used); the KKT residual it
 relies on is checked independently in ``verify.kkt``.
 """
