@@ -139,6 +139,8 @@ def _second_order(result: Result, so, seconds: float = 0.0) -> Result:
     rot = [q for q in so.rotation_rayleigh if np.isfinite(q)]
     if rot:  # the rotations stay in the check; their least Rayleigh quotient on T beside it (mu_ref)
         extra["rotation_rayleigh"] = float(min(rot))
+    if np.isfinite(getattr(so, "axial_rayleigh", float("nan"))):  # meridian mesh: the slide's quotient (mu_ref)
+        extra["axial_rayleigh"] = float(so.axial_rayleigh)
     result = _replace_extra(result, second_order=so.verdict, second_order_min_eigenvalue=so.relative_min_eigenvalue,
                             second_order_excluded=so.excluded, **extra)
     if so.lowest_mode is None:
@@ -209,7 +211,7 @@ def _solve(problem, backend, method, x0, options) -> Result:
     check_second_order = scene.solver.method in EXACT_METHODS and scene.solver.second_order
     if chosen == "ipopt":
         _check_options(options, IpoptOptions, chosen)
-        derivs = None
+        derivs = pin = None
         if disc is not None and scene.solver.method == "exact":  # a refined mesh: one graph and solver per mesh
             check_feasible(*constraint_data(scene, disc), scene, disc)  # before anything is logged
             opts = options or IpoptOptions.from_scene(scene)
@@ -217,6 +219,7 @@ def _solve(problem, backend, method, x0, options) -> Result:
             _log_start(scene, chosen, backend, disc.n_nodes)
             result = reuse.unpinned(solve_exact(nlp, solver=solver, options=opts, p=p, **start))
             derivs = reuse.derivatives(nlp, solver, p)
+            pin = reuse.pin_of(p, disc.n_nodes)  # the check's T: the solve's rows, the pin's included
         else:
             nlp = nlp or build_nlp(scene, disc)  # refuses infeasible data (one line, before anything is logged)
             _log_start(scene, chosen, backend, nlp.disc.n_nodes)
@@ -225,7 +228,7 @@ def _solve(problem, backend, method, x0, options) -> Result:
         if check_second_order and result.converged:
             log.info("%s: second-order check (shift-invert Lanczos on the KKT matrix)", scene.name)
         t0 = time.perf_counter()
-        so = (second_order.check(*_exact_point(nlp, result), derivatives=derivs)
+        so = (second_order.check(*_exact_point(nlp, result), derivatives=derivs, pin=pin)
               if check_second_order and result.converged else None)
     else:
         _check_options(options, NewtonKrylovOptions, chosen)

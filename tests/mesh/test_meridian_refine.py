@@ -230,8 +230,8 @@ def test_the_reused_graph_solves_and_checks_the_same_problem():
     assert warm.energy == pytest.approx(fresh.energy, rel=1e-9)  # the solvers' tolerance (measured ~1e-12)
     # at the same point, the solver's own Hessian and Jacobian (reused) against a fresh graph's
     nlp, solver, p, _ = reuse.point(scene, warm.disc, IpoptOptions.from_scene(scene), first)
-    a = second_order.check(nlp, warm, derivatives=reuse.derivatives(nlp, solver, p))
-    b = second_order.check(fresh_nlp, warm)
+    a = second_order.check(nlp, warm, derivatives=reuse.derivatives(nlp, solver, p), pin=reuse.pin_of(p, warm.disc.n_nodes))
+    b = second_order.check(fresh_nlp, warm, pin=reuse.pin_of(p, warm.disc.n_nodes))  # the same tangent space
     assert a.verdict == b.verdict == warm.extra["second_order"]
     # ARPACK at tol 1e-10 on two assemblies of one matrix (measured 2e-8 relative on the least, ~1e-5 mu_ref)
     assert np.allclose(a.eigenvalues, b.eigenvalues, rtol=1e-6, atol=1e-10), (a.eigenvalues, b.eigenvalues)

@@ -64,8 +64,11 @@ def cmd_solve(args) -> int:
         why = summary.get("second_order_reason") or "a negative tangent direction"
         if not why.startswith("least eigenvalue"):
             why += f"; least eigenvalue on the rest {summary['second_order_min_eigenvalue']:.3g} mu_ref"
+        # a meridian mesh whose least mode is the axial slide (verdict.axial_note): no other shape helps
+        advice = ("the vesicle slides along the axis, its shape is not unstable; mesh.refine = 'interface' pins "
+                  "the slide" if "axial slide" in why else "try another initial shape")
         print(f"vesicle-opt: warning: the KKT point is a saddle, not a minimiser ({why}, "
-              f"{summary.get('second_order_excluded', 'none')} excluded); try another initial shape",
+              f"{summary.get('second_order_excluded', 'none')} excluded); {advice}",
               file=sys.stderr)
     if result.converged and summary.get("second_order") == "marginal":
         print(f"vesicle-opt: warning: second order marginal, not a strict minimum: "

@@ -120,3 +120,18 @@ def assemble(mesh, box, mass: str = "lumped", quadrature: str = "nodal", **extra
         h=max_edge(mesh), volume=cylinder_volume(box), box=tuple(tuple(map(float, b)) for b in box),
         quad_P=quad_P, quad_w=quad_w, mesh=mesh, **extra)
 
+
+def axial_translation(disc, phi: np.ndarray) -> np.ndarray:
+    """d_z phi at the nodes of a meridian mesh: the P1 gradient's z component of each triangle,
+    averaged over the triangles at a node with their areas as weights (the axial translation's
+    tangent, the near-null mode the pin holds)."""
+    p, t = disc.mesh.p, disc.mesh.t
+    x = p[:, t]
+    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    det = e1[0] * e2[1] - e1[1] * e2[0]
+    f = np.asarray(phi, float)[t]
+    gz = ((f[1] - f[0]) * -e2[0] + (f[2] - f[0]) * e1[0]) / det  # z component of grad of the P1 interpolant
+    area = np.abs(det) / 2
+    num = np.bincount(t.ravel(), np.tile(area * gz, 3), minlength=disc.n_nodes)
+    den = np.bincount(t.ravel(), np.tile(area, 3), minlength=disc.n_nodes)
+    return num / den

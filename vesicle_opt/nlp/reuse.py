@@ -16,7 +16,9 @@ second-order check's Hessian graph 0.09 s, against 0.2-0.3 s of IPOPT iterations
   eps/R0 = 0.02 (regularised, tiny decreases). On an up-down mirrored mesh (``refine.mirrored_tensor``)
   an up-down symmetric vesicle is exactly stationary along it, so the pin's multiplier vanishes; the
   certificate recomputes stationarity without the row (a held, non-stationary position fails it)
-  and ``extra["translation_multiplier"]`` records it;
+  and ``extra["translation_multiplier"]`` records it; the second-order check takes its tangent space
+  with the row (``pin_of``): the slide the solve held is excluded as constrained, and the verdict's
+  reason says "axial position pinned";
 * IPOPT's own derivative functions ``nlp_hess_l`` and ``nlp_jac_g`` of that solver, which the
   assembled second-order check (``verify.second_order.check``) evaluates instead of building its own
   Hessian graph (the same matrix: 0.0 apart, measured).
@@ -33,6 +35,7 @@ import weakref
 import numpy as np
 import scipy.sparse as sp
 
+from vesicle_opt.mesh.axisymmetric import axial_translation  # noqa: F401  (the pin's mode; re-exported)
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.nlp.exact import at_point, build_exact, parameter_values
 from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
@@ -40,22 +43,6 @@ from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
 WARM = (("ipopt.warm_start_init_point", "yes"),)  # IPOPT takes the given multipliers (no bounds, no
 # inequalities: nothing else to warm)
 _CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()  # disc -> {(eps, rigidity): nlp, (.., options, warm): solver}
-
-
-def axial_translation(disc, phi: np.ndarray) -> np.ndarray:
-    """d_z phi at the nodes of a meridian mesh: the P1 gradient's z component of each triangle,
-    averaged over the triangles at a node with their areas as weights (the axial translation's
-    tangent, the near-null mode the pin holds)."""
-    p, t = disc.mesh.p, disc.mesh.t
-    x = p[:, t]
-    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
-    det = e1[0] * e2[1] - e1[1] * e2[0]
-    f = np.asarray(phi, float)[t]
-    gz = ((f[1] - f[0]) * -e2[0] + (f[2] - f[0]) * e1[0]) / det  # z component of grad of the P1 interpolant
-    area = np.abs(det) / 2
-    num = np.bincount(t.ravel(), np.tile(area * gz, 3), minlength=disc.n_nodes)
-    den = np.bincount(t.ravel(), np.tile(area, 3), minlength=disc.n_nodes)
-    return num / den
 
 
 def _pinned(nlp):
@@ -74,6 +61,12 @@ def pin_row(disc, phi: np.ndarray) -> np.ndarray:
     c = disc.weights * axial_translation(disc, phi)
     c = c / max(float(np.abs(c).sum()), 1e-300)
     return np.concatenate([c, [c @ phi]])
+
+
+def pin_of(p: np.ndarray, n: int) -> np.ndarray:
+    """The pin's row c (phi block, ``pin_row``) held in the pinned NLP's parameters p: the row the
+    second-order check adds to the tangent space (``verify.second_order.check(pin=...)``)."""
+    return np.asarray(p, float).ravel()[-(n + 1):-1]
 
 
 def parametric(scene, disc, options: IpoptOptions, warm: bool):
@@ -125,9 +118,10 @@ def unpinned(result):
 
 def derivatives(nlp, solver, p):
     """(hessian_of(x, lam_g), jacobian_of(x)) for ``verify.second_order.check`` from the solver's
-    own functions at the parameters p, without the pin (the check sees the unpinned tangent space,
-    the translation included): the physical Hessian of the Lagrangian (f_scale times IPOPT's, its
-    upper triangle mirrored; the pin is linear) and the Jacobian of the two constraints."""
+    own functions at the parameters p: the physical Hessian of the Lagrangian (f_scale times IPOPT's, its
+    upper triangle mirrored; the pin is linear) and the Jacobian of the two constraints (the check
+    adds the pin's row itself, ``pin_of``: its tangent space is the solve's, the slide excluded as
+    constrained)."""
     hess, jac = solver.get_function("nlp_hess_l"), solver.get_function("nlp_jac_g")
 
     def hessian_of(x, lam_g):

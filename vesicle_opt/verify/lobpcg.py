@@ -60,7 +60,7 @@ from threadpoolctl import threadpool_limits
 from vesicle_opt.mesh.spectral import fourier_grid, resample
 from vesicle_opt.model.lumped import LumpedOperators, PhaseField
 from vesicle_opt.model.problem import constraint_data
-from vesicle_opt.verify import block_eig
+from vesicle_opt.verify import axial, block_eig
 from vesicle_opt.verify import lobpcg_level as level
 from vesicle_opt.verify import lobpcg_rules as rules
 from vesicle_opt.verify.lobpcg_rules import COARSE_EIG_TOL, DECIDED_EXTRA, EIG_TOL, SETTLED_RUN, TOL
@@ -195,6 +195,10 @@ def check_levels(scene, result, setup, rotations: bool = False, **kw) -> tuple[S
         return SecondOrder("not checked", nan, nan, (nan,), (), nan, f"lobpcg: {e}", errors=(nan,)), {}
     mu, err = float(sp["eigenvalues"][0]), float(sp["errors"][0])
     verdict, reason = V.classify(mu, err, sp["excluded_rayleigh"], sp["failure"])
+    # a meridian mesh: the reason names the axial slide where it is the least mode (verify.axial)
+    disc = setup[0]
+    slide = axial.overlap(disc, result.phi, sp["vectors"][:, 0], scene.model.epsilon, scene.model.C)
+    reason = V.axial_note(verdict, reason, False, float("nan"), slide, sp["eigenvalues"])
     so = SecondOrder(verdict, mu * sp["mu_ref"], mu, tuple(float(x) for x in sp["eigenvalues"]),
                      sp["excluded_rayleigh"], float(max(sp["errors"])), reason,
                      sp["vectors"][:, 0], excluded=sp["excluded"], errors=tuple(float(e) for e in sp["errors"]),

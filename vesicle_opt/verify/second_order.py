@@ -16,6 +16,9 @@ in the matrix-free check: the rotation mode is one of the eigenvalues (measured 
 64^2 ellipse, below the first shape mode 1.28); the rotation generators' own quotients on T are
 reported (``rotation_rayleigh``). Error bounds: the residual norm on T, or Kato-Temple where the
 next eigenvalue is separated (``block_eig.error_bounds``).
+Meridian meshes: the axial slide d_z phi is near-null, not a symmetry, and is never excluded as one;
+where the solve imposed a linear row (the axial pin of ``nlp.reuse``), T is the tangent space of all
+the solve's rows, that one included (``pin``), and ``verdict.axial_note`` says so or names the slide.
 The Hessian comes from the NLP's CasADi graph (the same one IPOPT used); the KKT residual it
 relies on is checked independently in ``verify.kkt``.
 """
@@ -26,9 +29,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from vesicle_opt.mesh.axisymmetric import axial_translation
 from vesicle_opt.mesh.spectral import FourierGrid
 from vesicle_opt.model import functionals as F
 from vesicle_opt.verify import verdict as V
+from vesicle_opt.verify.axial import overlap as slide_overlap
 from vesicle_opt.verify.block_eig import EPS, error_bounds
 from vesicle_opt.verify.verdict import SecondOrder
 
@@ -56,8 +61,9 @@ def translation_modes(disc, phi: np.ndarray) -> list[np.ndarray]:
     return FourierGrid(disc.box, disc.grid_shape).derivatives(np.asarray(phi, float))
 
 
-def constraint_rows(nlp, x, trans, Mphi, jacobian_of=None) -> sp.csr_matrix:
-    """Jacobian of all NLP constraints at x, plus the translation rows t_i^T M (phi block only);
+def constraint_rows(nlp, x, trans, Mphi, jacobian_of=None, pin=None) -> sp.csr_matrix:
+    """Jacobian of all NLP constraints at x, plus the translation rows t_i^T M and the solve's pin
+    row c (``nlp.reuse.pin_of``), phi block only;
     ``jacobian_of(x)``: the Jacobian from a function built before (``nlp.reuse.derivatives``)."""
     if jacobian_of is not None:
         J = jacobian_of(x)
@@ -65,9 +71,10 @@ def constraint_rows(nlp, x, trans, Mphi, jacobian_of=None) -> sp.csr_matrix:
         import casadi as ca  # third-party, lazy: only IPOPT paths need it (0.25 s at import)
         jac = ca.Function("constraint_jacobian", [nlp.x], [ca.jacobian(nlp.g, nlp.x)])
         J = sp.csr_matrix(jac(x).sparse())
-    if trans:
-        T = np.vstack([Mphi @ t for t in trans])
-        T = np.hstack([T, np.zeros((len(trans), J.shape[1] - T.shape[1]))])
+    rows = [Mphi @ t for t in trans] + ([np.asarray(pin, float)] if pin is not None else [])
+    if rows:
+        T = np.vstack(rows)
+        T = np.hstack([T, np.zeros((len(rows), J.shape[1] - T.shape[1]))])
         J = sp.vstack([J, sp.csr_matrix(T)], format="csr")
     return J
 
@@ -98,7 +105,7 @@ def _floor(reduced, Mphi, solve_mass, n: int, steps: int = POWER_STEPS) -> float
     return EPS * lam
 
 
-def check(nlp, result, n_eig: int = N_EIG, derivatives=None) -> SecondOrder:
+def check(nlp, result, n_eig: int = N_EIG, derivatives=None, pin=None) -> SecondOrder:
     """Smallest eigenvalues by shift-invert Lanczos (ARPACK) on the bordered system
 
         [[H - sigma B, J^T], [J, 0]] [u; y] = [M r; 0],   B = blockdiag(M, 0 for w),
@@ -109,6 +116,11 @@ def check(nlp, result, n_eig: int = N_EIG, derivatives=None) -> SecondOrder:
     found (to twice it) until none lies below sigma, so that a deep saddle reports its least one.
     ``derivatives``: (hessian_of(x, lam_g), jacobian_of(x)) built before, e.g. the IPOPT solver's own
     of a parametric NLP reused along a branch (``nlp.reuse.derivatives``); default: built here.
+    ``pin``: the row c of a linear constraint c . phi = d the solve imposed (``nlp.reuse.pin_of``, the
+    axial position on a refined meridian mesh): T is the tangent space of all the solve's rows, the
+    pin's included, and the reason says "axial position pinned". On a meridian mesh the axial
+    slide's Rayleigh quotient on {dA.v = dB.v = 0} is reported (``axial_rayleigh``); unpinned, the
+    slide stays in T and the reason names it where it is the least mode (``verdict.axial_note``).
     """
     disc, sc = nlp.disc, nlp.scene
     n = disc.n_nodes
@@ -119,7 +131,7 @@ def check(nlp, result, n_eig: int = N_EIG, derivatives=None) -> SecondOrder:
     nx = H.shape[0]
     B = sp.block_diag([Mphi, sp.csr_matrix((nx - n, nx - n))], format="csr") if nx > n else Mphi
     trans = translation_modes(disc, result.phi)
-    J = constraint_rows(nlp, result.x, trans, Mphi, jacobian_of)
+    J = constraint_rows(nlp, result.x, trans, Mphi, jacobian_of, pin)
     mu_ref = V.mu_ref(rig, eps, nlp.beta, disc.dim)
     pad = np.zeros(J.shape[0] + nx - n)
 
@@ -144,7 +156,7 @@ def check(nlp, result, n_eig: int = N_EIG, derivatives=None) -> SecondOrder:
     mu, Vec = mu[order], Vec[:, order]
     grads = F.gradients(disc, result.phi, eps, sc.model.C)[1:]
     C_ab = np.column_stack(grads)
-    C_all = np.column_stack([*grads, *(Mphi @ t for t in trans)])
+    C_all = np.column_stack([*grads, *(Mphi @ t for t in trans), *([pin] if pin is not None else [])])
     _, on_t = _tangent_projector(C_all, disc.solve_mass)
 
     def m_norm_inv(r):  # sqrt(r^T M^{-1} r)
@@ -170,7 +182,12 @@ def check(nlp, result, n_eig: int = N_EIG, derivatives=None) -> SecondOrder:
     rotation = tuple(rayleigh_of(x[:, i] * trans[j] - x[:, j] * trans[i]) for i, j in pairs)
     rel = float(mu[0] / mu_ref)
     verdict, reason = V.classify(rel, errors[0], rayleigh)
+    axial, overlap = float("nan"), float("nan")
+    if getattr(disc, "axisymmetric", False):
+        axial = rayleigh_of(axial_translation(disc, result.phi))
+        overlap = slide_overlap(disc, result.phi, Vec[:, 0], eps, sc.model.C, Mphi)
+    reason = V.axial_note(verdict, reason, pin is not None, axial, overlap, mu / mu_ref)
     return SecondOrder(verdict, float(mu[0]), rel, tuple(float(m / mu_ref) for m in mu), tuple(rayleigh),
                        float(max(errors)), reason, Vec[:, 0] / np.sqrt(Vec[:, 0] @ (Mphi @ Vec[:, 0])),
                        excluded=V.excluded_label(disc, trans), errors=tuple(float(e) for e in errors),
-                       rotation_rayleigh=rotation)
+                       rotation_rayleigh=rotation, axial_rayleigh=axial)

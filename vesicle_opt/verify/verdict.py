@@ -91,6 +91,8 @@ class SecondOrder:
     iterations: int | None = None  # the eigensolver's iterations (LOBPCG)
     rotation_rayleigh: tuple[float, ...] = ()  # the rotation generators' Rayleigh quotients on T (mu_ref
     # units; a report only: rotations stay in the check), extra["rotation_rayleigh"] holds the least
+    axial_rayleigh: float = float("nan")  # meridian mesh: the axial slide d_z phi's Rayleigh quotient on
+    # {dA.v = dB.v = 0} (mu_ref units; extra["axial_rayleigh"]), pinned or not (``axial_note``)
 
 
 def mu_ref(rigidity: float, epsilon: float, beta: float, dim: int) -> float:
@@ -102,6 +104,33 @@ def excludes_rotations(scene) -> bool:
     """Whether the check of ``scene`` removes the rotations with the translations: nowhere (module
     docstring, excluded modes). Kept as the one place that says so; the callers pass it on."""
     return False
+
+
+PINNED = ("axial position pinned (the solve's row c . phi = d holds the slide along the axis: T is the "
+          "tangent space of all its constraints, the slide excluded as constrained, not as a symmetry)")
+SLIDE_OVERLAP = 0.95  # |<slide, least mode>_M| (normalised) above which the least mode is called the
+# axial slide; measured 1.000 (prolate, eps 0.1, h = eps/2), 0.989 (h = eps), and 0.933 where a shape
+# mode is nearly as soft (c0 = 2.4, v = 0.72, next eigenvalue 9e-5 mu_ref: the pear's bifurcation), a
+# mix the reason then does not call the slide
+
+
+def axial_note(verdict: str, reason: str, pinned: bool, axial: float, overlap: float, mus) -> str:
+    """The verdict's reason on a meridian mesh: "axial position pinned" where the solve held the
+    slide (``PINNED``); unpinned, where the least mode is the axial slide (M-overlap above
+    ``SLIDE_OVERLAP``), that it is the slide between the natural end walls (a near-null mode, +-1e-5
+    mu_ref: not an exact symmetry, so it stays in the check), with the next eigenvalue, the least
+    shape mode's."""
+    if verdict == "not checked":
+        return reason
+    note = ""
+    if pinned:
+        note = PINNED
+    elif math.isfinite(overlap) and overlap > SLIDE_OVERLAP:
+        nxt = f"; the next eigenvalue {mus[1]:.3g} mu_ref" if len(mus) > 1 else ""
+        quotient = f", axial_rayleigh {axial:.3g} mu_ref" if math.isfinite(axial) else ""
+        note = (f"the least mode is the axial slide (overlap {overlap:.3f}{quotient}): the vesicle sliding "
+                f"between the end walls, not a shape instability{nxt}")
+    return "; ".join(x for x in (reason, note) if x)
 
 
 def classify(mu: float, err: float, excluded_rayleigh=(), failure: str = "") -> tuple[str, str]:
