@@ -122,6 +122,7 @@ def setup_logging(verbose: int = 0, quiet: bool = False) -> logging.Handler:
     logger.addHandler(handler)
     logger.setLevel(logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO)
     progress.enable(not quiet)
+    progress.silence(quiet)  # -q: no bar, the forced ones (a study's cases) included
     return handler
 
 
@@ -225,6 +226,7 @@ def main(argv: list[str] | None = None) -> int:
         logging.getLogger("vesicle_opt").removeHandler(handler)
         logging.getLogger("vesicle_opt").setLevel(logging.NOTSET)
         progress.enable(False)
+        progress.silence(False)
 
 
 def finish(code: int) -> None:

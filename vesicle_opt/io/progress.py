@@ -16,12 +16,17 @@ import os
 import sys
 import time
 
-_STATE = {"enabled": False}
+_STATE = {"enabled": False, "silenced": False}
 
 
 def enable(on: bool = True) -> None:
     """Switch progress output on (the CLI) or off (the default for library use)."""
     _STATE["enabled"] = bool(on)
+
+
+def silence(on: bool = True) -> None:
+    """No bar at all, not even a forced one (the CLI's ``-q``: a quiet run prints warnings only)."""
+    _STATE["silenced"] = bool(on)
 
 
 def enabled() -> bool:
@@ -115,7 +120,7 @@ def bar(desc: str, total: float | None = None, unit: str = "it", *, stream=None,
         force: bool = False):
     """A progress bar for ``desc`` (see the module docstring); ``force`` shows it even when progress
     is off (a caller that asked for progress explicitly, e.g. ``ProgressTracker``)."""
-    if not (force or enabled()):
+    if _STATE["silenced"] or not (force or enabled()):
         return NullBar()
     stream = sys.stderr if stream is None else stream
     if _is_tty(stream):

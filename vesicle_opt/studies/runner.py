@@ -24,6 +24,7 @@
 from __future__ import annotations
 
 import csv
+import gc
 import io
 import logging
 import multiprocessing as mp
@@ -49,6 +50,7 @@ BOOKKEEPING = ["case", "case_rows"]
 FAILURE = ["outcome", "reason", "certifiable_tol"]  # a row that failed says how and why (``failed_line``); after the
 # bookkeeping columns, so that the rows of a CSV written before them keep their places
 PARENT_POLL_S = 0.5  # a worker notices its parent's death within this (the SIGKILL test allows a few s)
+TERMINATE_WAIT_S = 5.0  # a SIGTERMed worker is gone in ~10 ms; a bound, so an interrupt never hangs
 
 
 def _exit_with_parent(parent_pid: int, log_level: int | None = None) -> None:
@@ -69,12 +71,22 @@ def terminate(executor: Executor) -> None:
     """End a process pool's workers now (SIGTERM) and drop its queued work: what an interrupted
     parent does to its own pool instead of ``shutdown(wait=True)``, which waits for every running
     case. ``_processes`` is the pool's private table of its workers (CPython's, 3.8 to 3.13)."""
-    for proc in list((getattr(executor, "_processes", None) or {}).values()):
+    procs = list((getattr(executor, "_processes", None) or {}).values())
+    for proc in procs:
         try:
             proc.terminate()
         except (OSError, ValueError):  # already gone
             pass
-    executor.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        proc.join(timeout=TERMINATE_WAIT_S)
+    # with the workers gone the pool's manager thread ends at once; joining it drops the pool's last
+    # references to its queues, whose semaphores the collection then unlinks (the CLI leaves by
+    # os._exit, where no finalizer runs: the resource tracker would warn of leaked semaphores)
+    closer = threading.Thread(target=executor.shutdown, kwargs={"wait": True, "cancel_futures": True},
+                              name="pool-shutdown", daemon=True)
+    closer.start()
+    closer.join(timeout=TERMINATE_WAIT_S)
+    gc.collect()
 
 
 def process_pool(workers: int = 1, log_level: int | None = None, **kwargs) -> ProcessPoolExecutor:
