@@ -76,7 +76,8 @@ def extends(old: dict, new: dict) -> bool:
         return False
 
 
-def _text(v) -> str:
+def cell_text(v) -> str:
+    """A value as a CSV cell holds it: '' for None and non-finite numbers, true/false, repr of floats."""
     if v is None:
         return ""
     if isinstance(v, (bool, np.bool_)):
@@ -101,7 +102,7 @@ def checksum(texts: dict) -> str:
 
 def texts(row: dict) -> dict:
     """A row's CSV texts (``_text`` of each column), its checksum filled in."""
-    out = {k: _text(row.get(k)) for k in COLUMNS if k != CHECKSUM}
+    out = {k: cell_text(row.get(k)) for k in COLUMNS if k != CHECKSUM}
     return {**out, CHECKSUM: checksum(out)}
 
 

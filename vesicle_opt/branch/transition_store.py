@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vesicle_opt.branch.store import cell_text
 from vesicle_opt.branch.transition import BRANCHES, Found, Sample
 from vesicle_opt.errors import InputError
 from vesicle_opt.io import fields, interrupt, state
@@ -47,19 +48,6 @@ FLOATS = ("value", "target", "predicted", "gap", "energy", "reduced_energy", "f"
 GAP_ACCEPT = 1e-6  # a crossing with a larger relative gap is reported as "located_to_gap" (its points are
 # certified, but not at one energy: the polish's Newton steps did not close it, so the states jumped)
 ADVICE = "move it away or give another --out (nothing there was changed)"
-
-
-def _text(v) -> str:
-    """A value as the CSV holds it: '' for None and non-finite numbers, true/false, repr of floats."""
-    if v is None:
-        return ""
-    if isinstance(v, (bool, np.bool_)):
-        return "true" if v else "false"
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v)) if np.isfinite(v) else ""
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    return str(v)
 
 
 def parse(row: dict) -> dict:
@@ -198,7 +186,7 @@ class LineStore:
     def append(self, i: int, direction: str, found: Found) -> dict:
         """Write both fields (a certified crossing's), then the row; the row, parsed."""
         row = row_of(i, direction, found, self.second, self.param)
-        text = {k: _text(row.get(k)) for k in COLUMNS}
+        text = {k: cell_text(row.get(k)) for k in COLUMNS}
         if found.converged:
             for x in BRANCHES:
                 if self.out is None:
