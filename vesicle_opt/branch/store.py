@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.errors import InputError
-from vesicle_opt.io import fields, interrupt, state
+from vesicle_opt.io import fields, interrupt, outdir, state
 from vesicle_opt.io.files import load_npz, save_npz, write_json
 
 COLUMNS = ["point", "branch", "param", "target", "reduced_volume", "c0", "energy", "reduced_energy",
@@ -148,11 +148,7 @@ class Store:
         self.meta = meta
         if self.out is None:
             return
-        try:
-            (self.out / "points").mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise InputError("--out", f"cannot use {str(out)!r} as the output directory "
-                             f"({exc.strerror or exc})") from None
+        outdir.make(out, "points")
         meta_path = self.out / "branch.json"
         old = None  # the stored run's arguments (none: a new run)
         if meta_path.exists():

@@ -27,7 +27,7 @@ import numpy as np
 from vesicle_opt.branch.store import cell_text
 from vesicle_opt.branch.transition import BRANCHES, Found, Sample
 from vesicle_opt.errors import InputError
-from vesicle_opt.io import fields, interrupt, state
+from vesicle_opt.io import fields, interrupt, outdir, state
 from vesicle_opt.io.files import write_json
 
 LINE = ["row", "direction", "second", "value", "param", "target", "predicted", "gap", "energy", "reduced_energy",
@@ -114,11 +114,7 @@ class LineStore:
         self._phi: dict = {}
         if self.out is None:
             return
-        try:
-            (self.out / "points").mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise InputError("--out", f"cannot use {str(out)!r} as the output directory "
-                             f"({exc.strerror or exc})") from None
+        outdir.make(out, "points")
         meta_path = self.out / "transition.json"
         if meta_path.exists():
             old = state.read_json(meta_path, ADVICE)

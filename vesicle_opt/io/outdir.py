@@ -45,6 +45,16 @@ def check(arg: str | Path, key: str = "--out") -> Path:
     return path
 
 
+def make(out: str | Path, sub: str = "", key: str = "--out") -> None:
+    """Create the directory ``out / sub`` (parents too); any OSError is one InputError line naming
+    the output directory ``out``."""
+    try:
+        (Path(out) / sub).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(key, f"cannot use {str(out)!r} as the output directory "
+                         f"({exc.strerror or exc})") from None
+
+
 @contextlib.contextmanager
 def locked(path: Path, key: str = "--out"):
     """Hold the run's exclusive lock on ``path`` (module docstring); InputError when another run
