@@ -15,6 +15,7 @@ import pytest
 from vesicle_opt import cli
 from vesicle_opt.branch import COLUMNS, branch
 from vesicle_opt.errors import InputError
+from vesicle_opt.mesh.spectral import FourierGrid
 from vesicle_opt.scene.schema import from_dict
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -276,15 +277,45 @@ def test_cli_switch_depth_and_deflate_reach_the_run(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_a_turning_point_in_c0_is_reported_once_as_a_fold(tmp_path):
-    """The nu = 0.8 ellipse at 48^2 (eps 0.4) in c0 turns back at c0 = 0.734765 (measured; the chord
-    location with p free at the one-point blip gave 0.7347652, the parabola 0.7347663): its least
-    eigenvalue touches zero and stays >= 0 within its bound (a symmetric turning point), so the fold
-    is one row located by the parabola, not switched, and the walk comes back on the other sheet."""
+    """The nu = 0.8 ellipse at 48^2 (eps 0.4) in c0 splits into two droplets (by c0 ~ 0.3) that drift
+    apart along the branch; it turns back at c0 = 0.734765 (measured; the chord location with p free
+    gave 0.7347652, the parabola 0.7347663), where they sit half a box apart: a symmetric turning
+    point (the sheets beyond are the half-box shifts of those before), whose critical eigenvalue
+    (the droplets' relative translation) touches zero and stays >= 0 within its bound. So the fold
+    is one row located by the parabola, not switched, and the walk comes back on the other sheet.
+    The rotation of the pair is kept in the check (``verify.verdict``) and is a real mode of the
+    periodic box: its eigenvalue crosses zero at c0 = 0.723573 on both sheets (decidedly: -4.6e-5
+    +- 7.9e-7 one point later, -4.7e-4 +- 9.8e-5 at the turn), 0.011 below the turn, p monotone
+    there: two branch points (the second the half-box image of the first), each critical mode the
+    rotation generator's direction (overlap 0.9999, 0.995); the branches they start are one (tilted)
+    branch, which turns at c0 = 0.719274, a crossing at a turn: located as a fold on the chord."""
     raw = raw_scene(n=48, eps=0.4, second_order=True, initial={"shape": "ellipse", "semi_axes": [1.6, 0.9]})
     raw["constraints"]["reduced_volume"] = 0.8
-    b = branch(from_dict(raw, "ellipse-c0"), "c0", to=2.5, step=0.1, max_points=50)
-    folds = b.located(0)
-    assert [r["event"] for r in folds] == ["fold"] and folds[0]["located_by"] == "parabola"
+    b = branch(from_dict(raw, "ellipse-c0"), "c0", to=2.5, step=0.1, max_points=50, out=tmp_path / "c")
+    folds = [r for r in b.located(0) if r["event"] == "fold"]
+    assert len(folds) == 1 and folds[0]["located_by"] == "parabola"
     assert abs(folds[0]["target"] - 0.734765) < 1e-5  # the two locations agree to 1.1e-6; the walk's zigzag ~5e-6
-    assert list(b.stopped) == [0] and max(r["target"] for r in b.points(0)) < 0.73477
+    assert b.stopped[0] == "max_points" and max(r["target"] for r in b.points(0)) < 0.73477
     assert b.points(0)[-1]["target"] < 0.733 and all(r["converged"] for r in b.points(0))  # back: 300x the zigzag
+    bps = [r for r in b.located(0) if r["event"] != "fold"]
+    assert [r["event"] for r in bps] == ["branch point"] * 2 and all(r["located_by"] == "illinois" for r in bps)
+    # both off the turn by 2000x the zigzag (no turn there: a branch point is right), at one c0 (images):
+    # to the location's bracket, tree.P_TOL x step = 1e-4 (measured 4.7e-6 apart)
+    assert all(r["target"] < folds[0]["target"] - 0.01 for r in bps)
+    assert abs(bps[0]["target"] - bps[1]["target"]) < 1e-4
+    for r in bps:  # the critical mode is the rotation x d_y phi - y d_x phi (measured overlaps 0.9999, 0.995)
+        snap = b.field(r["point"])
+        phi, x, v = snap["phi"], np.asarray(snap["nodes"]), snap["mode"]
+        dx, dy = FourierGrid(snap["box"], tuple(snap["grid_shape"])).derivatives(phi)
+        rot = x[:, 0] * dy - x[:, 1] * dx
+        assert abs(v @ rot) / np.linalg.norm(v) / np.linalg.norm(rot) > 0.99  # the next modes are of other parity
+    # the two images: the second point's field is the first's shifted by half the box (24 cells) in x
+    f0, f1 = (b.field(r["point"])["phi"].reshape(48, 48) for r in bps)
+    assert np.abs(np.roll(f0, 24, axis=0) - f1).max() < 1e-3 < np.abs(f0 - f1).max()
+    # the four switches (two per branch point) walk one tilted branch; the other three land on it
+    assert len(b.stopped) == 5 and sum(v == "known: branch 1" for v in b.stopped.values()) == 3
+    tilted = [r for r in b.located() if r["branch"] != 0]
+    assert [(r["event"], r["located_by"]) for r in tilted] == [("fold", "chord")]
+    assert tilted[0]["target"] < min(r["target"] for r in b.points(tilted[0]["branch"]))  # below every point
+    # Illinois to TAU_TOL = 1e-3 of the chord: |g| within ~1e-3 of the ends' 1.1e-5 (measured 1.3e-9)
+    assert abs(tilted[0]["critical_eigenvalue"]) < 2e-8

@@ -3,6 +3,7 @@ branch points joined by a ring are detected, located, classified and switched; a
 a known one is not walked twice; deflation finds the other root; a diagram cut after any row
 resumes to the same rows."""
 
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -216,3 +217,31 @@ def test_fold_line_by_sweeps_follows_the_closed_form():
     assert [r["value"] for r in line] == [0.0, 0.5, 1.0]
     assert max(abs(r["target"] - r["value"] ** 2) for r in line) < 1e-8  # the chord location, as for one fold
     assert all(r["located_by"] == "chord" for r in line)
+
+
+def test_a_crossing_whose_new_side_is_undecided_at_a_turn_is_the_fold():
+    """Measured on the switched (tilted) branch of the nu = 0.8 pair in c0 (2D, FD 48^2, eps 0.4):
+    the least eigenvalue crosses zero where the parameter turns, the point after the change within
+    its bound (-4.35e-6 +- 6.6e-6) and the turn one point later. The bracket is widened to the
+    first decided point, so the crossing is the fold (not a branch point, as the bare pair of points
+    classified it) and the critical values are the crossing eigenvalue's (not the next mode's)."""
+    data = [(0.71965997, (-2.81e-05, 0.0762), (5.3e-06, 0.00017)),
+            (0.71953075, (-2.32e-05, 0.0769), (5.6e-06, 0.00016)),
+            (0.71941790, (-1.75e-05, 0.0774), (5.9e-06, 0.00015)),
+            (0.71933076, (-1.09e-05, 0.0777), (6.3e-06, 0.00014)),
+            (0.71928332, (-4.35e-06, 0.0778), (6.6e-06, 0.00013)),
+            (0.71927788, (2.7e-06, 0.0775), (2.6e-07, 3.8e-06)),
+            (0.71932100, (9.33e-06, 0.0769), (8e-06, 0.00011)),
+            (0.71941148, (1.53e-05, 0.076), (8.4e-06, 0.0001))]
+    pts = [events.Point(p, np.zeros(1), 0.0, mu, err) for p, mu, err in data]
+    assert events.crossings(pts) == [4]
+    ps = [q.p for q in pts]
+    assert events.classify(ps, 4) == events.BRANCH_POINT  # the bare bracket (3, 4) misses the turn at 5
+    assert events.critical_values(pts[3], pts[4]) == (-1.09e-05, 0.0778)  # and takes the next mode
+    a, b = events.bracket(pts, 4)
+    assert (a, b) == (3, 5) and events.classify(ps, 4, a, b) == events.FOLD
+    assert events.critical_values(pts[a], pts[b]) == (-1.09e-05, 2.7e-06)
+    # a soft mode within its bound at both ends (far components' relative translation) widens nothing
+    soft = [dataclasses.replace(q, eigenvalues=(-8e-4, *q.eigenvalues), errors=(2e-3, *q.errors)) for q in pts]
+    assert events.bracket(soft[:4] + [dataclasses.replace(soft[4], eigenvalues=(-8e-4, 1e-5, 0.0778),
+                                                          errors=(2e-3, 1e-7, 1e-4))] + soft[5:], 4) == (3, 4)

@@ -94,7 +94,8 @@ def tracked(point: Point, target: float) -> tuple[int, float, float]:
 def crossings(points: list[Point]) -> list[int]:
     """k such that the index changes between points[k - 1] and points[k] and keeps its new value at
     points[k + 1] (the last point: kept). A one-point blip is no crossing: measured at a symmetric
-    turning point in c0 (2D ellipse, nu = 0.8, 48^2) the least eigenvalue touches zero, +1.6e-6,
+    turning point in c0 (2D ellipse, nu = 0.8, 48^2) the critical eigenvalue (the relative
+    translation of its two droplets; the rotation, kept in the check, is below it) touches zero, +1.6e-6,
     -2.7e-6, -8.4e-7 (bound 1.5e-7: one point decidedly negative), +3.4e-5, and rises again."""
     out, confirmed = [], points[0].index if points else 0
     for k in range(1, len(points)):
@@ -117,11 +118,47 @@ def turns(points: list[Point], window: int = 5) -> list[int]:
     return out
 
 
-def classify(ps: list[float], k: int) -> str:
-    """FOLD if the parameter turns within one secant of the bracket (points k - 1, k) of the
-    parameter values ``ps``, else BRANCH_POINT (module docstring)."""
-    dps = [ps[j + 1] - ps[j] for j in range(max(k - 2, 0), min(k + 1, len(ps) - 1))]
-    return FOLD if any(x * y < 0 for x, y in zip(dps, dps[1:])) else BRANCH_POINT
+def _undecided(q: Point) -> int:
+    """The number of q's eigenvalues within their bound of zero (|mu| <= err)."""
+    return sum(1 for i, mu in enumerate(q.eigenvalues) if math.isfinite(mu) and abs(mu) <= _err(q, i))
+
+
+def bracket(points: list[Point], k: int, reach: int = 3) -> tuple[int, int]:
+    """(a, b), a < k <= b: the index change between points[k - 1] and points[k], widened so that
+    the critical eigenvalue is decided at both ends. The index counts the decidedly negative
+    eigenvalues only, so on the side with the lower index the crossing eigenvalue may still be
+    within its bound of zero; that end moves on (up to ``reach`` points, the index unchanged) to
+    the first point with no more undecided eigenvalues than the other end has (a soft mode within
+    its bound at both ends, such as the relative translation of far components, is not the
+    crossing one). Measured on the switched branch of the
+    nu = 0.8 pair in c0 (2D, FD 48^2): -1.1e-5 (bound 6.3e-6), -4.3e-6 (6.6e-6), +2.7e-6 (2.6e-7),
+    the parameter turning at the third: the bracket is the first and the third, not the first two
+    (whose ends' critical values would be -1.1e-5 and the next mode, +0.078)."""
+    a, b = k - 1, k
+    if points[k].index < points[k - 1].index:  # the low side after the change: b moves on
+        soft = _undecided(points[k - 1])
+        while b + 1 < len(points) and b - k < reach and _undecided(points[b]) > soft and \
+                points[b + 1].index == points[k].index:
+            b += 1
+    else:
+        soft = _undecided(points[k])
+        while a - 1 >= 0 and k - 1 - a < reach and _undecided(points[a]) > soft and \
+                points[a - 1].index == points[k - 1].index:
+            a -= 1
+    return a, b
+
+
+def classify(ps: list[float], k: int, a: int | None = None, b: int | None = None) -> str:
+    """FOLD if the parameter turns at a point of the bracket [a, b] (default: k - 1, k; widened
+    by ``bracket``) of the parameter values ``ps``, else BRANCH_POINT (module docstring): a turn at
+    j, (p_j - p_{j-1})(p_{j+1} - p_j) < 0, puts the vertex of p(s) within (s_{j-1}, s_{j+1}), which
+    meets the bracket's [s_a, s_b], where the critical eigenvalue crosses zero, iff a <= j <= b.
+    A fold is a zero crossing of the p-fixed Hessian's eigenvalue (its determinant changes sign
+    with the tangent's p-component), so a crossing that coincides with a turn is the fold."""
+    a = k - 1 if a is None else a
+    b = k if b is None else b
+    turn = any((ps[j] - ps[j - 1]) * (ps[j + 1] - ps[j]) < 0 for j in range(max(a, 1), min(b, len(ps) - 2) + 1))
+    return FOLD if turn else BRANCH_POINT
 
 
 @dataclass(frozen=True)

@@ -57,13 +57,15 @@ class Node:
 
 
 def locate(problem, k: int, pts: list[ev.Point], j: int) -> dict:
-    """Locate the index change between pts[j - 1] and pts[j] of branch k; its row (recorded once)."""
+    """Locate the index change between pts[j - 1] and pts[j] of branch k (its bracket widened to
+    decided ends, ``events.bracket``); its row (recorded once)."""
     detected = pts[j].payload["point"]
     for r in problem.rows():
         if r["branch"] == k and r.get("detected_at") == detected and r["corrector"] == "locate":
             return r
-    a, b = pts[j - 1], pts[j]
-    kind = ev.classify([q.p for q in pts], j)
+    ia, ib = ev.bracket(pts, j)  # the critical eigenvalue decided at both ends
+    a, b = pts[ia], pts[ib]
+    kind = ev.classify([q.p for q in pts], j, ia, ib)
     if kind == ev.BRANCH_POINT:
         loc = ev.locate_branch_point(problem.solve, a, b, P_TOL * abs(problem.step))
     elif problem.free is not None:
