@@ -136,7 +136,7 @@ def odd_eigenvalue(scene, disc, res, basis: np.ndarray) -> tuple[float, float, n
         return full[:n] + disc.apply_laplacian_transpose(full[n:])
     eps, C = scene.model.epsilon, scene.model.C
     grads = F.gradients(disc, res.phi, eps, C)[1:]
-    onto_ab, _ = second_order._tangent_projector(np.column_stack(grads), disc.solve_mass)
+    onto_ab, _ = second_order.tangent_projector(np.column_stack(grads), disc.solve_mass)
     Q = np.column_stack([onto_ab(basis[:, j]) for j in range(basis.shape[1])])
     HQ = np.column_stack([reduced(Q[:, j]) for j in range(Q.shape[1])])
     A, B = Q.T @ HQ, Q.T @ (w[:, None] * Q)
@@ -144,7 +144,7 @@ def odd_eigenvalue(scene, disc, res, basis: np.ndarray) -> tuple[float, float, n
     mus, Y = sla.eigh((A + A.T) / 2, (B + B.T) / 2)
     v = Q @ Y[:, 0]
     trans = second_order.translation_modes(disc, res.phi)
-    _, on_t = second_order._tangent_projector(np.column_stack([*grads, *(w * t for t in trans)]), disc.solve_mass)
+    _, on_t = second_order.tangent_projector(np.column_stack([*grads, *(w * t for t in trans)]), disc.solve_mass)
     r = on_t(reduced(v) - mus[0] * w * v)
     err = math.sqrt(max(float(r @ disc.solve_mass(r)), 0.0)) / math.sqrt(float(v @ (w * v))) / mu_ref
     floor = np.finfo(float).eps * float(np.abs(mus).max()) / mu_ref  # round-off of the dense solve

@@ -90,6 +90,9 @@ def _tangent_projector(C, solve_mass):
     return (lambda v: v - MC @ coef(C.T @ v)), (lambda r: r - C @ coef(MC.T @ r))
 
 
+tangent_projector = _tangent_projector  # the public name (``branch.symmetric_fold`` restricts H to a subspace of T)
+
+
 def _floor(reduced, Mphi, solve_mass, n: int, steps: int = POWER_STEPS) -> float:
     """The round-off floor of a Rayleigh quotient of the reduced Hessian in the mass metric, eps
     ||M^{-1} H|| (a backward-stable product's relative error), the norm by a few power steps (a
