@@ -42,17 +42,21 @@ Example (the API; the fold of a c0 branch continued in the reduced volume)::
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import itertools
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import scipy.linalg as sla
 
 from vesicle_opt.branch import events as ev
 from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
+from vesicle_opt.branch.lines import LINE_COLUMNS
 from vesicle_opt.branch.params import parameter
+from vesicle_opt.branch.store import cell_text
 from vesicle_opt.branch.transition import plan
 from vesicle_opt.errors import InputError
 from vesicle_opt.model import functionals as F
@@ -252,18 +256,24 @@ def locate(solver: SymmetricSolver, q: float, p_pred: float, dp: float, phi0, la
     return done(None, loc)
 
 
+def check(scene, param: str, second: str, dp: float = 1e-3) -> None:
+    """The arguments of a line, before any work (InputError naming the flag or key)."""
+    if param not in ("reduced_volume", "c0") or second not in ("reduced_volume", "c0") or param == second:
+        raise InputError("--second", f"a fold line runs in one of reduced_volume, c0 and is continued in the "
+                         f"other, got {param!r}, {second!r}")
+    if scene.mesh.kind not in ("fd", "spectral") or scene.domain.boundary != "periodic" or scene.dim != 2:
+        raise InputError("mesh.kind", "a symmetric turn's line needs a periodic 2D fd or spectral grid (its "
+                         "half-box shift)")
+    if isinstance(dp, bool) or not (isinstance(dp, (int, float)) and dp > 0):
+        raise InputError("dp", f"allowed range > 0, got {dp!r}")
+
+
 def line(scene, param: str, second: str, values, *, at: float, warm, dp: float = 1e-3, axis: int | None = None,
          options=None, progress=None) -> list[Turn]:
     """The symmetric turn of ``scene``'s branch in ``param`` near ``at`` (a warm field near it, e.g.
     the walked point nearest the located fold), continued in ``second`` from the scene's value to
     each of ``values``, outward (module docstring); a failure ends its direction."""
-    if param not in ("reduced_volume", "c0") or second not in ("reduced_volume", "c0") or param == second:
-        raise InputError("--second", f"a fold line runs in one of reduced_volume, c0 and is continued in the "
-                         f"other, got {param!r}, {second!r}")
-    if scene.mesh.kind not in ("fd", "spectral") or scene.domain.boundary != "periodic" or scene.dim != 2:
-        raise InputError("mesh.kind", "the symmetric turn needs a periodic 2D fd or spectral grid (a half-box shift)")
-    if not (isinstance(dp, (int, float)) and dp > 0):
-        raise InputError("dp", f"allowed range > 0, got {dp!r}")
+    check(scene, param, second, dp)
     solver = SymmetricSolver(scene, param, second, axis, np.asarray(warm, float), options)
     q0 = solver.second.start
     out: list[Turn] = []
@@ -284,3 +294,33 @@ def line(scene, param: str, second: str, values, *, at: float, warm, dp: float =
         if progress is not None:
             progress(t)
     return out
+
+
+COLUMNS = LINE_COLUMNS + ["converged", "reason", "bracket", "asymmetry", "solves", "wall_time_s", "cpu_time_s"]
+
+
+def from_branch(b, second: str, values, *, dp: float = 1e-3, options=None, progress=None) -> list[Turn]:
+    """The line of the first located fold of a walked branch run ``b`` (``branch.run.Branch``, run
+    with ``out``: its snapshots give the warm field, the walked point nearest the fold), continued
+    in ``second`` to each of ``values``; ``out/fold_line.csv`` (``COLUMNS``: ``branch.lines``'
+    columns, ``located_by`` = ``symmetric``, and the line's own) where the run has ``out``. No
+    located fold: []."""
+    folds = [r for r in b.located(0) if r["event"] == ev.FOLD]
+    if not folds:
+        return []
+    if b.out is None:
+        raise InputError("out", "the branch run kept no snapshots: run it with out= for the warm field")
+    at = folds[0]["target"]
+    near = min(b.points(0), key=lambda r: abs(r["target"] - at))
+    turns = line(b.scene, b.param, second, values, at=at, warm=b.field(near["point"])["phi"], dp=dp,
+                 options=options, progress=progress)
+    rows = [{"second": second, "value": t.q, "param": b.param, "target": t.p, "energy": t.energy,
+             "reduced_energy": None if t.point is None or t.p is None else t.point.payload.extra.get("reduced_energy"),
+             "branch": 0, "located_by": "symmetric", "detected_at": None, "critical_eigenvalue": t.eigenvalue,
+             "critical_error": t.error, "converged": t.converged, "reason": t.reason, "bracket": t.bracket,
+             "asymmetry": t.asymmetry, "solves": t.solves, "wall_time_s": t.wall, "cpu_time_s": t.cpu} for t in turns]
+    with open(Path(b.out) / "fold_line.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, COLUMNS, lineterminator="\n")
+        w.writeheader()
+        w.writerows({k: cell_text(v) for k, v in r.items()} for r in rows)
+    return turns

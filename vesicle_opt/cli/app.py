@@ -172,6 +172,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "as a line in fold_line.csv")
     b.add_argument("--values", type=lambda t: [float(x) for x in t.split(",") if x.strip()], default=None,
                    metavar="Q1,Q2,...", help="the values of --second (comma-separated)")
+    b.add_argument("--fold-line", action="store_true",
+                   help="with --second reduced_volume|c0 --values: walk the branch once, then continue its first "
+                        "located fold (a symmetric turn of a periodic 2D grid) in --second, in its symmetric "
+                        "subspace (branch.symmetric_fold; fold_line.csv)")
     b.add_argument("--transition", action="append", default=None, metavar="KEY=VALUE",
                    help="the other branch: the scene with these overrides too (e.g. initial.semi_axes=[1.3,1.3,0.5]); "
                         "with --second c0 --values, the energy crossing of the two branches in reduced_volume, "

@@ -140,10 +140,17 @@ def cmd_branch(args) -> int:
     for flag, v in (("--depth", args.depth), ("--deflate", args.deflate)):  # before any work
         if v < 0:
             raise InputError(flag, f"allowed range: an integer >= 0, got {v!r}")
+    if args.fold_line and args.transition is not None:
+        raise InputError("--fold-line", "not with --transition (a crossing line, not a fold line)")
     if args.transition is not None:
         return _transition(args)
+    if args.fold_line and args.second is None:
+        raise InputError("--second", "missing: --fold-line needs the second parameter its fold is continued in")
     check_line(args.param, args.second, args.values)
     sc = load_scene(args.scene, args.set)
+    if args.fold_line:
+        from vesicle_opt.branch import symmetric_fold  # the line's module only
+        symmetric_fold.check(sc, args.param, args.second)
     sharp = None if args.sharp is None else sharp_reference(args.sharp, sc, args.param)  # checked first
 
     def show(row):
@@ -152,6 +159,8 @@ def cmd_branch(args) -> int:
               f"converged={row['converged']}, outcome={row.get('outcome')}{why}, reduced_energy="
               f"{row.get('reduced_energy')}, {row.get('second_order')}, iterations={row['iterations']}",
               file=sys.stderr)
+    if args.fold_line:
+        return _fold_line(args, sc, show)
     if args.second is not None:
         with _preflight(sc, args.out, choose_backend(sc)) as out:
             line = sweep(sc, args.param, args.to, args.step, args.second, args.values, out, progress=show,
@@ -171,6 +180,26 @@ def cmd_branch(args) -> int:
                                               for r in b.rows[-1:] if not r["converged"]))
     print(f"{sc.name}: {len(pts)} points, stopped {b.stopped}, {verdict} -> {args.out}/branch.csv")
     return 0 if b.converged else 1
+
+
+def _fold_line(args, sc, show) -> int:
+    """``branch ... --fold-line --second Q --values ...``: the branch walked once (no switch), its
+    first located fold continued in Q (``branch.symmetric_fold.from_branch``)."""
+    from vesicle_opt.branch import symmetric_fold  # the line's module only, as cmd_branch's check
+    with _preflight(sc, args.out, choose_backend(sc)) as out:
+        b = follow_branch(sc, args.param, args.to, args.step, out, progress=show, switch=False)
+
+        def turn(t):
+            how = f"{args.param} = {t.p:.8g}, eigenvalue {t.eigenvalue:.3g} (bound {t.error:.3g})" \
+                if t.converged else f"not found ({t.reason})"
+            print(f"fold at {args.second} = {t.q:.6g}: {how}, {t.solves} solves, {t.wall:.1f} s", file=sys.stderr)
+        turns = symmetric_fold.from_branch(b, args.second, args.values, progress=turn)
+    if not turns:
+        print(f"{sc.name}: no fold located on the branch in {args.param} -> {args.out}/branch.csv")
+        return 1
+    ok = sum(t.converged for t in turns)
+    print(f"{sc.name}: {ok} of {len(turns)} folds over {args.second} -> {args.out}/fold_line.csv")
+    return 0 if ok == len(turns) else 1
 
 
 def _transition(args) -> int:
