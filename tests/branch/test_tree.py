@@ -192,8 +192,10 @@ def test_parabola_vertex_of_a_fold_without_a_free_corrector():
 
 def test_a_one_point_blip_is_no_crossing_and_a_zigzag_is_one_turn():
     """The measured symmetric turning point in c0 (2D ellipse, nu = 0.8, 48^2): the parameter
-    creeps round the top (a zigzag of ~1e-6), one point's least eigenvalue is decidedly negative
-    (-8.4e-7, bound 1.5e-7) between undecided and positive ones: one turn, no crossing."""
+    creeps round the top (a zigzag of ~1e-6), one point's critical eigenvalue (the relative
+    translation of the two droplets it has become; measured when the check excluded the rotation)
+    is decidedly negative (-8.4e-7, bound 1.5e-7) between undecided and positive ones: one turn,
+    no crossing."""
     ps = [0.73437251, 0.73464357, 0.73474587, 0.73476515, 0.73476171, 0.73475984, 0.73476227, 0.73476518,
           0.73475825, 0.73471667, 0.73459087]
     mus = [1.3e-3, 4.0e-4, 7.7e-5, 1.6e-6, -2.2e-6, -1.6e-7, -2.7e-6, -8.4e-7, 3.4e-5, 1.7e-4, 5.6e-4]

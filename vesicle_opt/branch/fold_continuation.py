@@ -12,7 +12,8 @@ p_f (error O(dp^(3/2)) from the cubic term) and, integrating dE = g dp = g p'(g)
 energy E_f. Cross-check (``p_mu``): at a generic fold the least eigenvalue mu of the reduced
 Hessian (``second_order_min_eigenvalue``) vanishes like sqrt|p - p_f|, so mu^2 linear through the
 samples vanishes near p_f; it does not where the critical mode is not the turn's (a symmetric
-turning point whose eigenvalue touches zero on both sheets). A sample that fails or is not a
+turning point whose eigenvalue touches zero on both sheets: there dE/dp is even along the branch
+too, and ``branch.symmetric_fold`` continues the turn in its symmetric subspace). A sample that fails or is not a
 minimum (mu <= 0: the prediction overshot the fold) shifts the samples 1, 2, 4, ... dp away (up to
 ``EXTEND`` times); a fold found more than 2 dp beyond p_1 is located again from samples next to it
 (``RECENTRE``). The next q's prediction: the secant through the last two folds (the last fold with
