@@ -316,6 +316,7 @@ def test_a_turning_point_in_c0_is_reported_once_as_a_fold(tmp_path):
         rot = x[:, 0] * dy - x[:, 1] * dx
         assert abs(v @ rot) / np.linalg.norm(v) / np.linalg.norm(rot) > 0.99  # the next modes are of other parity
     # the two images: the second point's field is the first's shifted by half the box (24 cells) in x
+    # (measured max 4.8e-5 against 0.79 unshifted: the points are 4.7e-6 apart in c0, |dphi/dc0| ~ 10)
     f0, f1 = (b.field(r["point"])["phi"].reshape(48, 48) for r in bps)
     assert np.abs(np.roll(f0, 24, axis=0) - f1).max() < 1e-3 < np.abs(f0 - f1).max()
     # the four switches (two per branch point) walk one tilted branch; the other three land on it
