@@ -220,7 +220,7 @@ class SymmetricSolver:
 
 def locate(solver: SymmetricSolver, q: float, p_pred: float, dp: float, phi0, lam0=None) -> Turn:
     """The zero of the odd eigenvalue at q near ``p_pred``: a bracket p_pred -+ dp (widened,
-    doubling, until its ends' eigenvalues have decidedly opposite signs), then the Illinois
+    doubling, until one end's eigenvalue is decidedly negative and the other's not), then the Illinois
     iteration to ``P_TOL`` or to the eigenvalue's own bound (``events.locate_branch_point``)."""
     t0, c0, s0 = time.perf_counter(), time.process_time(), solver.solves
 
@@ -241,7 +241,7 @@ def locate(solver: SymmetricSolver, q: float, p_pred: float, dp: float, phi0, la
         if lo is None or hi is None:
             return done(f"no symmetric point at p = {p_pred:.8g} -+ {dp:.3g}", pt=mid)
         for x, y in ((lo, mid), (mid, hi)):
-            if x.index != y.index:  # decidedly opposite signs (``events.index``)
+            if x.index != y.index:  # one decidedly negative, the other not (``events.index``)
                 a, b = x, y
         if a is not b:
             break
