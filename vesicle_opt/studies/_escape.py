@@ -24,13 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
+from vesicle_opt.api import solve
+from vesicle_opt.scene import load
+
 PUSH = 0.2  # the push, in units of the field's M-norm (branch.deflation's)
 ROUNDS = 3  # pushes at most (one on the Table-1 torus)
 
 
 def solve_escaping(scene, push: float = PUSH, rounds: int = ROUNDS):
     """(the last result, the energies of every solve, the pushes made); module docstring."""
-    from vesicle_opt.api import solve
     r = solve(scene)
     energies, k = [r.energy], 0
     while k < rounds and r.converged and r.extra.get("second_order") == "saddle" \
@@ -45,8 +47,7 @@ def solve_escaping(scene, push: float = PUSH, rounds: int = ROUNDS):
 
 def main(name: str, out: str) -> int:
     """One process: load the scene, ``solve_escaping``, write OUT; exit 0 when certified (as the CLI)."""
-    from vesicle_opt.io.output import write_result
-    from vesicle_opt.scene import load
+    from vesicle_opt.io.output import write_result  # the writers (matplotlib, meshio): only when writing
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the scene's near-bound / resolution warnings: its documented state
         scene = load(name)
