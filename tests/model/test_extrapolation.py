@@ -74,5 +74,6 @@ def test_polynomial_limit_is_exact_on_its_basis_and_observed_order_finds_p():
     Ms = [1e2, 1e3, 3.2e3]
     vals = [2.0 - 7.0 / M**2 + 50.0 / M**3 for M in Ms]
     assert polynomial_limit(Ms, vals, (0, 2, 3)) == pytest.approx(2.0, rel=1e-14)  # round-off
-    assert observed_order([1e2, 1e3, 3e3], [1.0 + 3.0 / M**2.5 for M in (1e2, 1e3, 3e3)]) == pytest.approx(2.5, abs=1e-9)
+    Ms = [1e2, 1e3, 3e3]
+    assert observed_order(Ms, [1.0 + 3.0 / M**2.5 for M in Ms]) == pytest.approx(2.5, abs=1e-9)  # bisection to 1e-15
     assert math.isnan(observed_order([1e2, 1e3, 1e4], [1.0, 2.0, 1.5]))  # not monotone: no order

@@ -9,13 +9,16 @@ to exit. The methods of a scene are interleaved (``repeats`` rounds of exact, pe
 augmented, the order rotated by one each round so that no method always runs first), so a load
 change on the shared machine falls on all of them alike; ``wall_median`` is the median of a
 method's runs, ``wall_runs`` the runs themselves and ``load_runs`` the 1-minute load average at each
-run's start (the times mean little without it; the ratios, measured side by side, mean more).
+run's start (the times mean little without it; the ratios, measured side by side, mean more);
+``cpu_median``, ``cpu_runs`` the same for the process's CPU seconds (user + system, its children's
+included: ``resource.getrusage``), which a load change moves far less than the wall.
 
 One row per (scene, method):
 
 * ``exit`` the worst (largest) exit code of its runs (``exits``: all), ``outcome`` the summary's;
 * ``energy`` the reported energy (a penalty stage's is biased by O(1/M), Theorem 3.2),
-  ``energy_extrapolated`` continuation's Richardson value at M = inf, ``polish_energy`` its augmented
+  ``energy_extrapolated`` continuation's value at M = inf (``model.extrapolation``: multiplier-corrected;
+  ``energy_extrapolated_plain`` the plain Richardson of the stage energies), ``polish_energy`` its augmented
   polish (exact constraints); ``compared`` names the value ``rel_diff_vs_exact`` uses:
   energy_extrapolated for continuation, energy otherwise;
 * ``certified_energy``: the energy of the run's point with exact constraints (exact and augmented:
@@ -35,7 +38,8 @@ check at every solve, and it ends on the point the penalty methods reach (``same
 not assumed); it favours exact if anything (one interpreter start and no ``scene.resolved.toml`` for
 two solves). A continuation / augmented row whose point is not exact's but is ``exact_escape``'s is
 judged against it: ``reference`` names the run the 2x is judged against, ``ratio_vs_reference``
-its ratio. ``exact_escape`` rows report ``escape_rounds`` (pushes made; 0 where exact was a minimum).
+its ratio (of walls, as the target; ``ratio_cpu_vs_reference`` of CPU seconds beside it).
+``exact_escape`` rows report ``escape_rounds`` (pushes made; 0 where exact was a minimum).
 
 ``--quick``: the scenes with a 2D mesh (``Scene.domain`` of two pairs: the 2D scenes and the
 axisymmetric meridian), one round. Full: every bundled scene, three rounds (``repeats=`` overrides;
@@ -50,6 +54,7 @@ import json
 import logging
 import math
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -76,9 +81,10 @@ SAME_POINT_RTOL = 1e-6
 ESCAPE = "exact_escape"  # exact taken on from a saddle to a minimum (module docstring, studies._escape)
 ESCAPE_SCENES = ("torus-table1-3d",)  # the bundled scenes whose exact run ends on a saddle (measured)
 TIMEOUT_S = 3600.0  # one run's limit (a run past it is recorded with exit "timeout")
-EXTRA = ["exit", "exits", "outcome", "wall_median", "wall_runs", "load_runs", "energy_extrapolated",
-         "polish_energy", "compared", "rel_diff_vs_exact", "ratio_vs_exact", "certified_energy", "same_point",
-         "within_target", "reference", "ratio_vs_reference", "escape_rounds", "escape_energies", "repeats",
+EXTRA = ["exit", "exits", "outcome", "wall_median", "wall_runs", "load_runs", "cpu_median", "cpu_runs",
+         "ratio_cpu_vs_exact", "energy_extrapolated", "energy_extrapolated_plain", "polish_energy", "compared",
+         "rel_diff_vs_exact", "ratio_vs_exact", "certified_energy", "same_point", "within_target", "reference",
+         "ratio_vs_reference", "ratio_cpu_vs_reference", "escape_rounds", "escape_energies", "repeats",
          "second_order", "backend", "reason"]
 
 
@@ -102,17 +108,23 @@ def one_run(scene: str, method: str, timeout_s: float = TIMEOUT_S) -> dict:
         else:
             args = [sys.executable, "-m", "vesicle_opt", "solve", scene, "--set", f"solver.method='{method}'", "-q",
                     "--out", tmp]
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), _child_cpu()
         try:
             done = subprocess.run(args, capture_output=True, text=True, timeout=timeout_s)
             code, err = done.returncode, done.stderr
         except subprocess.TimeoutExpired:
             code, err = "timeout", f"past {timeout_s:g} s"
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, _child_cpu() - c0
         path = Path(tmp) / "summary.json"
         summary = json.loads(path.read_text()) if path.is_file() else {}
-    return {"exit": code, "wall": wall, "load": load, "summary": summary,
+    return {"exit": code, "wall": wall, "cpu": cpu, "load": load, "summary": summary,
             "stderr": err.strip().splitlines()[-1][:200] if err.strip() else ""}
+
+
+def _child_cpu() -> float:
+    """CPU seconds (user + system) of this process's waited-for children so far."""
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
 
 
 def interleaved(scene: str, methods, repeats: int, run=one_run, **kw) -> dict[str, list[dict]]:
@@ -144,6 +156,7 @@ def rows_of(scene: str, runs: dict[str, list[dict]]) -> list[dict]:
     """One row per method from its runs (module docstring); the ratios and differences are against
     the scene's ``exact`` runs when they are among them."""
     med = {m: statistics.median(r["wall"] for r in rs) for m, rs in runs.items() if rs}
+    cpu = {m: statistics.median(r.get("cpu", math.nan) for r in rs) for m, rs in runs.items() if rs}
     last = {m: rs[-1]["summary"] for m, rs in runs.items() if rs}
     def energy_of(m):  # a reference's energy, where all its runs exited 0
         return _num(last[m].get("energy")) if m in runs and all(r["exit"] == 0 for r in runs[m]) else math.nan
@@ -176,12 +189,16 @@ def rows_of(scene: str, runs: dict[str, list[dict]]) -> list[dict]:
                      "reason": s.get("reason") or (rs[-1]["stderr"] if rs[-1]["exit"] != 0 else None),
                      "wall_median": med[m], "wall_time_s": med[m],
                      "wall_runs": " ".join(f"{r['wall']:.3f}" for r in rs),
+                     "cpu_median": cpu[m], "cpu_runs": " ".join(f"{r.get('cpu', math.nan):.3f}" for r in rs),
+                     "ratio_cpu_vs_exact": cpu[m] / cpu["exact"] if "exact" in cpu else math.nan,
                      "load_runs": " ".join(f"{r['load']:.2f}" for r in rs), "repeats": len(rs),
                      "energy": s.get("energy"), "energy_extrapolated": s.get("energy_extrapolated"),
+                     "energy_extrapolated_plain": s.get("energy_extrapolated_plain"),
                      "polish_energy": s.get("polish_energy"), "compared": compared,
                      "rel_diff_vs_exact": abs(value - e_ref) / abs(e_ref) if math.isfinite(value) else math.nan,
                      "ratio_vs_exact": ratio, "certified_energy": certified, "same_point": same,
                      "within_target": within, "reference": reference, "ratio_vs_reference": ratio_ref,
+                     "ratio_cpu_vs_reference": cpu[m] / cpu[reference] if reference else math.nan,
                      "escape_rounds": s.get("escape_rounds"), "escape_energies": s.get("escape_energies"),
                      "M": s.get("M"), "iterations": s.get("iterations"),
                      "volume_residual": s.get("volume_residual"), "area_residual": s.get("area_residual"),
@@ -217,7 +234,8 @@ def main(out, quick: bool = False, scenes=None, methods=None, repeats=None, time
     out, rows, good = run_into(NAME, case_list, case_rows, out, executor=executor, workers=1, extra_columns=EXTRA)
     for r in good:
         log.info(f"{NAME}: {r['scene']} {r['method']}: exit {r['exit']}, {r['outcome']}, wall "
-                 f"{_num(r['wall_median']):.2f} s (runs {r['wall_runs']}; load {r['load_runs']}), "
+                 f"{_num(r['wall_median']):.2f} s (runs {r['wall_runs']}; load {r['load_runs']}), CPU "
+                 f"{_num(r['cpu_median']):.2f} s, "
                  f"{_num(r['ratio_vs_exact']):.2f}x exact, {r['compared']} {human(_num(r.get(r['compared'])))} "
                  f"(rel. diff {human(_num(r['rel_diff_vs_exact']))}), same point {r['same_point'] or '-'}"
                  + (f", {_num(r['ratio_vs_reference']):.2f}x {r['reference']}" if r.get("reference") else ""))
