@@ -77,3 +77,23 @@ def test_polynomial_limit_is_exact_on_its_basis_and_observed_order_finds_p():
     Ms = [1e2, 1e3, 3e3]
     assert observed_order(Ms, [1.0 + 3.0 / M**2.5 for M in Ms]) == pytest.approx(2.5, abs=1e-9)  # bisection to 1e-15
     assert math.isnan(observed_order([1e2, 1e3, 1e4], [1.0, 2.0, 1.5]))  # not monotone: no order
+
+
+def test_a_change_of_branch_between_stages_is_not_extrapolated_across():
+    """A continuation whose last stage left for another branch (the Table-1 torus: saddle up to M = 1e4,
+    minimum at 1e5): the toy's last stage moved to a branch 0.3 lower (both E and C move by the gap,
+    |delta C| / |delta E| ~ 1, where on one branch it is O(1/M): 1.1e-3, 1.1e-4 here). Only the last stage
+    is used: its C, order 0, no error estimate; on one branch nothing is dropped."""
+    recs = _stages([1e2, 1e3, 1e4])
+    one = extrapolation(recs)
+    assert "extrapolation_branch_change" not in one and one["extrapolation_order"] == 2
+    moved = recs[:2] + [{**recs[2], "energy": recs[2]["energy"] - 0.3}]
+    ext = extrapolation(moved)
+    assert ext["extrapolation_branch_change"] == 1e4 and ext["extrapolation_order"] == 0
+    assert ext["energy_extrapolated"] == corrected_energy(moved[2]) and math.isnan(ext["energy_extrapolation_error"])
+    assert ext["lambda_volume_extrapolated"] == moved[2]["lambda_volume"]
+    # a change before the last two: those two are used (order 1), the change named at the first after it
+    moved = [{**recs[0], "energy": recs[0]["energy"] + 0.3}] + recs[1:]
+    ext = extrapolation(moved)
+    assert ext["extrapolation_branch_change"] == 1e3 and ext["extrapolation_order"] == 1
+    assert ext["extrapolation_M"] == "1000 10000"

@@ -26,6 +26,15 @@ convention, ``nlp.lifted``: rigidity grad E_h = lambda_A grad A + lambda_B grad 
 
 ``extrapolation`` reports both, and the observed order of C (``observed_order``) as a check that the
 stages are in the asymptotic range.
+
+**One branch** (``same_branch``): the expansions hold along one branch of minimisers phi_M. A
+continuation may change branch between stages (the Table-1 torus: the stages at M = 1e2 ... 1e4 follow
+the symmetric saddle, C -> 330.5325, the one at 1e5 leaves for the minimum, C = 330.1976), and a fit
+through both is meaningless. On one branch C - v* = O(1/M^2) while E - v* = lambda* . g = O(1/M), so
+between two stages |delta C| / |delta E| = O(1/M) -> 0 (measured 0.0001 ... 0.41 on the bundled scenes'
+stages, the largest at circle-2d's pre-asymptotic M = 100 -> 1e3); across a change of branch both
+move by the energy gap, the ratio ~ 1 (the torus 1.18). ``BRANCH_RATIO`` = 1/2 separates the two: only
+the trailing stages on the last stage's branch are used.
 """
 
 from __future__ import annotations
@@ -35,6 +44,7 @@ import math
 import numpy as np
 
 CORRECTED_POWERS = (0, 2, 3)  # the expansion of C(M) in 1/M: no linear term (module docstring)
+BRANCH_RATIO = 0.5  # |delta C| / |delta E| above it: two stages on different branches (module docstring)
 
 
 def polynomial_limit(Ms, values, powers) -> float:
@@ -92,6 +102,12 @@ def observed_order(Ms, values) -> float:
     return 0.5 * (lo + hi)
 
 
+def same_branch(a: dict, b: dict) -> bool:
+    """Whether two stage records lie on one branch of minimisers: |delta C| <= ``BRANCH_RATIO``
+    |delta E| (module docstring)."""
+    return abs(corrected_energy(b) - corrected_energy(a)) <= BRANCH_RATIO * abs(b["energy"] - a["energy"])
+
+
 def extrapolation(stages: list[dict]) -> dict:
     """Theorem 3.2's law from the certified stages of a continuation (``history['stages']`` records,
     M increasing; each with energy, residuals and multiplier estimates). Empty with fewer than two.
@@ -107,13 +123,29 @@ def extrapolation(stages: list[dict]) -> dict:
     * ``lambda_volume_extrapolated``, ``lambda_area_extrapolated``: plain Richardson of the multiplier
       estimates (their error is O(1/M) with no correction at hand: it needs v'');
     * ``extrapolation_order`` (the plain degree), ``extrapolation_M`` (the M used).
+
+    Only the trailing stages on the last stage's branch are used (``same_branch``); where an earlier
+    converged stage lies on another branch, ``extrapolation_branch_change`` is the M of the first stage
+    after the change. With the last stage alone: its C and multipliers, order 0, and an error
+    estimate of nan (none can be made from one stage).
     """
     good = [s for s in stages if s.get("converged") and s.get("M")]
     if len(good) < 2:
         return {}
+    k = len(good) - 1
+    while k > 0 and len(good) - k < 3 and same_branch(good[k - 1], good[k]):
+        k -= 1
+    out = {} if k == 0 or same_branch(good[k - 1], good[k]) else {"extrapolation_branch_change": good[k]["M"]}
+    good = good[k:]
     order = min(2, len(good) - 1)
     Ms = [s["M"] for s in good]
-    out = {"extrapolation_order": order, "extrapolation_M": " ".join(f"{M:.6g}" for M in Ms[-(order + 1):])}
+    out.update({"extrapolation_order": order, "extrapolation_M": " ".join(f"{M:.6g}" for M in Ms[-(order + 1):])})
+    if order == 0:
+        out.update({"energy_extrapolated_plain": good[-1]["energy"], "energy_extrapolated": corrected_energy(good[-1]),
+                    "energy_extrapolation_error": math.nan, "energy_corrected": corrected_energy(good[-1]),
+                    "energy_corrected_order": math.nan, "lambda_volume_extrapolated": good[-1]["lambda_volume"],
+                    "lambda_area_extrapolated": good[-1]["lambda_area"]})
+        return out
     for key in ("lambda_volume", "lambda_area"):
         out[f"{key}_extrapolated"] = richardson(Ms, [s[key] for s in good], order)
     out["energy_extrapolated_plain"] = richardson(Ms, [s["energy"] for s in good], order)
