@@ -49,6 +49,7 @@ def test_a_method_on_another_point_is_judged_against_exact_escape_where_it_ends_
     c, a = rows["continuation"], rows["augmented"]
     assert c["same_point"] is False and c["ratio_vs_exact"] == 2.9  # another point than exact's
     assert c["reference"] == bm.ESCAPE and c["ratio_vs_reference"] == 29.0 / 20.0 and c["within_target"] is True
+    assert c["rel_diff_vs_reference"] == 0.0 and c["rel_diff_vs_exact"] > 1e-3  # its extrapolation: the minimum's
     assert a["reference"] == bm.ESCAPE and a["ratio_vs_reference"] == 45.0 / 20.0 and a["within_target"] is False
     assert rows[bm.ESCAPE]["escape_rounds"] == 1 and rows[bm.ESCAPE]["reference"] is None
     # an escape that reaches yet another point is no reference

@@ -38,7 +38,8 @@ check at every solve, and it ends on the point the penalty methods reach (``same
 not assumed); it favours exact if anything (one interpreter start and no ``scene.resolved.toml`` for
 two solves). A continuation / augmented row whose point is not exact's but is ``exact_escape``'s is
 judged against it: ``reference`` names the run the 2x is judged against, ``ratio_vs_reference``
-its ratio (of walls, as the target; ``ratio_cpu_vs_reference`` of CPU seconds beside it).
+its ratio (of walls, as the target; ``ratio_cpu_vs_reference`` of CPU seconds beside it), and
+``rel_diff_vs_reference`` the ``compared`` value's relative difference from its energy.
 ``exact_escape`` rows report ``escape_rounds`` (pushes made; 0 where exact was a minimum).
 
 ``--quick``: the scenes with a 2D mesh (``Scene.domain`` of two pairs: the 2D scenes and the
@@ -84,8 +85,8 @@ TIMEOUT_S = 3600.0  # one run's limit (a run past it is recorded with exit "time
 EXTRA = ["exit", "exits", "outcome", "wall_median", "wall_runs", "load_runs", "cpu_median", "cpu_runs",
          "ratio_cpu_vs_exact", "energy_extrapolated", "energy_extrapolated_plain", "polish_energy", "compared",
          "rel_diff_vs_exact", "ratio_vs_exact", "certified_energy", "same_point", "within_target", "reference",
-         "ratio_vs_reference", "ratio_cpu_vs_reference", "escape_rounds", "escape_energies", "repeats",
-         "second_order", "backend", "reason"]
+         "ratio_vs_reference", "ratio_cpu_vs_reference", "rel_diff_vs_reference", "escape_rounds", "escape_energies",
+         "repeats", "second_order", "backend", "reason"]
 
 
 def scene_dims() -> dict[str, int]:
@@ -165,6 +166,7 @@ def rows_of(scene: str, runs: dict[str, list[dict]]) -> list[dict]:
         return abs(cert - ref) <= SAME_POINT_RTOL * abs(ref) if math.isfinite(cert) and math.isfinite(ref) else None
 
     e_ref, e_esc = energy_of("exact"), energy_of(ESCAPE)
+    e_ref_of = {"exact": e_ref, ESCAPE: e_esc}
     rows = []
     for m, rs in runs.items():
         s = last[m]
@@ -199,6 +201,8 @@ def rows_of(scene: str, runs: dict[str, list[dict]]) -> list[dict]:
                      "ratio_vs_exact": ratio, "certified_energy": certified, "same_point": same,
                      "within_target": within, "reference": reference, "ratio_vs_reference": ratio_ref,
                      "ratio_cpu_vs_reference": cpu[m] / cpu[reference] if reference else math.nan,
+                     "rel_diff_vs_reference": abs(value - e_ref_of[reference]) / abs(e_ref_of[reference])
+                     if reference and math.isfinite(value) else math.nan,
                      "escape_rounds": s.get("escape_rounds"), "escape_energies": s.get("escape_energies"),
                      "M": s.get("M"), "iterations": s.get("iterations"),
                      "volume_residual": s.get("volume_residual"), "area_residual": s.get("area_residual"),
