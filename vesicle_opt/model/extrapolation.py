@@ -34,7 +34,8 @@ through both is meaningless. On one branch C - v* = O(1/M^2) while E - v* = lamb
 between two stages |delta C| / |delta E| = O(1/M) -> 0 (measured 0.0001 ... 0.41 on the bundled scenes'
 stages, the largest at circle-2d's pre-asymptotic M = 100 -> 1e3); across a change of branch both
 move by the energy gap, the ratio ~ 1 (the torus 1.18). ``BRANCH_RATIO`` = 1/2 separates the two: only
-the trailing stages on the last stage's branch are used.
+the trailing stages on the last stage's branch are used. (Where lambda* = 0, E = C and the ratio is 1
+too: the last stage alone is used, its C then O(1/M^2) off as well; a lost order, not a wrong value.)
 """
 
 from __future__ import annotations
