@@ -147,25 +147,32 @@ def test_richardson_is_exact_on_its_polynomials_and_next_stage_stops_at_the_floo
     assert penalty_retry(1e8, 2e-4, 1e-8, False) is None
 
 
-def test_extrapolation_error_is_the_change_from_one_order_less_with_two_stages_too():
-    """Two stages (a floor-capped schedule: circle-2d stops at M = 270) give order 1; its error estimate
-    is the change from the last stage's own value (order 0), not nan; on v = 3 + 0.7/M - 5/M^2 it bounds
-    the true error (the 1/M^2 term left over) here, and with three stages the estimate is the change
-    from order 1."""
+def test_extrapolation_error_is_the_change_from_one_term_less_with_two_stages_too():
+    """Two stages (a floor-capped schedule) fit the corrected energies C = v* + c2/M^2 (powers (0, 2));
+    the error estimate is then the change from the last stage's own C, not nan, and bounds the true
+    error (the 1/M^3 term left over) here; with three stages (powers (0, 2, 3)) the law is fitted
+    exactly and the estimate is the change from the two-term fit. The plain Richardson of the
+    uncorrected E = C + lambda . g (here lambda . g = -0.7/M: a law 3 - 0.7/M - 5/M^2 + 40/M^3 of degree
+    3) is exact from four stages only, so with three its leftover 40/M^3 term shows."""
     from vesicle_opt.model.penalty import extrapolation
 
-    def law(M):
-        return 3.0 + 0.7 / M - 5.0 / M**2
+    def rec(M):  # lambda = -M g with g = (0, -sqrt(0.7)/M): E = C + lambda . g = C - 0.7/M
+        g = np.sqrt(0.7) / M
+        C = 3.0 - 5.0 / M**2 + 40.0 / M**3
+        return {"M": M, "energy": C - 0.7 / M, "volume_residual": 0.0, "area_residual": -g, "lambda_volume": 0.0,
+                "lambda_area": M * g, "converged": True}
 
-    two = extrapolation([{"M": M, "energy": law(M), "lambda_volume": 0.0, "lambda_area": 0.0,
-                          "converged": True} for M in (1e2, 2.7e2)])
+    two = extrapolation([rec(M) for M in (1e2, 2.7e2)])
     assert two["extrapolation_order"] == 1
-    assert two["energy_extrapolation_error"] == pytest.approx(abs(two["energy_extrapolated"] - law(2.7e2)), rel=1e-12)
+    assert two["energy_corrected"] == pytest.approx(rec(2.7e2)["energy"] + 0.7 / 2.7e2, rel=1e-14)
+    assert two["energy_extrapolation_error"] == pytest.approx(abs(two["energy_extrapolated"] - two["energy_corrected"]),
+                                                              rel=1e-12)
     assert abs(two["energy_extrapolated"] - 3.0) <= two["energy_extrapolation_error"]
-    three = extrapolation([{"M": M, "energy": law(M), "lambda_volume": 0.0, "lambda_area": 0.0,
-                            "converged": True} for M in (1e2, 1e3, 2.7e3)])
+    three = extrapolation([rec(M) for M in (1e2, 1e3, 2.7e3)])
     assert three["extrapolation_order"] == 2 and three["energy_extrapolated"] == pytest.approx(3.0, rel=1e-13)
     assert 0 < three["energy_extrapolation_error"] < two["energy_extrapolation_error"]
+    # plain degree 2 through M = 1e2 ... 2.7e3 leaves 40 x1 x2 x3 = 1.5e-10 (the Lagrange remainder)
+    assert abs(three["energy_extrapolated_plain"] - 3.0) == pytest.approx(40 / (1e2 * 1e3 * 2.7e3), rel=1e-3)
 
 
 def test_dual_secant_reaches_the_root_of_a_linear_dual_in_few_steps():

@@ -102,11 +102,32 @@ def test_default_schedule_stops_at_the_floor_and_extrapolates_to_exact(runs):
     # of lambda between the stages (measured 5.0007e-9 at the aim 5e-9)
     assert r.extra["kkt_dual_floor"] == pytest.approx(1e-8 / 2, rel=0.01)
     assert Ms[-1] < 1e6 and Ms == sorted(Ms)  # stopped before M_max
-    # O(1/M^3) after eliminating a/M and b/M^2 (measured 6e-10 relative on 128^2, 64^2 here)
+    # O(1/M^4) after the multiplier correction and eliminating c2/M^2, c3/M^3 (measured 7.6e-14 on 64^2)
     assert r.extra["energy_extrapolated"] == pytest.approx(exact.energy, rel=1e-8)
+    # (the multiplier-corrected fit, model.extrapolation: 7.6e-14 here against plain Richardson's
+    # 6.9e-13, both at the exact solve's own accuracy; the comparison is circle-2d's test below)
     assert r.extra["lambda_volume_extrapolated"] == pytest.approx(exact.lambda_volume, rel=1e-5)  # O(1/M^3)
     # the polish holds the constraints exactly: the exact solve's energy to both tolerances (1e-8)
     assert r.extra["polish_converged"] and r.extra["polish_energy"] == pytest.approx(exact.energy, rel=1e-8)
+
+
+def test_corrected_extrapolation_reaches_exact_at_the_isoperimetric_bound():
+    """circle-2d (its own scene, P1 64^2): the data sit 1.5% above the feasibility bound, the multipliers
+    are ill-conditioned and the floor stops the schedule at M = 1e4. Plain Richardson of the stage
+    energies in 1/M is 7.5e-8 off exact's; the multiplier-corrected fit (model.extrapolation) 8e-10."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # its epsilon/h warning: the scene's documented state
+        sc = scene_mod.load("circle-2d", ['solver.method="continuation"'])
+    nlp = build_nlp(sc)
+    exact = solve(nlp.exact)
+    r = continuation(nlp, polish=False)
+    assert exact.converged and r.converged, (exact.reason, r.reason)
+    err = abs(r.extra["energy_extrapolated"] - exact.energy) / exact.energy
+    plain = abs(r.extra["energy_extrapolated_plain"] - exact.energy) / exact.energy
+    assert err < 1e-8 and err < plain / 10, (err, plain)  # issue 25's target; measured 8.3e-10 vs 7.5e-8
+    # its error estimate is of the error's size (measured 2.6e-10 relative: the M = 100 stage is
+    # pre-asymptotic, observed order 1.2), so it is not a bound here; it is below the target too
+    assert r.extra["energy_extrapolation_error"] / exact.energy < 1e-8
 
 
 def test_warm_starts_save_iterations():

@@ -11,7 +11,8 @@ evaluate numbers (certification, the flows' E_M and history, the Newton-Krylov o
 build CasADi expressions (the lifted penalty NLP, the minimising movement (23)); ``penalty_terms``
 is its constraint part. ``residuals`` evaluates (A - alpha, B - beta) with compensated sums, and
 ``roundoff_floor`` is the least stationarity residual double precision permits at a given M (why
-the penalty cannot be pushed to M -> infinity).
+the penalty cannot be pushed to M -> infinity). The limit M -> inf from a continuation's stages
+(Theorem 3.2) is ``model.extrapolation`` (``extrapolation``, ``richardson`` are imported from here too).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import math
 import numpy as np
 
 from vesicle_opt.model import functionals as F
+from vesicle_opt.model.extrapolation import extrapolation, richardson  # noqa: F401 (imported from here)
 from vesicle_opt.sums import total
 
 AL_REDUCTION = 0.25  # augmented Lagrangian: increase M when a residual did not drop by this factor
@@ -132,40 +134,6 @@ def penalty_retry(M: float, floor: float, tol: float, auto: bool) -> float | Non
     if floor < tol or not auto:
         return None
     return float(certifiable_M(floor, M, tol))
-
-
-def richardson(Ms, values, order: int) -> float:
-    """The value at 1/M = 0 of the polynomial of degree ``order`` in 1/M through the last
-    order + 1 points (M_i, v_i): Richardson's extrapolation of Theorem 3.2's expansion
-    v(M) = v* + a/M + b/M^2 + ... (order 1: (M2 v2 - M1 v1) / (M2 - M1))."""
-    x = 1.0 / np.asarray(Ms[-(order + 1):], float)
-    v = np.asarray(values[-(order + 1):], float)
-    total = 0.0
-    for i in range(order + 1):
-        w = np.prod([x[j] / (x[j] - x[i]) for j in range(order + 1) if j != i])
-        total += w * v[i]
-    return float(total)
-
-
-def extrapolation(stages: list[dict]) -> dict:
-    """Theorem 3.2's O(1/M) law from the certified stages of a continuation (``history['stages']``
-    records, M increasing): energy and multipliers extrapolated to M = inf by ``richardson`` of the
-    highest order the stages allow (at most 2, from the last three), and the change from one order
-    less as an error estimate (``energy_extrapolation_error``; from two stages the change from the last
-    stage's own value: circle-2d, capped at M = 270 by its floor, 5.8e-6 against the true 1e-5).
-    Empty with fewer than two stages."""
-    good = [s for s in stages if s.get("converged") and s.get("M")]
-    if len(good) < 2:
-        return {}
-    order = min(2, len(good) - 1)
-    Ms = [s["M"] for s in good]
-    out = {"extrapolation_order": order, "extrapolation_M": " ".join(f"{M:.6g}" for M in Ms[-(order + 1):])}
-    for key in ("energy", "lambda_volume", "lambda_area"):
-        vals = [s[key] for s in good]
-        out[f"{key}_extrapolated"] = richardson(Ms, vals, order)
-        if key == "energy":
-            out["energy_extrapolation_error"] = abs(out["energy_extrapolated"] - richardson(Ms, vals, order - 1))
-    return out
 
 
 class DualSecant:

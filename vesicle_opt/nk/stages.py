@@ -108,7 +108,8 @@ def penalty_stages(obj: Objective, phi, tol, opts, method, s, volume, beta,
         M = nxt
     if method == "continuation" and floor is not None and stages[-1].status == "converged":
         ext = extrapolation([{"M": st.M[0], "energy": obj.rig * st.pt.E, "lambda_volume": st.pt.mu[0],
-                              "lambda_area": st.pt.mu[1], "converged": st.status == "converged"}
+                              "lambda_area": st.pt.mu[1], "volume_residual": st.pt.c[0],
+                              "area_residual": st.pt.c[1], "converged": st.status == "converged"}
                              for st in stages])
         if ext:  # as nlp.continuation.polish_stage: secant stages from the extrapolated multipliers
             M, mu, secant = stages[-1].M[0], np.array([ext["lambda_volume_extrapolated"],
