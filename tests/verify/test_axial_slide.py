@@ -41,8 +41,11 @@ def test_pinned_prolate_excludes_the_slide_by_its_constraint():
     assert "axial slide" in free.reason
     # one more row: Cauchy interlacing mu1 <= mu1' <= mu2 (ARPACK's tol 1e-10 on O(1) values)
     assert free.eigenvalues[0] - 1e-8 <= held.eigenvalues[0] <= free.eigenvalues[1] + 1e-8
-    # the slide nearly an eigenvector: removing it leaves the next one (measured relative gap ~1e-3)
-    assert held.eigenvalues[0] == pytest.approx(free.eigenvalues[1], rel=2e-2)
+    # the pin fixes the centre of mass (``nlp.reuse.pin_row``), a slice across the slide: the least
+    # pinned mode is a shape mode (measured 0.077 mu_ref: the slide mixed with the odd modes that move
+    # the centre of mass, so not the next unpinned eigenvalue 0.143 as a row along d_z phi gave), far
+    # above the slide's 3.1e-5
+    assert held.eigenvalues[0] > 1e-2
 
 
 def test_unpinned_slide_is_named_in_the_verdict_on_both_backends(tmp_path, capsys):
