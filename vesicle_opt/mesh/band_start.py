@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from vesicle_opt.result import Status
 from vesicle_opt.scene.ranges import BAND_MIN
 
@@ -57,9 +59,31 @@ def start(scene, x0, remesh: bool = False):
             and refine.band_margin(disc.mesh, x0.phi, disc.h_fine, eps) >= reuse_margin(scene.mesh.band):
         return disc, x0
     edge = disc.h_fine if getattr(disc, "band", None) is not None else disc.h  # x0's edges at its interface
-    distance = refine.remesh_distance(disc.mesh, x0.phi, math.sqrt(2.0) * edge)
+    phi = centred(disc, x0.phi, edge)
+    distance = refine.remesh_distance(disc.mesh, phi, math.sqrt(2.0) * edge)
     new = discretize(scene, interface=distance)
-    return new, refine.transfer(disc.mesh, x0.phi, new.nodes)
+    return new, refine.transfer(disc.mesh, phi, new.nodes)
+
+
+def centred(disc, phi, edge: float):
+    """phi translated along the axis so that the centre of mass of its inside, int z (1 + phi) /
+    int (1 + phi), lies at the box's mid-height, where the solve's pin holds it (``nlp.reuse.pin_row``);
+    phi itself where it is there within a hundredth of ``edge``. A start elsewhere would be moved there
+    by the pin's linear row in IPOPT's first step, a linear change of phi that blurs the profile
+    instead of moving it (measured: an up-down asymmetric pear, c0 = 2.4, v = 0.72, fell to the
+    symmetric shape that way); translated first, the band is built about it where it will be solved."""
+    from vesicle_opt.mesh import refine  # scikit-fem: loaded for refined scenes only
+
+    phi = np.asarray(phi, float)
+    nodes = np.asarray(disc.nodes, float)
+    w = disc.weights * (1 + phi)
+    lo, hi = (float(b) for b in disc.box[-1])
+    dz = float(w @ nodes[:, 1] / w.sum()) - (lo + hi) / 2
+    if abs(dz) <= 0.01 * edge:
+        return phi
+    q = nodes + [0.0, dz]
+    q[:, 1] = np.clip(q[:, 1], lo, hi)  # beyond the wall: the field at the wall (the bulk)
+    return refine.transfer(disc.mesh, phi, q)
 
 
 def left_band(result) -> bool:
