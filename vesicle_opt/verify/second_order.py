@@ -5,8 +5,9 @@ At a KKT point of (6)-(8) the Hessian of the Lagrangian
 must be positive semi-definite on the tangent space T = {v : dA.v = 0, dB.v = 0} for a local
 minimiser. ``check`` computes the quantity of ``verify.verdict`` (the smallest eigenvalues of
 H v = mu M v on T, over mu_ref) by shift-invert Lanczos on a bordered sparse system (consistent
-mass: the Hessian reduced to phi with w = Delta_h phi through the NLP's own linear rows), and
-decides with ``verdict.classify``, the rule the matrix-free check (``verify.lobpcg``) uses too.
+mass: the Hessian reduced to phi with w = Delta_h phi through the NLP's own linear rows; lumped
+mass: one LU of H - sigma M and the Schur complement on the constraint columns,
+``verify.shift_invert``), and decides with ``verdict.classify``, the rule the matrix-free check (``verify.lobpcg``) uses too.
 
 Excluded modes (``SecondOrder.excluded``, ``verdict``'s docstring): on periodic grids the spectral
 translations d_i phi ("translations": the grid's whole-cell shifts are exact symmetries, d_i phi the
