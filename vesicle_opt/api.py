@@ -168,14 +168,19 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     docstring. ``backend`` and ``method`` override the scene's ``solver.backend`` / ``solver.method``;
     ``options`` replaces the scene's solver settings (``IpoptOptions`` or ``NewtonKrylovOptions``).
     ``mesh.refine = "interface"``: the band is built about the start (``mesh.band_start``), and a
-    result whose interface left it is solved again on a band about it (``band_start.REMESH_ROUNDS``)."""
+    result whose interface left it, or whose axial pin held a force, is solved again on a band about it
+    (``band_start.REMESH_ROUNDS``)."""
     result = _solve(problem, backend, method, x0, options)
     for _ in range(band_start.REMESH_ROUNDS if isinstance(problem, Scene) else 0):
-        if not band_start.left_band(result):
+        if band_start.left_band(result):
+            log.info("%s: the interface left the refined band (%.3g eps from the coarse cells): re-meshed "
+                     "about it", result.scene.name, result.extra["band_margin"])
+        elif band_start.held(result):
+            log.info("%s: the axial pin held a force (multiplier %.3g): re-meshed about the result",
+                     result.scene.name, result.extra["translation_multiplier"])
+        else:
             break
-        log.info("%s: the interface left the refined band (%.3g eps from the coarse cells): re-meshed about "
-                 "it", result.scene.name, result.extra["band_margin"])
-        result = _solve(problem, backend, method, result, options)
+        result = _solve(problem, backend, method, result, options, remesh=True)
     if throw and not result.converged:
         raise SolverError(f"not converged ({result.reason}): status {result.status}, kkt_residual "
                           f"{result.kkt_residual:.3g}, A-alpha {result.volume_residual:.3g}, "
@@ -183,7 +188,7 @@ def solve(problem: Scene | NLP, *, backend: str | None = None, method: str | Non
     return result
 
 
-def _solve(problem, backend, method, x0, options) -> Result:
+def _solve(problem, backend, method, x0, options, remesh: bool = False) -> Result:
     """One solve of ``solve`` (its docstring), on the band about the start for a refined scene."""
     disc = None
     if isinstance(problem, NLP):
@@ -204,7 +209,7 @@ def _solve(problem, backend, method, x0, options) -> Result:
         chosen = choose_backend(scene, backend)
         resources.check(scene, chosen)  # the memory estimate, before anything is built
         if band_start.refined(scene):
-            disc, x0 = band_start.start(scene, x0)
+            disc, x0 = band_start.start(scene, x0, remesh)
     else:
         raise InputError("problem", f"solve takes a Scene (vesicle_opt.load_scene) or an NLP of build_nlp, "
                          f"got {type(problem).__name__}")

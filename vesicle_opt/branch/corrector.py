@@ -28,7 +28,12 @@ translations are excluded too), the rule of the front door's matrix-free path. T
 the rotation symmetry only weakly: kept, its soft mode (~2e-3 mu_ref) is the least eigenvalue of
 the assembled check and changes sign along the 2D elastica branch near nu ~ 0.70 (a grid effect,
 not a fold). Elsewhere (consistent mass, Gauss quadrature) the assembled check of the front door
-(translations only). Measured at 128^2 (FD, eps = 0.2): assembled 2.5 s, matrix-free 0.17 s per point,
+(translations only). Meridian meshes (``mesh.kind = "axisymmetric"``) take the assembled check too,
+with the IPOPT solver's own Hessian and Jacobian (``nlp.reuse.derivatives``): there the unpinned axial
+slide is a near-null mode (+-1e-5 mu_ref) whose sign the verdict needs, which the matrix-free check's
+LOBPCG did not resolve within its cap on the stomatocyte walks' 8.9-17 k-node meshes ("not checked"
+at every walked point, the seed's front-door check "minimum"); the shift-invert Lanczos resolves it
+to ~1e-9 mu_ref at any size. Measured at 128^2 (FD, eps = 0.2): assembled 2.5 s, matrix-free 0.17 s per point,
 the same eigenvalues to 1e-9 mu_ref (``tests/branch/test_corrector.py`` ties them).
 """
 
@@ -51,6 +56,7 @@ from vesicle_opt.nk.setup import on_fourier_grid, prepare
 from vesicle_opt.nlp import IpoptOptions, build_nlp
 from vesicle_opt.nlp.exact import at_point, build_exact, parameter_values
 from vesicle_opt.nlp.ipopt import make_solver
+from vesicle_opt.nlp.reuse import derivatives
 from vesicle_opt.nlp.solve import solve_exact
 from vesicle_opt.result import Result
 from vesicle_opt.scene.schema import Scene
@@ -158,7 +164,10 @@ class IpoptCorrector:
         """``res`` with the second-order and topology reports of the front door (module docstring)."""
         so, t0 = None, time.perf_counter()
         if scene.solver.second_order and res.converged:
-            if self.matrix_free:  # with the FFTs the front door's check uses (solver.fft)
+            if getattr(self.disc, "axisymmetric", False):  # the assembled check with the solver's own derivatives
+                p = parameter_values(scene, self.disc, nlp.alpha, nlp.beta)
+                so = second_order.check(nlp, res, derivatives=derivatives(nlp, self._cold or self.solver, p))
+            elif self.matrix_free:  # with the FFTs the front door's check uses (solver.fft)
                 with fft_library(scene.solver.fft):
                     so = rotation_modulo(lobpcg.check(scene, res, prepare(scene, self.fourier),
                                                       rotations=V.excludes_rotations(scene)), scene.dim)

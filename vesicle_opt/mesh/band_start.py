@@ -8,13 +8,16 @@ is built again: the start of a solve and its re-meshing (``vesicle_opt.solve`` u
   IPOPT's multipliers (a branch walks on one mesh while its interface moves by less than that);
   otherwise a band about its phi = 0 curve, its field interpolated onto the new mesh.
 * :func:`left_band`: a result that is not certified because its interface left the band
-  (``verify.band``); the front door then re-meshes about it and solves again, at most
-  ``REMESH_ROUNDS`` times, and reports the last result whatever it is.
+  (``verify.band``), or :func:`held`: one whose axial pin held a force (``nlp.reuse``); the front
+  door then re-meshes about it and solves again, at most ``REMESH_ROUNDS`` times, and reports the
+  last result whatever it is.
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from vesicle_opt.result import Status
 from vesicle_opt.scene.ranges import BAND_MIN
@@ -42,8 +45,9 @@ def _same_mesh_settings(scene, disc) -> bool:
             and disc.mass == m.mass and disc.quadrature == m.quadrature)
 
 
-def start(scene, x0):
-    """(disc, x0) for a refined scene (module docstring)."""
+def start(scene, x0, remesh: bool = False):
+    """(disc, x0) for a refined scene (module docstring); ``remesh``: a band about a warm start's
+    interface even where its own mesh could be reused (``held``)."""
     from vesicle_opt.mesh import discretize, refine  # scikit-fem: loaded for refined scenes only
 
     disc = getattr(x0, "disc", None)
@@ -51,13 +55,35 @@ def start(scene, x0):
             or tuple(map(tuple, disc.box)) != tuple(tuple(map(float, b)) for b in scene.domain.box):
         return discretize(scene), x0
     eps = scene.model.epsilon
-    if getattr(disc, "band", None) is not None and _same_mesh_settings(scene, disc) \
+    if not remesh and getattr(disc, "band", None) is not None and _same_mesh_settings(scene, disc) \
             and refine.band_margin(disc.mesh, x0.phi, disc.h_fine, eps) >= reuse_margin(scene.mesh.band):
         return disc, x0
     edge = disc.h_fine if getattr(disc, "band", None) is not None else disc.h  # x0's edges at its interface
-    distance = refine.remesh_distance(disc.mesh, x0.phi, math.sqrt(2.0) * edge)
+    phi = centred(disc, x0.phi, edge)
+    distance = refine.remesh_distance(disc.mesh, phi, math.sqrt(2.0) * edge)
     new = discretize(scene, interface=distance)
-    return new, refine.transfer(disc.mesh, x0.phi, new.nodes)
+    return new, refine.transfer(disc.mesh, phi, new.nodes)
+
+
+def centred(disc, phi, edge: float):
+    """phi translated along the axis so that the centre of mass of its inside, int z (1 + phi) /
+    int (1 + phi), lies at the box's mid-height, where the solve's pin holds it (``nlp.reuse.pin_row``);
+    phi itself where it is there within a hundredth of ``edge``. A start elsewhere would be moved there
+    by the pin's linear row in IPOPT's first step, a linear change of phi that blurs the profile
+    instead of moving it (measured: an up-down asymmetric pear, c0 = 2.4, v = 0.72, fell to the
+    symmetric shape that way); translated first, the band is built about it where it will be solved."""
+    from vesicle_opt.mesh import refine  # scikit-fem: loaded for refined scenes only
+
+    phi = np.asarray(phi, float)
+    nodes = np.asarray(disc.nodes, float)
+    w = disc.weights * (1 + phi)
+    lo, hi = (float(b) for b in disc.box[-1])
+    dz = float(w @ nodes[:, 1] / w.sum()) - (lo + hi) / 2
+    if abs(dz) <= 0.01 * edge:
+        return phi
+    q = nodes + [0.0, dz]
+    q[:, 1] = np.clip(q[:, 1], lo, hi)  # beyond the wall: the field at the wall (the bulk)
+    return refine.transfer(disc.mesh, phi, q)
 
 
 def left_band(result) -> bool:
@@ -65,3 +91,14 @@ def left_band(result) -> bool:
     margin = result.extra.get("band_margin")
     return (margin is not None and margin < BAND_MIN and result.outcome == Status.NOT_CERTIFIED
             and str(result.extra.get("reason", "")).startswith("the interface left the refined band"))
+
+
+def held(result) -> bool:
+    """Not certified because the axial pin (``nlp.reuse``) held a force: the KKT test, which leaves the
+    pin's row out, failed on a pinned solve. The pin puts the centre of mass at the box's mid-height,
+    the mirror plane of a band built about an up-down symmetric interface there; a band built about
+    a start elsewhere is not mirrored about it, and its coarse cells push the vesicle along the axis
+    (measured: the eps = 0.1 prolate started 0.37 up, held at the centre on the start's band:
+    multiplier 7.9e-3, kkt_dual 7.9e-6). The front door then re-meshes about the result, whose band is
+    mirrored where the shape is up-down symmetric, and solves again (multiplier 2e-11, certified)."""
+    return result.outcome == Status.KKT_NOT_MET and "translation_multiplier" in result.extra

@@ -10,15 +10,20 @@ second-order check's Hessian graph 0.09 s, against 0.2-0.3 s of IPOPT iterations
 
 * the parametric NLP (``nlp.exact.build_exact(parametric=True)``, p = (alpha, beta, C, f_scale): at
   each point the NLP the front door would build, ``nlp.exact.at_point``) and its IPOPT solver;
-* a pin: one linear row c . phi = d holding the axial translation at the start's position (c the
-  start's mass-weighted d_z phi, ``pin_row``). Between natural walls the translation is only nearly
+* a pin: one linear row c . phi = 0 holding the axial translation: the centre of mass of the inside,
+  int z (1 + phi) / int (1 + phi), at the box's mid-height z_m (``pin_row``: c = m (z - z_m), the same
+  row at every point and whatever the start). Between natural walls the translation is only nearly
   null (+-1e-5 mu_ref on the mesh); unpinned, IPOPT spent 34-59 iterations sliding along it at
-  eps/R0 = 0.02 (regularised, tiny decreases). On an up-down mirrored mesh (``refine.mirrored_tensor``)
-  an up-down symmetric vesicle is exactly stationary along it, so the pin's multiplier vanishes; the
-  certificate recomputes stationarity without the row (a held, non-stationary position fails it)
-  and ``extra["translation_multiplier"]`` records it; the second-order check takes its tangent space
-  with the row (``pin_of``): the slide the solve held is excluded as constrained, and the verdict's
-  reason says "axial position pinned";
+  eps/R0 = 0.02 (regularised, tiny decreases). On an up-down mirrored mesh (``refine.mirrored_tensor``,
+  mirrored about z_m) an up-down symmetric vesicle centred there is exactly stationary along it, so
+  the pin's multiplier vanishes; the certificate recomputes stationarity without the row (a held,
+  non-stationary position fails it: the front door then re-meshes about the result,
+  ``mesh.band_start.held``) and ``extra["translation_multiplier"]`` records it; the second-order
+  check takes its tangent space with the row (``pin_of``): the slide the solve held is excluded as
+  constrained, and the verdict's reason says "axial position pinned". (Before, c was the start's
+  mass-weighted d_z phi and d its value at the start: a start off the mid-plane was held where the
+  band's coarse cells push it, multiplier 6.1e-4 and kkt_not_met for the eps = 0.1 prolate 0.37 up;
+  now certified, multiplier 2e-11, after one re-mesh.)
 * IPOPT's own derivative functions ``nlp_hess_l`` and ``nlp_jac_g`` of that solver, which the
   assembled second-order check (``verify.second_order.check``) evaluates instead of building its own
   Hessian graph (the same matrix: 0.0 apart, measured).
@@ -35,7 +40,7 @@ import weakref
 import numpy as np
 import scipy.sparse as sp
 
-from vesicle_opt.mesh.axisymmetric import axial_translation  # noqa: F401  (the pin's mode; re-exported)
+from vesicle_opt.mesh.axisymmetric import axial_translation  # noqa: F401  (the slide; re-exported)
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.nlp.exact import at_point, build_exact, parameter_values
 from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
@@ -55,12 +60,16 @@ def _pinned(nlp):
                                lbg=np.zeros(nlp.lbg.size + 1), ubg=np.zeros(nlp.ubg.size + 1))
 
 
-def pin_row(disc, phi: np.ndarray) -> np.ndarray:
-    """c = m d_z phi / sum m |d_z phi| (the translation's mass-weighted tangent at ``phi``, c . phi an
-    O(1) position) and d = c . phi: the values the pin's parameters take."""
-    c = disc.weights * axial_translation(disc, phi)
+def pin_row(disc) -> np.ndarray:
+    """c = m (z - z_m) / sum m |z - z_m| (z_m the box's mid-height, the refined mesh's mirror plane) and
+    d = 0: the pin's parameter values. c . phi = 0 puts the centre of mass of the inside, int z (1 + phi)
+    / int (1 + phi), at z_m (the weights integrate z exactly, so sum m (z - z_m) = 0); linear in phi and
+    the same row at every point and position (module docstring)."""
+    z = np.asarray(disc.nodes, float)[:, 1]
+    lo, hi = (float(b) for b in disc.box[-1])
+    c = disc.weights * (z - (lo + hi) / 2)
     c = c / max(float(np.abs(c).sum()), 1e-300)
-    return np.concatenate([c, [c @ phi]])
+    return np.concatenate([c, [0.0]])
 
 
 def pin_of(p: np.ndarray, n: int) -> np.ndarray:
@@ -98,7 +107,7 @@ def point(scene, disc, options: IpoptOptions, start):
         x0 = nlp.from_phi(np.asarray(getattr(start, "phi", start), float).ravel())
     else:
         x0 = nlp.x0
-    p = np.concatenate([parameter_values(scene, disc, alpha, beta), pin_row(disc, x0[:disc.n_nodes])])
+    p = np.concatenate([parameter_values(scene, disc, alpha, beta), pin_row(disc)])
     kw = {"x0": x0}
     if warm:  # the physical multipliers in this point's scaled rows (NLP.multipliers inverted); the pin's at 0
         kw["lam_g0"] = np.concatenate([-np.array([start.lambda_volume, start.lambda_area]) * nlp.g_scale / nlp.f_scale,
@@ -116,18 +125,32 @@ def unpinned(result):
                                extra={**result.extra, "translation_multiplier": float(result.lam_g[-1])})
 
 
+def _mirrored(pattern):
+    """(the full symmetric pattern of a triangle, the triangle's nonzero index of each of its
+    entries): H from IPOPT's values without a sparse conversion and a transpose-add per point."""
+    shape = (pattern.size1(), pattern.size2())
+    tri = sp.csc_matrix((np.arange(1, pattern.nnz() + 1, dtype=float), pattern.row(), pattern.colind()), shape=shape)
+    full = (tri + sp.triu(tri, 1).T + sp.tril(tri, -1).T).tocsc()  # indices + 1 (no two entries overlap)
+    full.sort_indices()
+    return full, full.data.astype(np.int64) - 1
+
+
 def derivatives(nlp, solver, p):
     """(hessian_of(x, lam_g), jacobian_of(x)) for ``verify.second_order.check`` from the solver's
     own functions at the parameters p: the physical Hessian of the Lagrangian (f_scale times IPOPT's, its
-    upper triangle mirrored; the pin is linear) and the Jacobian of the two constraints (the check
+    upper triangle mirrored; the pin is linear; any parametric exact NLP's solver, pinned or not) and the Jacobian of the two constraints (the check
     adds the pin's row itself, ``pin_of``: its tangent space is the solve's, the slide excluded as
     constrained)."""
     hess, jac = solver.get_function("nlp_hess_l"), solver.get_function("nlp_jac_g")
 
+    full, where = _mirrored(hess.sparsity_out(0))
+    n_g = hess.size1_in(3)
+
     def hessian_of(x, lam_g):
-        lam = np.concatenate([np.asarray(lam_g, float).ravel()[:2], [0.0]])
-        H = sp.csr_matrix(hess(x, p, 1.0, lam).sparse())
-        return (H + sp.triu(H, 1).T).tocsr() * nlp.f_scale  # IPOPT's is the upper triangle
+        lam = np.zeros(n_g)  # the two constraints' multipliers; the linear rows' (the pin) do not enter
+        lam[:2] = np.asarray(lam_g, float).ravel()[:2]
+        vals = np.asarray(hess(x, p, 1.0, lam).nonzeros(), float)  # IPOPT's upper triangle, CasADi's order
+        return sp.csc_matrix((vals[where] * nlp.f_scale, full.indices, full.indptr), shape=full.shape)
 
     def jacobian_of(x):
         return sp.csr_matrix(jac(x, p)[1].sparse())[:2]

@@ -5,8 +5,9 @@ At a KKT point of (6)-(8) the Hessian of the Lagrangian
 must be positive semi-definite on the tangent space T = {v : dA.v = 0, dB.v = 0} for a local
 minimiser. ``check`` computes the quantity of ``verify.verdict`` (the smallest eigenvalues of
 H v = mu M v on T, over mu_ref) by shift-invert Lanczos on a bordered sparse system (consistent
-mass: the Hessian reduced to phi with w = Delta_h phi through the NLP's own linear rows), and
-decides with ``verdict.classify``, the rule the matrix-free check (``verify.lobpcg``) uses too.
+mass: the Hessian reduced to phi with w = Delta_h phi through the NLP's own linear rows; lumped
+mass: one LU of H - sigma M and the Schur complement on the constraint columns,
+``verify.shift_invert``), and decides with ``verdict.classify``, the rule the matrix-free check (``verify.lobpcg``) uses too.
 
 Excluded modes (``SecondOrder.excluded``, ``verdict``'s docstring): on periodic grids the spectral
 translations d_i phi ("translations": the grid's whole-cell shifts are exact symmetries, d_i phi the
@@ -32,6 +33,7 @@ import scipy.sparse.linalg as spla
 from vesicle_opt.mesh.axisymmetric import axial_translation
 from vesicle_opt.mesh.spectral import FourierGrid
 from vesicle_opt.model import functionals as F
+from vesicle_opt.verify import shift_invert as SI
 from vesicle_opt.verify import verdict as V
 from vesicle_opt.verify.axial import overlap as slide_overlap
 from vesicle_opt.verify.block_eig import EPS, error_bounds
@@ -108,6 +110,29 @@ def _floor(reduced, Mphi, solve_mass, n: int, steps: int = POWER_STEPS) -> float
     return EPS * lam
 
 
+def _eigenpairs(H, B, J, Aop, Mphi, C_rows, mu_ref, n, nx, n_eig):
+    """Shift-invert Lanczos (ARPACK) from sigma = -mu_ref / 2, moved below the least eigenvalue found
+    until none lies below it (``check``); on lumped meshes the bordered solve by one LU of H - sigma M
+    and the Schur complement (``shift_invert.factorise``; the bordered LU where that fails).
+    Returns (mu, vectors)."""
+    pad = np.zeros(J.shape[0] + nx - n)
+    v0 = np.ones(n)  # deterministic start vector: bitwise-reproducible summaries
+    sigma = -0.5 * mu_ref
+    for _ in range(MAX_SHIFTS):
+        bordered = SI.factorise(H, Mphi, sigma, C_rows) if C_rows is not None else None
+        if bordered is not None:
+            OPinv = spla.LinearOperator((n, n), matvec=bordered.solve, dtype=float)
+        else:
+            lu = spla.splu(sp.bmat([[H - sigma * B, J.T], [J, None]], format="csc"))
+            OPinv = spla.LinearOperator((n, n), matvec=lambda r, lu=lu: lu.solve(np.concatenate([r, pad]))[:n],
+                                        dtype=float)
+        mu, Vec = spla.eigsh(Aop, k=n_eig, M=Mphi, sigma=sigma, which="LM", OPinv=OPinv, v0=v0, tol=1e-10)
+        if mu.min() >= sigma:
+            break
+        sigma = 2 * mu.min()
+    return mu, Vec
+
+
 def check(nlp, result, n_eig: int = N_EIG, derivatives=None, pin=None) -> SecondOrder:
     """Smallest eigenvalues by shift-invert Lanczos (ARPACK) on the bordered system
 
@@ -136,7 +161,6 @@ def check(nlp, result, n_eig: int = N_EIG, derivatives=None, pin=None) -> Second
     trans = translation_modes(disc, result.phi)
     J = constraint_rows(nlp, result.x, trans, Mphi, jacobian_of, pin)
     mu_ref = V.mu_ref(rig, eps, nlp.beta, disc.dim)
-    pad = np.zeros(J.shape[0] + nx - n)
 
     def reduced(v):  # H on phi with w = Delta_h v (only used for residuals)
         if nx == n:
@@ -145,16 +169,8 @@ def check(nlp, result, n_eig: int = N_EIG, derivatives=None, pin=None) -> Second
         return (H @ full)[:n] + disc.apply_laplacian_transpose((H @ full)[n:])
 
     Aop = spla.LinearOperator((n, n), matvec=reduced, dtype=float)
-    v0 = np.ones(n)  # deterministic start vector: bitwise-reproducible summaries
-    sigma = -0.5 * mu_ref
-    for _ in range(MAX_SHIFTS):
-        lu = spla.splu(sp.bmat([[H - sigma * B, J.T], [J, None]], format="csc"))
-        OPinv = spla.LinearOperator((n, n), matvec=lambda r, lu=lu: lu.solve(np.concatenate([r, pad]))[:n],
-                                    dtype=float)
-        mu, Vec = spla.eigsh(Aop, k=n_eig, M=Mphi, sigma=sigma, which="LM", OPinv=OPinv, v0=v0, tol=1e-10)
-        if mu.min() >= sigma:
-            break
-        sigma = 2 * mu.min()
+    lumped = nx == n and not disc.consistent  # the bordered solve by the Schur complement (shift_invert)
+    mu, Vec = _eigenpairs(H, B, J, Aop, Mphi, J.toarray().T if lumped else None, mu_ref, n, nx, n_eig)
     order = np.argsort(mu)
     mu, Vec = mu[order], Vec[:, order]
     grads = F.gradients(disc, result.phi, eps, sc.model.C)[1:]
