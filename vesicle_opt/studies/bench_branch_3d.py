@@ -32,9 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
+from vesicle_opt.branch import branch
+from vesicle_opt.branch import krylov_bordered as kb
+from vesicle_opt.branch import nk_corrector as nc
 from vesicle_opt.mesh.cosine import CosineGrid
 from vesicle_opt.scene.schema import from_dict
+from vesicle_opt.studies import crossing_3d as cx
 from vesicle_opt.studies.runner import in_fresh_process, run_study
+from vesicle_opt.verify import lobpcg
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +55,6 @@ QUANTITIES = ("cpu_s", "transforms", "newton", "krylov", "pinv", "check_cpu_s", 
 
 def scene(epsilon: float):
     """The octant prolate at v = V_START on the mirror grid of ``crossing_3d.octant_box`` at eps."""
-    from vesicle_opt.studies import crossing_3d as cx
     box, n = cx.octant_box(cx.HALF_EXTENT["prolate"], epsilon)
     raw = {"domain": {"box": box, "boundary": "natural"}, "mesh": {"kind": "spectral", "n": n},
            "model": {"epsilon": epsilon}, "constraints": {"reduced_volume": V_START, "area": cx.AREA},
@@ -71,9 +75,6 @@ class _Meter:
         self.check_cpu, self.check_transforms, self.check_iterations, self.coarse, self.pinv = 0.0, 0, [], [], 0
 
     def install(self):
-        from vesicle_opt.branch import krylov_bordered as kb
-        from vesicle_opt.branch import nk_corrector as nc
-        from vesicle_opt.verify import lobpcg
         check, spectrum, solve = nc.NewtonKrylovCorrector.check, lobpcg.spectrum, kb.bordered_solve
         meter = self
 
@@ -102,7 +103,6 @@ class _Meter:
 
 def walk(epsilon: float, points: int) -> list[dict]:
     """One level's walk (module docstring), a row per point."""
-    from vesicle_opt.branch import branch
     sc = scene(epsilon)
     meter = _Meter()
     meter.install()
