@@ -23,6 +23,7 @@ from vesicle_opt.io import outdir
 # one line each for ``vesicle-opt study --list`` (the module docstring is the long form: ``study NAME --help``)
 DESCRIPTIONS = {
     "bench_axisymmetric": "warm branch points on a refined meridian mesh: CPU and wall per point, old against new",
+    "bench_branch_3d": "a warm 3D branch point's cost against the grid (octant mirror grids, eps ~ h): CPU, DCTs, Newton/GMRES, check",
     "bench_3d": "large-3D path: time, memory, Newton and CG counts against n (torus, NK backend)",
     "bench_jax": "the Newton-Krylov path on JAX: numpy against one and two devices (and a GPU if any)",
     "bench_methods": "every solver.method in its defaults on every bundled scene: exit, outcome, cost against exact",

@@ -1,0 +1,202 @@
+"""The cost of a warm 3D branch point against the grid: a prolate walk on octant mirror grids, eps ~ h.
+
+Per level (``LEVELS``: eps = 0.14, 0.07, 0.05, 0.035 at eps / h = 2.5, in the octant boxes of
+``crossing_3d.octant_box``: 31 k, 98 k, 205 k, 525 k nodes; the work of the eps -> 0 limit, since the
+grid follows eps): ``vesicle_opt.branch`` of the octant prolate (c0 = 0, area 4 pi, exact constraints,
+tol 1e-8, the second-order check on) from v = 0.71 down in steps of 0.01 (the walk's step control
+adjusts them), ``points`` points, in a fresh process. Per point (a row): the CPU seconds of the
+process between two points (``time.process_time``: the machine is shared, wall time is reported
+beside it and the load average with it), the DCTs done (``mesh.cosine.CosineGrid.transforms``: every
+Hessian product, preconditioner application and check iteration costs a fixed number of them, so
+this count is the machine-independent work), the Newton steps (``iterations``: the bordered
+Newton-Krylov steps of ``branch.nk_free`` plus the certifying fixed-p solve's), the GMRES iterations
+(their sum, ``krylov``; the list, ``krylov_iterations``), the preconditioner applications in them
+(``pinv``), the second-order check's CPU seconds and its LOBPCG iterations (fine level and the coarse
+levels, ``check_iterations``, ``check_coarse_iterations``).
+
+``summary``: per level the median over the warm points (the points after the first two: the first
+is the cold start, the second the fixed-step natural point), and the exponent of each quantity in
+the node count, ``np.polyfit`` of log(quantity) on log(nodes) through all levels (and through the
+two largest). ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25,
+0.2 (9 k and 13 k nodes, 4 points each; ~2 min). Measured figures: ``docs/guide/large-3d.md``
+(warm point 0.89, 5.0, 22.7 CPU s at 31 k, 98 k, 205 k nodes: nodes^1.70; the 525 k level's cold start
+alone 197 CPU s, 34 min wall at load ~14, so run the full study on a quiet machine).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from vesicle_opt.branch import branch
+from vesicle_opt.branch import krylov_bordered as kb
+from vesicle_opt.branch import nk_corrector as nc
+from vesicle_opt.mesh.cosine import CosineGrid
+from vesicle_opt.scene.schema import from_dict
+from vesicle_opt.studies import crossing_3d as cx
+from vesicle_opt.studies.runner import in_fresh_process, run_study
+from vesicle_opt.verify import lobpcg
+
+log = logging.getLogger(__name__)
+
+NAME = "bench_branch_3d"
+LEVELS = (0.14, 0.07, 0.05, 0.035)
+QUICK_LEVELS = (0.25, 0.2)
+POINTS = 6  # a cold start, a natural step and four arclength points; the largest level: ``POINTS_LARGEST``
+POINTS_LARGEST = 4
+V_START, V_STEP = 0.71, -0.01
+WARM_FROM = 2  # the first warm arclength point (0: the cold start, 1: the natural step)
+QUANTITIES = ("cpu_s", "transforms", "newton", "krylov", "pinv", "check_cpu_s", "check_transforms")
+
+
+def scene(epsilon: float):
+    """The octant prolate at v = V_START on the mirror grid of ``crossing_3d.octant_box`` at eps."""
+    box, n = cx.octant_box(cx.HALF_EXTENT["prolate"], epsilon)
+    raw = {"domain": {"box": box, "boundary": "natural"}, "mesh": {"kind": "spectral", "n": n},
+           "model": {"epsilon": epsilon}, "constraints": {"reduced_volume": V_START, "area": cx.AREA},
+           "initial": {"shape": "ellipsoid", "semi_axes": cx.START_AXES["prolate"], "center": [0.0, 0.0, 0.0]},
+           "solver": {"method": "exact", "tol": 1e-8, "backend": "newton-krylov", "max_iter": 500,
+                      "second_order": True}}
+    return from_dict(raw, f"prolate-octant-eps{epsilon:g}")
+
+
+class _Meter:
+    """Counts and CPU time of the check and of the GMRES preconditioner, per point (instrumented
+    by wrapping the corrector's check and ``krylov_bordered.bordered_solve`` for one walk)."""
+
+    def __init__(self):
+        self.reset()
+
+    def reset(self):
+        self.check_cpu, self.check_transforms, self.check_iterations, self.coarse, self.pinv = 0.0, 0, [], [], 0
+
+    def install(self):
+        check, spectrum, solve = nc.NewtonKrylovCorrector.check, lobpcg.spectrum, kb.bordered_solve
+        meter = self
+
+        def timed_check(self, *a, **k):
+            c0, t0 = time.process_time(), CosineGrid.transforms
+            out = check(self, *a, **k)
+            meter.check_cpu += time.process_time() - c0
+            meter.check_transforms += CosineGrid.transforms - t0
+            return out
+
+        def counted_spectrum(*a, **k):
+            out = spectrum(*a, **k)
+            meter.check_iterations.append(out["iterations"])
+            meter.coarse.extend(int(c[1]) for c in out["coarse_iterations"])
+            return out
+
+        def counted_solve(hvp, pinv, *a, **k):
+            def p(r):
+                meter.pinv += 1
+                return pinv(r)
+            return solve(hvp, p, *a, **k)
+        nc.NewtonKrylovCorrector.check = timed_check
+        lobpcg.spectrum = counted_spectrum
+        kb.bordered_solve = counted_solve
+
+
+def walk(epsilon: float, points: int) -> list[dict]:
+    """One level's walk (module docstring), a row per point."""
+    sc = scene(epsilon)
+    meter = _Meter()
+    meter.install()
+    rows: list[dict] = []
+    last = [time.process_time(), time.perf_counter(), CosineGrid.transforms]
+
+    def progress(row: dict) -> None:
+        c, w, t = time.process_time(), time.perf_counter(), CosineGrid.transforms
+        krylov = [int(k) for k in str(row.get("krylov_iterations") or "").split(";") if k]
+        rows.append({"scene": sc.name, "method": "exact", "n": "x".join(map(str, sc.mesh.n)),
+                     "h": epsilon / 2.5, "energy": row.get("energy"), "iterations": row.get("iterations"),
+                     "wall_time_s": w - last[1], "status": row.get("status"), "epsilon": epsilon,
+                     "nodes": int(np.prod(sc.mesh.n)), "point": row["point"], "target": row["target"],
+                     "corrector": row.get("corrector"), "accepted": row.get("accepted"),
+                     "converged": row.get("converged"), "second_order": row.get("second_order"),
+                     "reduced_energy": row.get("reduced_energy"), "cpu_s": c - last[0], "transforms": t - last[2],
+                     "newton": row.get("iterations"), "krylov": sum(krylov),
+                     "krylov_iterations": row.get("krylov_iterations"), "pinv": meter.pinv,
+                     "check_cpu_s": meter.check_cpu, "check_transforms": meter.check_transforms,
+                     "check_iterations": ";".join(map(str, meter.check_iterations)),
+                     "check_coarse_iterations": ";".join(map(str, meter.coarse)),
+                     "load_average": os.getloadavg()[0]})
+        log.info(f"{NAME}: eps={epsilon:g} point {row['point']} v={row['target']:.4f} {row.get('corrector')} "
+                 f"cpu={c - last[0]:.2f}s DCT={t - last[2]} newton={row.get('iterations')} "
+                 f"gmres={row.get('krylov_iterations')} check={meter.check_cpu:.2f}s")
+        meter.reset()
+        last[:] = [time.process_time(), time.perf_counter(), CosineGrid.transforms]
+    branch(sc, "reduced_volume", to=0.5, step=V_STEP, max_points=points, switch=False, progress=progress)
+    return rows
+
+
+def case_rows(case: dict) -> list[dict]:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")  # the child's BLAS (as bench_3d)
+    return in_fresh_process(walk, case["epsilon"], case["points"])
+
+
+def cases(quick: bool) -> list[dict]:
+    levels = QUICK_LEVELS if quick else LEVELS
+    return [{"case": f"eps{e:g}", "epsilon": e,
+             "points": 4 if quick else (POINTS_LARGEST if e == min(levels) else POINTS)} for e in levels]
+
+
+def _num(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def exponents(nodes, values) -> float:
+    """The slope of log(values) against log(nodes) (``np.polyfit``, degree 1); NaN with < 2 levels."""
+    x, y = np.log(np.asarray(nodes, float)), np.log(np.asarray(values, float))
+    ok = np.isfinite(x) & np.isfinite(y)
+    return float(np.polyfit(x[ok], y[ok], 1)[0]) if ok.sum() >= 2 else math.nan
+
+
+def summary(rows: list[dict], case_list: list[dict]) -> dict:
+    """Per level the medians over the warm points; the exponents in the node count (docstring)."""
+    levels = {}
+    for c in case_list:
+        warm = [r for r in rows if _num(r.get("epsilon")) == c["epsilon"] and _num(r.get("point")) >= WARM_FROM
+                and str(r.get("accepted")) in ("True", "true")]
+        if not warm:
+            continue
+        levels[c["epsilon"]] = {"nodes": int(_num(warm[0]["nodes"])), "warm_points": len(warm),
+                                **{q: statistics.median(_num(r.get(q)) for r in warm) for q in QUANTITIES},
+                                "load_average": statistics.median(_num(r.get("load_average")) for r in warm)}
+    out: dict = {"levels": {f"{e:g}": v for e, v in levels.items()}}
+    if len(levels) >= 2:
+        nodes = [v["nodes"] for v in levels.values()]
+        out["exponents"] = {q: exponents(nodes, [v[q] for v in levels.values()]) for q in QUANTITIES}
+        top = sorted(levels.values(), key=lambda v: v["nodes"])[-2:]
+        out["exponents_two_largest"] = {q: exponents([v["nodes"] for v in top], [v[q] for v in top])
+                                        for q in QUANTITIES}
+    return out
+
+
+EXTRA = ["epsilon", "nodes", "point", "target", "corrector", "accepted", "converged", "second_order",
+         "reduced_energy", "cpu_s", "transforms", "newton", "krylov", "krylov_iterations", "pinv", "check_cpu_s",
+         "check_transforms", "check_iterations", "check_coarse_iterations", "load_average"]
+
+
+def main(out: Path, quick: bool = False) -> int:
+    """Rows appended per level as it finishes (resumable); the summary with the exponents."""
+    out = Path(out)
+    todo = cases(quick)
+    rows, info = run_study(NAME, todo, case_rows, summary, out, extra_columns=EXTRA)
+    for e, v in info.get("levels", {}).items():
+        log.info(f"{NAME}: eps={e} nodes={v['nodes']} median warm point: cpu {v['cpu_s']:.2f}s, "
+                 f"DCT {v['transforms']:.0f}, newton {v['newton']:.0f}, gmres {v['krylov']:.0f}, "
+                 f"check {v['check_cpu_s']:.2f}s")
+    if "exponents" in info:
+        log.info(f"{NAME}: exponents in the node count: " +
+                 ", ".join(f"{q} {x:.2f}" for q, x in info["exponents"].items()))
+    return 0 if all(str(r.get("converged")) in ("True", "true") for r in rows) and rows else 1
