@@ -245,27 +245,41 @@ def cases(cfg: dict | None = None) -> list[dict]:
     return out
 
 
-def summary(rows: list[dict]) -> dict:
-    """``pear_prolate_crossing``: per eps the crossing of the certified points of their branch's form,
-    its eps -> 0 limit (free order through three eps, p = 2 through the finest two), the sharp
-    crossing (eps = 0 row of kind crossing) and the published value."""
+def _per_eps(rows: list[dict], pear_forms) -> dict:
+    """{eps: crossing} of the certified points whose form is their branch's (a pear's in ``pear_forms``)."""
     ok = [r for r in rows if r.get("branch") in BRANCHES and str(r.get("converged")) == "True"
           and str(r.get("kind", "point")) == "point" and _num(r.get("epsilon")) > 0
-          and r.get("shape") == ("pear" if r["branch"] == "pear" else "prolate")]
+          and (r.get("shape") in pear_forms if r["branch"] == "pear" else r.get("shape") == "prolate")]
     per_eps = {}
     for eps in sorted({_num(r["epsilon"]) for r in ok}, reverse=True):
         sel = [[r for r in ok if _num(r["epsilon"]) == eps and r["branch"] == b] for b in BRANCHES]
         x = crossing(*[[_num(r[k]) for r in s] for s in sel for k in ("reduced_volume", "f")])
         if x is not None:
             per_eps[eps] = x
+    return per_eps
+
+
+def summary(rows: list[dict]) -> dict:
+    """``pear_prolate_crossing``: per eps the crossing of the certified points of their branch's form,
+    its eps -> 0 limit (free order through three eps, p = 2 through the finest two), the sharp
+    crossing (eps = 0 rows of kind crossing: the most modes, and per N) and the published value;
+    ``narrow_neck``: the same with the pears whose neck is under NECK_EPS eps (one curve, "pinched")
+    counted as pears, for comparison only (their neck is the phase field's, not the sharp pear's)."""
+    per_eps = _per_eps(rows, ("pear",))
     out = {"per_eps": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()},
            "published": {"v": PUBLISHED[0], "f": PUBLISHED[1]}}
+    if len(per_eps) >= 2:
+        out["extrapolated"] = extrapolate_crossing(per_eps)
+    narrow = _per_eps([r for r in rows if r.get("shape") != "pinched" or math.isfinite(_num(r.get("neck_over_eps")))],
+                      ("pear", "pinched"))
+    out["narrow_neck"] = {"per_eps": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]}
+                                      for e, x in narrow.items()}}
+    if len(narrow) >= 2:
+        out["narrow_neck"]["extrapolated"] = extrapolate_crossing(narrow)
     sharp_rows = sorted([r for r in rows if r.get("branch") in BRANCHES and r.get("kind") == "crossing"],
                         key=lambda r: _num(r.get("n")))
     if sharp_rows:  # the most modes; and every rung (the pear's convergence in N)
         out["sharp"] = {"v": _num(sharp_rows[-1]["reduced_volume"]), "f": _num(sharp_rows[-1]["f"]),
                         "n_modes": int(_num(sharp_rows[-1].get("n")))}
         out["sharp_per_modes"] = {str(r.get("n")): {"v": _num(r["reduced_volume"]), "f": _num(r["f"])} for r in sharp_rows}
-    if len(per_eps) >= 2:
-        out["extrapolated"] = extrapolate_crossing(per_eps)
     return {"pear_prolate_crossing": out}
