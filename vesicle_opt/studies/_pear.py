@@ -54,8 +54,8 @@ FULL = {"epsilons": (0.03, 0.02, 0.015), "vs": (0.74, 0.75, 0.76, 0.77), "seed_m
         "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 96}
 V_KICK, KICK = 0.72, 0.3  # the pear is reached here from the symmetric shape + KICK sin(3 s) (24 modes)
 LADDER = (24, 32, 48, 64, 96, 128)  # the pear's modes, each solve from the previous N's coefficients
-ASYM_MIN = 0.02  # |asymmetry| of a pear: measured 0.05-0.07 on the sharp pears; a symmetric shape on the
-# mirrored mesh: < 1e-6 (its meridian is the mirror image of itself to round-off)
+ASYM_MIN = 0.02  # |asymmetry| of a pear: measured 0.10-0.13 on the sharp pears (v = 0.74, 0.76; N = 24 .. 64);
+# a symmetric shape's tanh seed on the mirrored mesh: 8e-11 (tests/studies/test_pear.py)
 NECK_EPS = 3.0  # a neck of radius < 3 eps is called pinched: there tanh(r / sqrt2 eps) < 0.97 on the axis
 WALL = 12.0  # walls this many eps from the seed's sharp shape (as the study's other cases)
 MARGIN = 0.1  # and this much more room (R0 units) for the walk's shapes
