@@ -108,7 +108,10 @@ def test_summary_extrapolates_a_known_crossing_with_its_order():
              "n": "96", "converged": "True"}]
     for eps in (0.03, 0.02, 0.015):
         rows += _rows(eps, 0.746 + 4 * eps**2, 0.107 - 3 * eps**2)
-    out = P.summary(rows)["pear_prolate_crossing"]
+    pinched = [{**r, "shape": "pinched", "neck_over_eps": 1.5} if r["branch"] == "pear" else r
+               for r in _rows(0.04, 0.76, 0.11)[:-1]]  # at eps = 0.04 every pear's neck is under NECK_EPS eps
+    out = P.summary(rows + pinched)["pear_prolate_crossing"]
+    assert "0.04" not in out["per_eps"] and out["narrow_neck"]["per_eps"]["0.04"]["v"] == pytest.approx(0.76, abs=1e-12)
     assert out["per_eps"]["0.02"]["v"] == pytest.approx(0.746 + 4 * 0.02**2, abs=1e-12)  # lines: spline-exact
     ext = out["extrapolated"]
     # crossings exactly v* + c eps^2: Richardson recovers v*, f* and the order 2 to round-off
