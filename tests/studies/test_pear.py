@@ -61,7 +61,7 @@ def test_sharp_pear_is_asymmetric_with_a_neck_and_lies_below_the_symmetric_shape
     neck, asym = P.measure(*pear.meridian(4096))
     n_s, a_s = P.measure(*sym.meridian(4096))
     assert abs(asym) > 2 * P.ASYM_MIN and neck > 0.05  # measured -0.112, neck 0.12 R0 at 24 modes
-    assert abs(a_s) < 1e-9  # the symmetric shape: odd modes held at zero (measured ~1e-16)
+    assert abs(a_s) < 1e-6  # odd modes zeroed between steps; SLSQP leaves them at ~1e-8 (asymmetry 3e-8, measured)
     # below the published crossing (0.746) the pear is the lower state (sharp N = 24 .. 96: 1.5e-3 .. 8e-3)
     assert pear.f < sym.f
 

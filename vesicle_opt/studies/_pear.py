@@ -91,15 +91,23 @@ def sharp_branches(vs, n_modes: int, which=BRANCHES) -> dict:
     rungs above), the symmetric shapes at 24 modes (converged there: N = 24, 32, 48, 64 agree to 1e-10
     in f, measured)."""
     vs = sorted(float(v) for v in vs)
-    sym, walk = _symmetric_start(24), {}
-    for v in sorted({0.9, 0.85, 0.8, 0.76, *(vs if "prolate_c2.4" in which else ()), V_KICK}, reverse=True):
-        sol = S.solve(v, C0, sym)
-        sym = sol.a.copy()
-        sym[0::2] = 0.0
-        walk[v] = sol
-    out = {"prolate_c2.4": [walk[v] for v in vs]} if "prolate_c2.4" in which else {}
-    if "pear" in which:
-        kicked = walk[V_KICK].a.copy()
+
+    def symmetric(path):
+        sym, walk = _symmetric_start(24), {}
+        for v in path:
+            sol = S.solve(v, C0, sym)
+            sym = sol.a.copy()
+            sym[0::2] = 0.0
+            walk[v] = sol
+        return walk
+
+    out = {}
+    if "prolate_c2.4" in which:
+        walk = symmetric(sorted({0.9, 0.85, 0.8, 0.76, *vs}, reverse=True))
+        out["prolate_c2.4"] = [walk[v] for v in vs]
+    if "pear" in which:  # the kick from the shape reached along this path: through other points (0.752,
+        # 0.746, 0.74, then 0.72) the kicked SLSQP left the shapes (NaN), measured
+        kicked = symmetric((0.9, 0.85, 0.8, 0.76, V_KICK))[V_KICK].a.copy()
         kicked[2] = KICK
         out["pear"], out["ladder"] = [], {n: [] for n in LADDER if n <= n_modes}
         for v in sorted({V_KICK, *vs}):
