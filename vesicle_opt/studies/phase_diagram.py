@@ -28,9 +28,9 @@ the sharp stomatocyte at v = 0.62 and walked by the branch package past its fold
 it) and down to v = 0.575, with an oblate walk on a finer v grid (``oblate_low_vs``) for the crossing.
 ``stomatocyte_summary``: the fold and the oblate/stomatocyte crossing per eps, their eps -> 0 limit
 (``extrapolate_crossing``: free order through three eps, p = 2 through the finest two), the sharp
-and the published values (``PUBLISHED``). Not here yet: c0 = 2.4 (pears; see ``sharp.spontaneous``,
-whose pear seeds a phase-field pear whose neck the phase field pinches at eps >= 0.05:
-docs/guide/axisymmetric.md), and the runner's dask executor from the CLI.
+and the published values (``PUBLISHED``). c0 = 2.4 (full run only): the pear/prolate crossing,
+``studies._pear`` (summary key ``pear_prolate_crossing``). Not here yet: the runner's dask executor
+from the CLI.
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ from vesicle_opt.mesh import discretize
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp
 from vesicle_opt.sharp import stomatocyte as sharp_s
+from vesicle_opt.studies import _pear as pear
 from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._common import plt, savefig
 from vesicle_opt.studies.runner import run_into
@@ -86,7 +87,7 @@ def cases(quick: bool) -> list[dict]:
                     "eps_over_h": cfg["stomatocyte_eps_over_h"], "vs": list(cfg["oblate_low_vs"]),
                     "n_modes": cfg["n_modes"]})
     out = low + out  # the long cases first (the pool takes them in order)
-    return out
+    return pear.cases() + out  # c0 = 2.4: the pear/prolate crossing (studies._pear)
 
 
 def shape_of(disc, phi) -> str:
@@ -152,6 +153,8 @@ def _row(which, res, v, eps, n, box, sharp_f, seed) -> dict:
 
 
 def run(case: dict) -> list[dict]:
+    if case["branch"] in pear.BRANCHES:
+        return pear.run(case)
     if case["branch"] == "stomatocyte":
         if case["epsilon"] == 0:
             return stoma.sharp_case(case)
@@ -201,6 +204,7 @@ def summarise(rows: list[dict]) -> dict:
     if len(per_eps) >= 2:
         out["extrapolated"] = extrapolate_crossing(per_eps)
     out.update(stomatocyte_summary(rows))
+    out.update(pear.summary(rows))  # pear_prolate_crossing (c0 = 2.4)
     one_eps = [r for r in rows if _num(r["epsilon"]) == max(_num(q["epsilon"]) for q in rows)]
     ref = {b: sorted([r for r in one_eps if r["branch"] == b], key=lambda r: _num(r["target_v"])) for b in BRANCHES}
     x = crossing(*[[_num(r[k]) for r in ref[b]] for b in BRANCHES for k in ("target_v", "sharp_f")])
@@ -332,7 +336,7 @@ def _meridian_insets(fig, rows: list[dict]) -> None:
 
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     out, rows, good = run_into(NAME, cases(quick), run, out, executor=executor, workers=workers,
-                               extra_columns=COLUMNS)
+                               extra_columns=COLUMNS + pear.COLUMNS)
     summary = summarise(good)
     v_s, f_s = sharp.crossing() if not quick else (math.nan, math.nan)  # ~20 s: the full run's reference
     summary["sharp_crossing"] = {"v": v_s, "f": f_s}

@@ -1,0 +1,299 @@
+"""The pear/prolate crossing at c0 = 2.4 (literature units, c0 = C0 R0) for the ``phase_diagram`` study:
+the sharp pear and up-down symmetric branches (``sharp.spontaneous``; eps = 0 rows) and, per eps, the
+phase-field branches on interface-refined meridian meshes (``mesh.axisymmetric``, ``mesh.refine =
+"interface"``), their crossing per eps (``branch.crossing.crossing``) and its eps -> 0 limit
+(``branch.crossing.extrapolate_crossing``: free order through three eps). Published: (v, f) =
+(0.746, 0.107), Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 1182 (1991).
+
+Units: the scene's ``model.c0`` is C0 / 2 (the energy (3) tends to (2 sqrt2 / 3) F / kappa with
+C0 = 2 c0; docs/guide/axisymmetric.md), so at R0 = 1 (area 4 pi) ``model.c0`` = 1.2 and the summary's
+``c0_reduced`` reads 2.4.
+
+Sharp: the symmetric branch is walked down from the c0 = 0 prolate at v = 0.9 with the odd modes held
+at zero; the pear is reached at v = ``V_KICK`` from it kicked along sin(3 s) (24 modes) and walked up
+in v. The pear's neck is narrow (~0.1 R0), so its f converges in the number of modes N only
+algebraically (uniform arc length puts few points in the neck): each pear is carried up the ladder
+``LADDER`` of N, each solve started from the previous N's coefficients (a cold kick at N >= 48 leaves
+the shapes: SLSQP returns NaN, measured).
+
+Phase field: one case per (branch, eps). The first point is SEEDED (column ``seed``) with the tanh
+profile of the sharp shape at that v (``io.meridian.phase_field_of``) on a band mesh built about the
+sharp meridian (``refine.curve_distance``), and the walk goes on warm-started (the front door re-meshes
+where the interface leaves its band). The pear walks up in v from the lowest of ``vs``, the prolate down from
+the highest. A point counts for its branch only if its meridian is that shape (``form``): a pear is one
+curve from the axis to the axis, up-down asymmetric (|``asymmetry``| >= ``ASYM_MIN``) with a neck of
+radius >= ``NECK_EPS`` eps (not pinched: the two interfaces of a neck narrower than a few eps overlap,
+and at eps >= 0.05 the phase field pinches the sharp pear's neck, docs/guide/axisymmetric.md); a
+prolate is up-down symmetric (|asymmetry| < ``ASYM_MIN``). The second-order verdicts are those of the
+axisymmetric class only (the meridian's check: axisymmetric perturbations).
+
+Measured (docs/guide/axisymmetric.md, "c0 = 2.4"): the sharp crossing moves from (0.7417, 0.1044) at
+24 modes to (0.7476, 0.1076) at 64 (algebraic convergence; the pear's neck narrows with N); at
+eps = 0.03 the phase field pinches the pear's neck to ~1 eps (f 0.014 below the sharp pear): no
+pear of this form there, and the crossing with the pinched pears, (0.7561, 0.1084), is reported
+apart (``narrow_neck``). The full setting costs hours of CPU at eps <= 0.02 on 2 shared cores.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import types
+import warnings
+
+import numpy as np
+
+from vesicle_opt.api import solve
+from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
+from vesicle_opt.io.meridian import meridian_curves, phase_field_of
+from vesicle_opt.mesh import discretize, refine
+from vesicle_opt.scene import from_dict
+from vesicle_opt.sharp import axisymmetric as sharp_sym
+from vesicle_opt.sharp import spontaneous as S
+
+C0 = 2.4  # literature c0 = C0 R0 (scene model.c0 = C0 / 2 at R0 = 1)
+PUBLISHED = (0.746, 0.107)  # SBL 1991, read off their figure (+-0.005 in v, +-0.01 in f)
+BRANCHES = ("pear", "prolate_c2.4")  # not "prolate": the c0 = 0 prolate rows of phase_diagram keep their name
+# the phase field's v grid: its crossing lies above the sharp one at finite eps (at eps = 0.03 the pear
+# lies 0.013 below its sharp f, measured, the prolate above it), so the grid reaches v = 0.77
+FULL = {"epsilons": (0.03, 0.02, 0.015), "vs": (0.74, 0.75, 0.76, 0.77), "seed_modes": 48,
+        "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 96}
+V_KICK, KICK = 0.72, 0.3  # the pear is reached here from the symmetric shape + KICK sin(3 s) (24 modes)
+LADDER = (24, 32, 48, 64, 96, 128)  # the pear's modes, each solve from the previous N's coefficients
+ASYM_MIN = 0.02  # |asymmetry| of a pear: measured 0.10-0.13 on the sharp pears (v = 0.74, 0.76; N = 24 .. 64);
+# a symmetric shape's tanh seed on the mirrored mesh: 8e-11 (tests/studies/test_pear.py)
+NECK_EPS = 3.0  # a neck of radius < 3 eps is called pinched: there tanh(r / sqrt2 eps) < 0.97 on the axis
+WALL = 12.0  # walls this many eps from the seed's sharp shape (as the study's other cases)
+MARGIN = 0.1  # and this much more room (R0 units) for the walk's shapes
+EPS_OVER_H = 4.0  # the band's spacing: the sphere's f is off 0.39 % at eps / h = 4 (docs/guide/axisymmetric.md)
+H0 = 0.12  # about this coarse cell side (levels = log2(H0 / h_fine), rounded)
+COLUMNS = ["neck_over_eps", "asymmetry", "nodes", "cpu_s"]
+
+
+def _num(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _symmetric_start(n: int) -> np.ndarray:
+    ref = sharp_sym.solve(0.9, "prolate", second_order=False)
+    a = np.zeros(n)
+    a[1:16:2] = ref.a[:8]  # wavenumber 2j there is index 2j - 1 here (as tests/sharp/test_spontaneous.py)
+    return a
+
+
+def sharp_branches(vs, n_modes: int, which=BRANCHES) -> dict:
+    """{"prolate_c2.4": [Shape], "pear": [Shape]} (those in ``which``) at the reduced volumes ``vs``,
+    ascending (module docstring); the pears at ``n_modes`` (a rung of ``LADDER``; "ladder": {N: the
+    pears at every rung up to it}; a rung whose solve fails keeps that failure, not converged, at the
+    rungs above), the symmetric shapes at 24 modes (converged there: N = 24, 32, 48, 64 agree to 1e-10
+    in f, measured)."""
+    vs = sorted(float(v) for v in vs)
+
+    def symmetric(path):
+        sym, walk = _symmetric_start(24), {}
+        for v in path:
+            sol = S.solve(v, C0, sym)
+            sym = sol.a.copy()
+            sym[0::2] = 0.0
+            walk[v] = sol
+        return walk
+
+    out = {}
+    if "prolate_c2.4" in which:
+        walk = symmetric(sorted({0.9, 0.85, 0.8, 0.76, *vs}, reverse=True))
+        out["prolate_c2.4"] = [walk[v] for v in vs]
+    if "pear" in which:  # the kick from the shape reached along this path: through other points (0.752,
+        # 0.746, 0.74, then 0.72) the kicked SLSQP left the shapes (NaN), measured
+        kicked = symmetric((0.9, 0.85, 0.8, 0.76, V_KICK))[V_KICK].a.copy()
+        kicked[2] = KICK
+        out["pear"], out["ladder"] = [], {n: [] for n in LADDER if n <= n_modes}
+        for v in sorted({V_KICK, *vs}):
+            sol = S.solve(v, C0, kicked)
+            kicked = sol.a
+            for n in out["ladder"]:
+                if n > 24:
+                    sol = S.solve(v, C0, sol.a, n) if sol.converged else sol  # a failed rung ends the ladder
+                if v in vs:
+                    out["ladder"][n].append(sol)
+            if v in vs:
+                out["pear"].append(sol)
+    return out
+
+
+def measure(r, z) -> tuple[float, float]:
+    """(neck radius, asymmetry) of a meridian (r, z) from pole to pole: the neck is the radius at the
+    deepest waist (the point whose r lies furthest below the smaller of the largest radii on either
+    side of it; nan without one: a convex meridian), the asymmetry the volume centroid's height above
+    the middle of [z_min, z_max] over the height (0 for an up-down symmetric shape)."""
+    r, z = np.asarray(r, float), np.asarray(z, float)
+    left, right = np.maximum.accumulate(r), np.maximum.accumulate(r[::-1])[::-1]
+    depth = np.minimum(left, right) - r
+    k = int(np.argmax(depth))
+    neck = float(r[k]) if depth[k] > 1e-3 * r.max() else math.nan
+    dv = np.diff(z) * (r[1:] ** 2 + r[1:] * r[:-1] + r[:-1] ** 2) / 3  # frusta: pi dropped in the ratio
+    zm = (z[1:] + z[:-1]) / 2
+    height = float(z.max() - z.min())
+    centroid = float(np.sum(zm * dv) / np.sum(dv))
+    return neck, (centroid - (z.max() + z.min()) / 2) / height
+
+
+def form(curves, eps: float) -> tuple[str, float, float]:
+    """(shape, neck / eps, asymmetry) of a phase field's meridian curves (module docstring): "pear",
+    "prolate" (up-down symmetric), "pinched" (a pear's neck under NECK_EPS eps, or two bodies),
+    or "other"."""
+    if len(curves) != 1 or curves[0][0][0] > 0 or curves[0][-1][0] > 0:
+        return ("pinched" if len(curves) == 2 else "other"), math.nan, math.nan
+    neck, asym = measure(curves[0][:, 0], curves[0][:, 1])
+    if abs(asym) < ASYM_MIN:
+        return "prolate", neck / eps, asym
+    if math.isfinite(neck) and neck >= NECK_EPS * eps:
+        return "pear", neck / eps, asym
+    return "pinched", neck / eps, asym
+
+
+def box_of(r, z, eps: float):
+    """(box, n, levels) of the meridian mesh about a sharp meridian: square cells of side h_fine
+    2^levels with h_fine = eps / EPS_OVER_H, the walls WALL eps + MARGIN from the shape, the box
+    centred on it with an even n_z (the mesh mirrors about the box's mid-height)."""
+    h_fine = eps / EPS_OVER_H
+    levels = max(1, round(math.log2(H0 / h_fine)))
+    h0 = h_fine * 2**levels
+    pad = WALL * eps + MARGIN
+    nr = math.ceil((float(np.max(r)) + pad) / h0)
+    half = math.ceil(((float(np.max(z)) - float(np.min(z))) / 2 + pad) / h0)
+    zc = (float(np.max(z)) + float(np.min(z))) / 2
+    return [[0.0, nr * h0], [zc - half * h0, zc + half * h0]], [nr, 2 * half], levels
+
+
+def _scene(box, n, levels: int, eps: float, v: float, name: str):
+    raw = {"domain": {"box": box, "boundary": "natural"},
+           "mesh": {"kind": "axisymmetric", "n": n, "refine": "interface", "levels": levels, "band": 8.0},
+           "model": {"epsilon": eps, "c0": C0 / 2}, "constraints": {"reduced_volume": v, "area": 4 * math.pi},
+           "initial": {"shape": "sphere", "radius": 1.0}, "solver": {"method": "exact"}}
+    return from_dict(raw, name=name)
+
+
+def _row(branch: str, v: float, eps: float, **kw) -> dict:
+    return {"branch": branch, "c0": C0, "target_v": v, "epsilon": eps, "kind": "point", "side": "", **kw}
+
+
+def sharp_case(case: dict) -> list[dict]:
+    """eps = 0 rows: both sharp branches at ``case["vs"]`` with ``case["n_modes"]`` pear modes, and
+    their crossing (kind ``crossing``) at every rung of ``LADDER`` up to it (the pear's convergence in
+    N; a rung with a failed solve has none)."""
+    t0 = time.process_time()
+    br = sharp_branches(case["vs"], case["n_modes"])
+    rows = []
+    for b in BRANCHES:
+        for s in br[b]:
+            neck, asym = measure(*s.meridian(4096)) if s.converged else (math.nan, math.nan)
+            rows.append(_row(b, s.v, 0.0, shape="pear" if b == "pear" else "prolate", n=str(s.a.size),
+                             reduced_volume=s.v, f=s.f, sharp_f=s.f, c0_reduced=C0, converged=s.converged,
+                             kkt_residual=s.kkt_residual, asymmetry=asym, neck_over_eps=math.nan,
+                             seed="symmetric shape + 0.3 sin 3s at v = 0.72" if b == "pear" else "c0 = 0 prolate",
+                             status=f"neck radius {neck:.5f}"))
+    sym = br["prolate_c2.4"]
+    for n, pears in br["ladder"].items():
+        if not all(q.converged for q in pears):
+            continue
+        x = crossing([q.v for q in pears], [q.f for q in pears], [q.v for q in sym], [q.f for q in sym])
+        if x is not None:
+            rows.append(_row("pear", x["reduced_volume"], 0.0, kind="crossing", n=str(n),
+                             reduced_volume=x["reduced_volume"], f=x["reduced_energy"], converged=True))
+    rows[-1]["cpu_s"] = time.process_time() - t0
+    return rows
+
+
+def phase_case(case: dict) -> list[dict]:
+    """One phase-field branch at one eps (module docstring): the seeded first point, then the walk."""
+    eps, which, t0 = case["epsilon"], case["branch"], time.process_time()
+    vs = sorted(case["vs"], reverse=which != "pear")
+    ref = sharp_branches(vs, case["n_modes"], (which,))[which]
+    ref = ref if which == "pear" else ref[::-1]  # sharp_branches returns ascending v
+    r, z = ref[0].meridian(4096)
+    box, n, levels = box_of(r, z, eps)
+    rows, start, seed = [], None, f"sharp {which} at v = {vs[0]:g} ({case['n_modes']} modes; a seed)"
+    for v, s in zip(vs, ref):
+        sc = _scene(box, n, levels, eps, v, f"phase_diagram-{which}-v{v:g}-eps{eps:g}")
+        if start is None:  # the band about the sharp meridian, the field its tanh profile
+            disc = discretize(sc, interface=refine.curve_distance(np.column_stack([r, z]), eps / EPS_OVER_H))
+            start = types.SimpleNamespace(disc=disc, phi=phase_field_of(r, z, disc.nodes, eps))
+        c1 = time.process_time()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
+            res = solve(sc, x0=start)
+        ex = res.extra
+        shape, neck, asym = form(meridian_curves(res.disc, res.phi), eps) if res.converged else (None, math.nan, math.nan)
+        f = _num(ex.get("f"))
+        rows.append(_row(which, v, eps, shape=shape, n="x".join(map(str, n)), h=eps / EPS_OVER_H, f=f,
+                         c0_reduced=ex.get("c0_reduced"), reduced_volume=ex.get("reduced_volume"), sharp_f=s.f,
+                         f_minus_sharp=f - s.f, converged=res.converged, second_order=ex.get("second_order"),
+                         second_order_min_eigenvalue=ex.get("second_order_min_eigenvalue"),
+                         topology=ex.get("topology"), kkt_residual=res.kkt_residual, iterations=res.iterations,
+                         wall_time_s=res.wall_time_s, seed=seed, status=res.outcome, walk="up" if which == "pear"
+                         else "down", neck_over_eps=neck, asymmetry=asym, nodes=res.disc.n_nodes,
+                         cpu_s=time.process_time() - c1))
+        if not res.converged:
+            break
+        start, seed = res, "previous point"
+    rows[0]["cpu_s"] = _num(rows[0]["cpu_s"]) + (time.process_time() - t0 - sum(_num(q["cpu_s"]) for q in rows))
+    return rows
+
+
+def run(case: dict) -> list[dict]:
+    return sharp_case(case) if case["epsilon"] == 0 else phase_case(case)
+
+
+def cases(cfg: dict | None = None) -> list[dict]:
+    """The sharp case and one case per (branch, eps) of ``cfg`` (default ``FULL``), the finest eps
+    first (the longest: the pool takes the cases in order)."""
+    cfg = cfg or FULL
+    out = [{"case": "pear-sharp", "branch": "pear", "epsilon": 0.0, "vs": list(cfg["sharp_vs"]),
+            "n_modes": cfg["sharp_modes"]}]
+    for eps in sorted(cfg["epsilons"]):
+        out += [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "vs": list(cfg["vs"]),
+                 "n_modes": cfg["seed_modes"]} for b in BRANCHES]
+    return out
+
+
+def _per_eps(rows: list[dict], pear_forms) -> dict:
+    """{eps: crossing} of the certified points whose form is their branch's (a pear's in ``pear_forms``)."""
+    ok = [r for r in rows if r.get("branch") in BRANCHES and str(r.get("converged")) == "True"
+          and str(r.get("kind", "point")) == "point" and _num(r.get("epsilon")) > 0
+          and (r.get("shape") in pear_forms if r["branch"] == "pear" else r.get("shape") == "prolate")]
+    per_eps = {}
+    for eps in sorted({_num(r["epsilon"]) for r in ok}, reverse=True):
+        sel = [[r for r in ok if _num(r["epsilon"]) == eps and r["branch"] == b] for b in BRANCHES]
+        x = crossing(*[[_num(r[k]) for r in s] for s in sel for k in ("reduced_volume", "f")])
+        if x is not None:
+            per_eps[eps] = x
+    return per_eps
+
+
+def summary(rows: list[dict]) -> dict:
+    """``pear_prolate_crossing``: per eps the crossing of the certified points of their branch's form,
+    its eps -> 0 limit (free order through three eps, p = 2 through the finest two), the sharp
+    crossing (eps = 0 rows of kind crossing: the most modes, and per N) and the published value;
+    ``narrow_neck``: the same with the pears whose neck is under NECK_EPS eps (one curve, "pinched")
+    counted as pears, for comparison only (their neck is the phase field's, not the sharp pear's)."""
+    per_eps = _per_eps(rows, ("pear",))
+    out = {"per_eps": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()},
+           "published": {"v": PUBLISHED[0], "f": PUBLISHED[1]}}
+    if len(per_eps) >= 2:
+        out["extrapolated"] = extrapolate_crossing(per_eps)
+    narrow = _per_eps([r for r in rows if r.get("shape") != "pinched" or math.isfinite(_num(r.get("neck_over_eps")))],
+                      ("pear", "pinched"))
+    out["narrow_neck"] = {"per_eps": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]}
+                                      for e, x in narrow.items()}}
+    if len(narrow) >= 2:
+        out["narrow_neck"]["extrapolated"] = extrapolate_crossing(narrow)
+    sharp_rows = sorted([r for r in rows if r.get("branch") in BRANCHES and r.get("kind") == "crossing"],
+                        key=lambda r: _num(r.get("n")))
+    if sharp_rows:  # the most modes; and every rung (the pear's convergence in N)
+        out["sharp"] = {"v": _num(sharp_rows[-1]["reduced_volume"]), "f": _num(sharp_rows[-1]["f"]),
+                        "n_modes": int(_num(sharp_rows[-1].get("n")))}
+        out["sharp_per_modes"] = {str(r.get("n")): {"v": _num(r["reduced_volume"]), "f": _num(r["f"])} for r in sharp_rows}
+    return {"pear_prolate_crossing": out}
