@@ -63,6 +63,19 @@ def ladder(scene: Scene) -> list[Scene]:
             for k in range(min(m.levels, RUNGS) - 1, -1, -1)]
 
 
+def seeded(scene: Scene, r, z) -> tuple[object, np.ndarray]:
+    """(mesh, field) of a start from a meridian curve (r, z) from the axis to the axis (e.g. a sharp
+    reference's, ``sharp.axisymmetric``): the scene's band about that curve and the tanh profile of
+    its distance (``io.meridian.phase_field_of``)."""
+    from vesicle_opt.io.meridian import phase_field_of  # scipy's KD-tree: seeds only
+    from vesicle_opt.mesh.refine import curve_distance, square_side  # scikit-fem: refined meshes only
+
+    pts = np.column_stack([np.asarray(r, float), np.asarray(z, float)])
+    spacing = square_side(scene.domain.box, scene.mesh.n) / 2**scene.mesh.levels
+    disc = discretize(scene, interface=curve_distance(pts, spacing))
+    return disc, phase_field_of(pts[:, 0], pts[:, 1], disc.nodes, scene.model.epsilon)
+
+
 class RefinedCorrector:
     """The certified point of a refined scene from a warm field on its own mesh (module docstring).
     ``disc``: the band about the scene's ``initial`` (the line's default mesh for records)."""

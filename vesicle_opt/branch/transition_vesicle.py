@@ -71,8 +71,9 @@ class VesicleCrossing:
     them the reduced volume and the other c0 (a crossing: p = v; a fold line in c0: p = c0)."""
 
     def __init__(self, scene_a: Scene, scene_b: Scene | None = None, options=None, param: str = "reduced_volume",
-                 second: str = "c0"):
+                 second: str = "c0", starts: dict | None = None):
         self.base = {"a": scene_a, "b": scene_b if scene_b is not None else scene_a}
+        self.starts = starts or {}  # x -> (mesh or None, field): the cold start's field instead of initial
         self.param, self.second = param, second
         self.vpar = parameter(scene_a, "reduced_volume")
         self.qpar = parameter(scene_a, "c0")
@@ -107,7 +108,10 @@ class VesicleCrossing:
         t0 = time.perf_counter()
         corr, sc = self.corr(x), self.scene_at(p, q)
         try:
-            if self.refined:
+            if phi0 is None and x in self.starts:  # the start from a given field, IPOPT's own multipliers
+                disc0, phi0 = self.starts[x]
+                res = corr.solve(sc, phi0, None, disc0) if self.refined else corr.solve(sc, phi0, None)
+            elif self.refined:
                 res = self._refined(corr, sc, phi0, lam0, disc0)
             elif phi0 is None:  # the start: cold from the branch's own initial shape
                 res = corr.solve(sc, corr.nlp.split(corr.nlp.x0)[0], None, feasibility=True)
@@ -183,18 +187,23 @@ def check(scene_a: Scene, scene_b: Scene, param: str, second: str | None, values
 
 
 def transition_line(scene_a: Scene, scene_b: Scene, second: str = "c0", values=(), *, step: float | None = None,
-                    to: float | None = None, out: str | Path | None = None, options=None, progress=None) -> Line:
+                    to: float | None = None, out: str | Path | None = None, options=None, progress=None,
+                    starts: dict | None = None) -> Line:
     """The crossing of branches a and b (their scenes: the same problem, two starts) in the reduced
     volume, located from the scenes' reduced volume towards ``to`` with samples ``|step|`` apart at
     the scenes' c0 and continued to each c0 in ``values`` (module docstring; ``branch.transition``).
     ``out``: transition.json, transition_line.csv and the fields of both branches at each crossing,
-    resumed after a kill; with ``out``, also ``phase_diagram.png`` (``branch.phase_figure``)."""
+    resumed after a kill; with ``out``, also ``phase_diagram.png`` (``branch.phase_figure``).
+    ``starts``: {"a"|"b": (mesh or None, field)}, the first solve of that branch from this field
+    (cold multipliers) instead of its scene's ``initial`` (e.g. ``branch.refined_corrector.seeded``
+    from a sharp meridian: on a refined mesh at small eps a cold start from an ellipsoid takes
+    hundreds of IPOPT iterations)."""
     vals, step = check(scene_a, scene_b, "reduced_volume", second, values, to, step)
     par = parameter(scene_a, "reduced_volume")
     meta = {"scene": scene_a.name, "scene_data": resolved.as_dict(scene_a), "other_initial":
             resolved.as_dict(scene_b).get("initial"), "second": second, "values": vals, "step": float(step),
-            "to": float(to)}
-    solver = VesicleCrossing(scene_a, scene_b, options)
+            "to": float(to), **({"starts": sorted(starts)} if starts else {})}
+    solver = VesicleCrossing(scene_a, scene_b, options, starts=starts)
     store = LineStore(None if out is None else Path(out), meta, solver.disc, second, "reduced_volume",
                       solver.mesh_of if solver.refined else None)
     rows = continue_line(solver, float(scene_a.model.c0), par.start, float(to), vals, abs(step), store,
