@@ -34,7 +34,7 @@ def _at(scene, v):
     return parameter(scene, "reduced_volume").scene_at(scene, v)
 
 
-@pytest.mark.slow  # five refined solves and a start up the ladder: 11 s at load 13 (3.5 CPU-s)
+@pytest.mark.slow  # five refined solves and a start up the ladder: 6 s at load 5, 24 s at load 13
 def test_the_band_follows_the_walk_and_the_fixed_band_refuses_it():
     scene = vo.load_scene("prolate-axisymmetric", OVER)
     corr = RefinedCorrector(scene)
