@@ -3,8 +3,9 @@
 
 ``branch.corrector.IpoptCorrector`` builds one mesh, ``discretize(scene)``, and one NLP on it. On a
 refined scene that mesh is fine only within ``mesh.band`` x eps of the *start's* interface, so a
-walk whose interface moves (a transition line from c0 = -0.5 to 0.5 moves the prolate's poles by
-~0.2 R0, measured) leaves the band and every later point fails the band check (``verify.band``).
+walk whose interface moves (along the line D(c0), c0 = -0.5 to 0.5, the sharp prolate's poles move
+by ~0.7 R0: half-length 1.77 at v = 0.746, 2.48 at v = 0.564) leaves the band and every later point
+fails the band check (``verify.band``).
 Here every point is the front door's solve (``vesicle_opt.solve``) of the point's scene from the
 warm start (its field *on its own mesh*, the predicted multipliers):
 
