@@ -23,6 +23,7 @@
 * ``transition``: that crossing continued in a second parameter (a first-order transition line,
   e.g. prolate/oblate in (v, c0)); ``transition_store``: its CSV and fields, resumed;
   ``transition_vesicle``: ``transition_line(scene_a, scene_b, "c0", values, to=, step=, out=)``;
+  ``refined_corrector``: its points on interface-refined meridian meshes, the band following each;
   ``phase_figure``: the (v, c0) phase-diagram PNG;
 * ``diagram``: the energy-diagram PNG (matplotlib is imported there only).
 """

@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from vesicle_opt.branch.transition import Sample, plan
+from vesicle_opt.branch.transition import Sample, plan, solve_from
 
 EXTEND = 5  # shifts of the samples, doubling: up to 16 dp beyond the prediction
 RECENTRE = 2
@@ -71,7 +71,7 @@ def local_fold(solver, q: float, p_pred: float, dp: float, warm: Sample | None, 
         pts, why = [], None
         for k in (3 + shift, 2 + shift, 1 + shift):
             p = p_pred + side * k * dp
-            s = solver.solve("a", p, q, None if src is None else src.phi, None if src is None else src.lam)
+            s = solve_from(solver, "a", p, q, src, None if src is None else src.lam)
             solves += 1
             if not s.converged or _mu(s) is None or _mu(s) <= 0:
                 why = f"at p = {p:.8g}: " + ("not certified" if not s.converged else "not a minimum (mu <= 0)")

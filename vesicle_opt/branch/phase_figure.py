@@ -23,7 +23,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-CUP = 0.1  # dimples differing by this fraction of the height: a cup (as the phase_diagram study's)
+from vesicle_opt.verify.updown import CUP, form  # noqa: E402,F401  (the meridian's form: prolate, oblate, cup)
+
 PICTURES = 3  # crossings drawn with their two shapes: the ends and the middle of the line
 
 
@@ -34,24 +35,16 @@ def _curves(disc, phi):
     return meridian_curves(disc, phi)
 
 
-def form(curves) -> str | None:
-    """The form of one meridian curve from the axis to the axis: "cup" when one pole's dimple (its
-    depth below the curve's extreme z on its side) exceeds the other's by ``CUP`` of the height (up-
-    down asymmetric: a stomatocyte-like state), else "prolate" (height > width) or "oblate"; None
-    for anything else (no curve, several, a torus)."""
-    if not curves or len(curves) != 1 or curves[0][0][0] > 1e-9 or curves[0][-1][0] > 1e-9:
-        return None
-    r, z = curves[0][:, 0], curves[0][:, 1]
-    height = float(z.max() - z.min())
-    lo, hi = sorted((float(z[0]), float(z[-1])))
-    if abs((lo - float(z.min())) - (float(z.max()) - hi)) > CUP * height:
-        return "cup"
-    return "prolate" if height > 2 * float(r.max()) else "oblate"
+def _on_mesh(disc, field):
+    """(mesh, phi) of ``phi_of``'s answer: a field on ``disc``, or (its own mesh, field) where each
+    point has its own (interface-refined meshes)."""
+    return field if isinstance(field, tuple) else (disc, field)
 
 
 def plot(points: list[dict], disc, phi_of, path: Path, folds: list[list[tuple[float, float]]] = (),
          reference: list[tuple[float, float]] | None = None, title: str = "", others=()) -> None:
-    """Draw ``points`` (certified line rows, by c0; ``phi_of(row, "a"|"b")`` their fields) to
+    """Draw ``points`` (certified line rows, by c0; ``phi_of(row, "a"|"b")`` their fields, or
+    (mesh, field) pairs where each has its own mesh) to
     ``path`` (module docstring); ``folds``: lines of (v, c0_reduced); ``reference``: the sharp
     line as (v, c0_reduced); ``others``: (label, [(v, c0_reduced)]) more crossings as markers
     (e.g. another resolution's)."""
@@ -60,7 +53,7 @@ def plot(points: list[dict], disc, phi_of, path: Path, folds: list[list[tuple[fl
         return
     cy = np.array([r["c0_reduced"] if r.get("c0_reduced") is not None else r["value"] for r in pts], float)
     vx = np.array([r["target"] for r in pts], float)
-    shapes = {x: [_curves(disc, phi_of(r["row"], x)) for r in pts] for x in ("a", "b")}
+    shapes = {x: [_curves(*_on_mesh(disc, phi_of(r["row"], x))) for r in pts] for x in ("a", "b")}
     names = {x: next((form(c) for c in shapes[x] if form(c) in ("prolate", "oblate")), x) for x in ("a", "b")}
     slope = np.mean([r["a_dE_dp"] - r["b_dE_dp"] for r in pts if r.get("a_dE_dp") is not None] or [0.0])
     above, below = ("a", "b") if slope < 0 else ("b", "a")

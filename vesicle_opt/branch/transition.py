@@ -66,6 +66,15 @@ class Sample:
     dE_dp: float | None = None
     dE_dq: float | None = None
     row: dict = dataclasses.field(default_factory=dict)
+    disc: object = None  # the mesh phi lives on where it is the point's own (interface-refined meshes)
+
+
+def solve_from(solver, x: str, p: float, q: float, src: Sample | None, lam) -> Sample:
+    """``solver.solve`` at (p, q) warm from ``src`` (None: cold), its mesh passed on (``disc0``)
+    where the point has its own (an interface-refined mesh follows the interface)."""
+    if src is not None and src.disc is not None:
+        return solver.solve(x, p, q, src.phi, lam, disc0=src.disc)
+    return solver.solve(x, p, q, None if src is None else src.phi, lam)
 
 
 @dataclasses.dataclass
@@ -126,7 +135,7 @@ def local_crossing(solver, q: float, p_pred: float, dp: float, warm: dict | None
                 continue
             src = _nearest(pts[x], p) if pts[x] else (None if warm is None else warm[x])
             lam = _lam_at(pts[x], p) if pts[x] else (None if src is None else src.lam)
-            s = solver.solve(x, p, q, None if src is None else src.phi, lam)
+            s = solve_from(solver, x, p, q, src, lam)
             nsolves[0] += 1
             if not s.converged:
                 fail[x] = s
@@ -185,7 +194,7 @@ def local_crossing(solver, q: float, p_pred: float, dp: float, warm: dict | None
         final = {}
         for k in BRANCHES:
             src = _nearest(pts[k], p_star)
-            s = solver.solve(k, p_star, q, src.phi, _lam_at(pts[k], p_star))
+            s = solve_from(solver, k, p_star, q, src, _lam_at(pts[k], p_star))
             nsolves[0] += 1
             final[k] = s
             if not s.converged:

@@ -12,7 +12,10 @@ Columns: the crossing (``target`` = p*, ``value`` = q, ``gap`` = |E_a - E_b| / |
 certified points, ``predicted`` p*, ``energy``/``reduced_energy``/``f``/``c0_reduced`` of branch a
 there, ``converged`` both certified, ``outcome`` (``converged``; ``located_to_gap`` where both are certified but the gap
 exceeds ``GAP_ACCEPT``)/``reason``/``certifiable_tol`` as branch rows
-have them) and per branch, prefixed ``a_`` / ``b_``, the point's report (``PER_BRANCH``).
+have them) and per branch, prefixed ``a_`` / ``b_``, the point's report (``PER_BRANCH``); then
+``states`` (``states``: "prolate/oblate" where the crossing is that of the two up-down symmetric
+branches) and per branch its form on the meridian (``FORM``, ``verify.updown``: ``form``,
+``pole_gap``, ``updown_asymmetry``, ``symmetric``) and its mesh (``band_margin``, ``n_nodes``).
 """
 
 from __future__ import annotations
@@ -37,14 +40,17 @@ PER_BRANCH = ["target", "energy", "reduced_energy", "f", "reduced_volume", "lamb
               "dE_dq", "kkt_residual", "converged", "outcome", "status", "reason", "certifiable_tol",
               "second_order", "second_order_min_eigenvalue", "second_order_excluded", "shape", "topology",
               "iterations"]
-COLUMNS = LINE + [f"{x}_{k}" for x in BRANCHES for k in PER_BRANCH]
-INTS = ("row", "samples", "solves") + tuple(f"{x}_iterations" for x in BRANCHES)
-BOOLS = ("converged",) + tuple(f"{x}_converged" for x in BRANCHES)
+FORM = ["form", "pole_gap", "updown_asymmetry", "symmetric", "band_margin", "n_nodes"]  # verify.updown, the mesh
+COLUMNS = LINE + [f"{x}_{k}" for x in BRANCHES for k in PER_BRANCH] + ["states"] + [
+    f"{x}_{k}" for x in BRANCHES for k in FORM]
+INTS = ("row", "samples", "solves") + tuple(f"{x}_{k}" for x in BRANCHES for k in ("iterations", "n_nodes"))
+BOOLS = ("converged",) + tuple(f"{x}_{k}" for x in BRANCHES for k in ("converged", "symmetric"))
 FLOATS = ("value", "target", "predicted", "gap", "energy", "reduced_energy", "f", "c0", "c0_reduced",
           "certifiable_tol", "wall_time_s") + tuple(
     f"{x}_{k}" for x in BRANCHES for k in ("target", "energy", "reduced_energy", "f", "reduced_volume",
                                            "lambda_volume", "lambda_area", "dE_dp", "dE_dq", "kkt_residual",
-                                           "certifiable_tol", "second_order_min_eigenvalue"))
+                                           "certifiable_tol", "second_order_min_eigenvalue", "pole_gap",
+                                           "updown_asymmetry", "band_margin"))
 GAP_ACCEPT = 1e-6  # a crossing with a larger relative gap is reported as "located_to_gap" (its points are
 # certified, but not at one energy: the polish's Newton steps did not close it, so the states jumped)
 ADVICE = "move it away or give another --out (nothing there was changed)"
@@ -80,11 +86,12 @@ def row_of(i: int, direction: str, found: Found, second: str, param: str) -> dic
         rep = {**s.row, "target": s.p, "energy": s.energy, "converged": s.converged, "dE_dp": s.dE_dp,
                "dE_dq": s.dE_dq, "lambda_volume": None if s.lam is None else s.lam[0],
                "lambda_area": None if s.lam is None else s.lam[1]}
-        row.update({f"{x}_{k}": rep.get(k) for k in PER_BRANCH})
+        row.update({f"{x}_{k}": rep.get(k) for k in PER_BRANCH + FORM})
     a = found.points.get("a")
     if a is not None and found.p is not None:
         row.update({"energy": a.energy, "reduced_energy": a.row.get("reduced_energy", a.energy),
                     "f": a.row.get("f"), "c0_reduced": a.row.get("c0_reduced")})
+    row["states"] = states(found)
     if found.converged and (found.gap or 0.0) <= GAP_ACCEPT:
         row["outcome"] = "converged"
     elif found.converged:  # both certified, but not at one energy: the location is as good as the gap
@@ -104,14 +111,31 @@ def row_of(i: int, direction: str, found: Found, second: str, param: str) -> dic
     return row
 
 
+def states(found: Found) -> str | None:
+    """The two states at a crossing in words, "a/b" (``verify.updown``): each its form (prolate,
+    oblate, cup), "asymmetric" before it where it is not up-down symmetric, "torus" where its
+    meridian does not reach the axis at two poles; None off the meridian mesh. The line is the
+    prolate/oblate line D(c0) only where this reads "prolate/oblate"."""
+    words = []
+    for x in BRANCHES:
+        s = found.points.get(x)
+        if s is None or not s.converged or "symmetric" not in s.row:
+            return None
+        form = s.row.get("form") or ("torus" if s.row.get("pole_gap") is None else "other")
+        words.append(form if s.row["symmetric"] else f"asymmetric {form}")
+    return "/".join(words)
+
+
 class LineStore:
     """The files of one transition line (module docstring); ``out`` None: rows in memory only."""
 
-    def __init__(self, out: Path | None, meta: dict, disc, second: str, param: str):
+    def __init__(self, out: Path | None, meta: dict, disc, second: str, param: str, mesh_of=None):
         self.out, self.meta, self.disc, self.second, self.param = (None if out is None else Path(out)), meta, disc, \
             second, param
+        self.mesh_of = mesh_of  # (nodes, triangles) -> the discretisation of a point with its own mesh
         self._rows: list[dict] = []
         self._phi: dict = {}
+        self._disc: dict = {}
         if self.out is None:
             return
         outdir.make(out, "points")
@@ -162,21 +186,36 @@ class LineStore:
         return self.out / "points" / f"row-{i:04d}-{x}.npz"
 
     def phi(self, i: int, x: str) -> np.ndarray:
+        return self.field(i, x)[1]
+
+    def field(self, i: int, x: str) -> tuple[object | None, np.ndarray]:
+        """(its own mesh or None: the line's ``disc``, phi) of branch x at row i."""
         if self.out is None:
-            return self._phi[(i, x)]
+            return self._disc.get((i, x)), self._phi[(i, x)]
         path = self._path(i, x)
         if not path.exists():
             raise InputError("--out", f"{self.out}: the field of row {i} ({x}) is missing; the line cannot "
                              "resume there (give another directory)")
-        return np.asarray(fields.read(path)["phi"], float)
+        if (i, x) not in self._disc:
+            data = fields.read(path)
+            tri = data.get("triangles")
+            self._disc[(i, x)] = None if tri is None or self.mesh_of is None else self.mesh_of(data["nodes"], tri)
+            self._phi[(i, x)] = np.asarray(data["phi"], float)
+        return self._disc[(i, x)], self._phi[(i, x)]
+
+    def plotted(self, i: int, x: str):
+        """The phase figure's field of branch x at row i: phi, or (its mesh, phi)."""
+        disc, phi = self.field(i, x)
+        return phi if disc is None else (disc, phi)
 
     def found(self, i: int, r: dict) -> Found:
         """The crossing of a recorded (certified) row, with both fields: the next predictor's data."""
         pts = {}
         for x in BRANCHES:
             lam = None if r.get(f"{x}_lambda_volume") is None else (r[f"{x}_lambda_volume"], r[f"{x}_lambda_area"])
-            pts[x] = Sample(r["target"], r["value"], self.phi(i, x), r[f"{x}_energy"], True, lam,
-                            r.get(f"{x}_dE_dp"), r.get(f"{x}_dE_dq"), {})
+            disc, phi = self.field(i, x)
+            pts[x] = Sample(r["target"], r["value"], phi, r[f"{x}_energy"], True, lam,
+                            r.get(f"{x}_dE_dp"), r.get(f"{x}_dE_dq"), {}, disc)
         return Found(r["value"], r["target"], pts, r["predicted"], r["samples"], r["solves"], r["wall_time_s"])
 
     def append(self, i: int, direction: str, found: Found) -> dict:
@@ -185,10 +224,12 @@ class LineStore:
         text = {k: cell_text(row.get(k)) for k in COLUMNS}
         if found.converged:
             for x in BRANCHES:
+                s = found.points[x]
                 if self.out is None:
-                    self._phi[(i, x)] = np.asarray(found.points[x].phi, float)
-                else:
-                    fields.write(self._path(i, x), "branch-point", found.points[x].phi, self.disc, p=found.p)
+                    self._phi[(i, x)], self._disc[(i, x)] = np.asarray(s.phi, float), s.disc
+                else:  # a point on its own mesh: with its triangles (``mesh_of`` rebuilds it)
+                    fields.write(self._path(i, x), "branch-point", s.phi, s.disc or self.disc, p=found.p,
+                                 triangles=None if s.disc is None else s.disc.mesh.t)
         self._rows.append(parse(text))
         if self.out is not None:
             buf = io.StringIO()

@@ -202,6 +202,12 @@ def _fold_line(args, sc, show) -> int:
     return 0 if ok == len(turns) else 1
 
 
+def _line_states(r: dict) -> str:
+    """The crossing's states and verdicts for its progress line (meridian meshes: ``states``)."""
+    so = f", second_order={r.get('a_second_order')}/{r.get('b_second_order')}" if r["converged"] else ""
+    return so + (f", states={r['states']}" if r.get("states") else "")
+
+
 def _transition(args) -> int:
     """``vesicle-opt branch SCENE --param reduced_volume --to V --step DV --transition KEY=VALUE
     --second c0 --values Q1,...``: the transition line (``branch.transition_vesicle``), one line per
@@ -216,11 +222,15 @@ def _transition(args) -> int:
     def show(r):
         why = "" if r["converged"] else f" ({r.get('outcome')}: {r.get('reason')})"
         print(f"crossing {r['row']} [{r['direction']}] {r['second']} = {r['value']:.6g}: converged={r['converged']}"
-              f"{why}, reduced_volume={r.get('target')}, f={r.get('f')}, gap={r.get('gap')}, solves={r['solves']}",
-              file=sys.stderr)
+              f"{why}, reduced_volume={r.get('target')}, f={r.get('f')}, gap={r.get('gap')}, solves={r['solves']}"
+              f"{_line_states(r)}", file=sys.stderr)
     with _preflight(a, args.out, choose_backend(a)) as out:
         line = transition_line(a, b, args.second, args.values, step=args.step, to=args.to, out=out, progress=show)
     pts = line.points()
+    saddles = sum(1 for r in pts if "saddle" in (r.get("a_second_order"), r.get("b_second_order")))
+    other = sum(1 for r in pts if r.get("states") not in (None, "prolate/oblate"))
+    notes = (f" ({saddles} with a saddle" if saddles else "") + (
+        f"{'; ' if saddles else ' ('}{other} not between the symmetric prolate and oblate: see states" if other else "")
     print(f"{a.name}: {len(pts)} certified crossings of {len(line.rows)} over {args.second} = "
-          f"{', '.join(f'{v:g}' for v in args.values)} -> {args.out}/transition_line.csv")
+          f"{', '.join(f'{v:g}' for v in args.values)}{notes}{')' if notes else ''} -> {args.out}/transition_line.csv")
     return 0 if line.converged and len(line.rows) == len(set(args.values) - {a.model.c0}) + 1 else 1

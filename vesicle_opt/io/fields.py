@@ -39,11 +39,13 @@ KEYS: dict[str, tuple[str, str]] = {
     "t": ("flow, flow-snapshot", "float, the flow's time of phi"),
     "p": ("branch-point", "float, the branch parameter's value at the point (branch.csv's target)"),
     "mode": ("branch-point at a saddle", "float (n_nodes,), the critical eigenvector (M-normalised)"),
+    "triangles": ("branch-point on an interface-refined meridian mesh (each point has its own)",
+                  "int (3, n_triangles), the mesh's triangles (node indices into nodes)"),
 }
 
 
 def arrays(kind: str, phi: np.ndarray, disc, **extra) -> dict:
-    """The arrays of one file of ``kind`` (module docstring); ``extra``: w, t, p, mode."""
+    """The arrays of one file of ``kind`` (module docstring); ``extra``: w, t, p, mode, triangles."""
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
     unknown = set(extra) - set(KEYS)
@@ -54,7 +56,7 @@ def arrays(kind: str, phi: np.ndarray, disc, **extra) -> dict:
            "phi": np.asarray(phi, float), "nodes": np.asarray(disc.nodes, float),
            "grid_shape": grid, "box": np.asarray(disc.box, float),
            "mirror_cells": np.int64(2**disc.dim if getattr(disc, "kind", None) == "cosine" else 1)}
-    out.update({k: np.asarray(v, float) for k, v in extra.items() if v is not None})
+    out.update({k: np.asarray(v, np.int64 if k == "triangles" else float) for k, v in extra.items() if v is not None})
     return out
 
 
@@ -74,7 +76,8 @@ def write(path: Path, kind: str, phi: np.ndarray, disc, *, compressed: bool = Fa
 
 # the typed keys of a field file, checked on every read (io.state.read_npz): dtype kind, ndim
 _TYPES = {"format_version": ("i", 0), "kind": ("U", 0), "nodes": ("x", 2), "grid_shape": ("i", 1),
-          "box": ("x", 2), "mirror_cells": ("i", 0), "w": ("x", 1), "t": ("n", 0), "p": ("n", 0), "mode": ("x", 1)}
+          "box": ("x", 2), "mirror_cells": ("i", 0), "w": ("x", 1), "t": ("n", 0), "p": ("n", 0), "mode": ("x", 1),
+          "triangles": ("i", 2)}
 ADVICE = "not a field file written by vesicle-opt, or a damaged one (rerun the command that wrote it)"
 
 
@@ -92,6 +95,10 @@ def read(path: str | Path) -> dict:
     for name in ("nodes", "w", "mode"):
         if name in data and len(data[name]) != n:
             raise StateFileError(path, f"array {name!r} has {len(data[name])} entries, phi {n}; {ADVICE}", "path")
+    tri = data.get("triangles")
+    if tri is not None and (tri.shape[0] != 3 or (tri.size and (tri.min() < 0 or tri.max() >= n))):
+        raise StateFileError(path, f"array 'triangles' of shape {tri.shape} does not index the {n} nodes; {ADVICE}",
+                             "path")
     if data.get("kind", KINDS[0]) not in KINDS:
         raise StateFileError(path, f"kind {str(data['kind'])[:40]!r} is none of {', '.join(KINDS)}; {ADVICE}", "path")
     version = int(data.setdefault("format_version", 0))

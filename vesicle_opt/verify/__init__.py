@@ -5,5 +5,6 @@
 * ``second_order`` (assembled, shift-invert Lanczos) and ``lobpcg`` (matrix-free): minimum or saddle,
   one quantity and one rule (``verdict``);
 * ``band``: an interface-refined mesh's band still holds the result's interface (``mesh.refine``);
-* ``topology``: components, Euler characteristic, periodic wraps; ``metrics``: error norms, orders.
+* ``topology``: components, Euler characteristic, periodic wraps; ``metrics``: error norms, orders;
+  ``updown``: a meridian field's form, poles and up-down asymmetry.
 """
