@@ -136,3 +136,16 @@ def test_solver_M_is_auto_by_default_or_a_number():
         _replace(scene, "solver.M", "big")
     assert via_load.value.key == via_replace.value.key == "solver.M"
     assert "'auto'" in str(via_load.value) and "'auto'" in str(via_replace.value)
+
+
+def test_replacing_the_physical_targets_alone_is_refused_and_with_overrides_rederives_them():
+    """``Scene.replace`` of ``constraints.reduced_volume`` kept the alpha, beta derived from the old
+    value and solved at the old volume without a word; it is refused now, naming the key."""
+    from vesicle_opt.geometry import targets
+    sc = load("prolate-axisymmetric")
+    with pytest.raises(InputError) as err:
+        sc.replace(constraints=dataclasses.replace(sc.constraints, reduced_volume=0.7))
+    assert err.value.key == "constraints.reduced_volume" and "with_overrides" in str(err.value)
+    moved = sc.with_overrides({"constraints.reduced_volume": 0.7})
+    alpha, beta = targets(0.7, sc.constraints.area, 3, sc.domain.volume)
+    assert (moved.constraints.alpha, moved.constraints.beta) == (alpha, beta)  # the same formula, bit for bit

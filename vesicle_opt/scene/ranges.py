@@ -227,6 +227,7 @@ def check_scene(sc) -> None:
         raise InputError("mesh.quadrature", "'gauss' needs mesh.kind = 'fem-p1'; use 'nodal'")
     if m.file is not None and m.kind != "fem-p1":
         raise InputError("mesh.file", "a mesh file needs mesh.kind = 'fem-p1'")
+    check_physical_targets(sc)
     alpha = sc.constraints.alpha
     if alpha is not None and m.file is None and not (-d.volume < alpha < d.volume):
         raise InputError("constraints.alpha",
@@ -284,3 +285,22 @@ def resolution_warning(sc) -> str | None:
     return (f"{sc.name}: epsilon / h = {ratio:.2g} is below the recommended {EPS_PER_H_RECOMMENDED:g} (the "
             f"diffuse interface spans under {EPS_PER_H_RECOMMENDED:g} cells: energies off by several %, "
             f"below 1 possibly another shape); raise mesh.n or epsilon")
+
+
+def check_physical_targets(sc) -> None:
+    """A scene whose ``constraints.reduced_volume`` / ``area`` no longer give its alpha and beta (a
+    ``Scene.replace`` of the physical targets alone, which left the derived alpha, beta behind and
+    solved at the old volume without a word) is refused, naming the key and the way that re-derives
+    them (``with_overrides``)."""
+    c = sc.constraints
+    if c.reduced_volume is None or c.area is None or c.alpha is None or c.beta is None:
+        return
+    from vesicle_opt.geometry import targets  # the one formula from_dict uses (geometry is below scene)
+    alpha, beta = targets(c.reduced_volume, c.area, sc.dim, sc.domain.volume)
+    scale = max(1.0, abs(alpha), abs(beta))
+    if abs(alpha - c.alpha) > 1e-12 * scale or abs(beta - c.beta) > 1e-12 * scale:  # round-off of one evaluation
+        raise InputError("constraints.reduced_volume",
+                         f"reduced_volume {c.reduced_volume!r} with area {c.area!r} give alpha {alpha:.9g}, "
+                         f"beta {beta:.9g}, but the scene holds alpha {c.alpha:.9g}, beta {c.beta:.9g}; set "
+                         f"physical targets with scene.with_overrides({{'constraints.reduced_volume': ...}})")
+
