@@ -122,6 +122,7 @@ class IpoptCorrector:
         self._cold = None  # the cold solver (the scene's max_iter, IPOPT's own multipliers): on demand
         self.matrix_free = supports(self.scene, "newton-krylov")
         self.fourier = on_fourier_grid(self.disc) if self.matrix_free else None
+        self.slide = self.matrix_free and getattr(self.disc, "axisymmetric", False)  # ``slide_modulo``
 
     def solve(self, scene: Scene, phi0: np.ndarray, lam0: tuple[float, float] | None = None,
               feasibility: bool = True) -> Result:
@@ -169,8 +170,13 @@ class IpoptCorrector:
                 so = second_order.check(nlp, res, derivatives=derivatives(nlp, self._cold or self.solver, p))
             elif self.matrix_free:  # with the FFTs the front door's check uses (solver.fft)
                 with fft_library(scene.solver.fft):
-                    so = rotation_modulo(lobpcg.check(scene, res, prepare(scene, self.fourier),
-                                                      rotations=V.excludes_rotations(scene)), scene.dim)
+                    setup = prepare(scene, self.fourier)
+                    if self.slide:  # the meridian mesh: the axial slide excluded (``slide_modulo``)
+                        setup = (*setup[:3], axial_slide(self.disc))
+                    so = rotation_modulo(lobpcg.check(scene, res, setup, rotations=V.excludes_rotations(scene)),
+                                         scene.dim)
+                    if self.slide:
+                        so = slide_modulo(so)
             else:  # the front door's assembled check on the point's own (constant) NLP
                 so = second_order.check(build_nlp(scene, self.disc, check=False), res)
         res = with_reports(res, so, seconds=time.perf_counter() - t0, scene=scene)
@@ -179,6 +185,34 @@ class IpoptCorrector:
         if so is not None and so.excluded == V.TRANSLATIONS_ROTATIONS:
             res = dataclasses.replace(res, extra={**res.extra, "rotation_rayleigh": min(so.excluded_rayleigh[scene.dim:])})
         return res
+
+
+def axial_slide(disc):
+    """The ``translations`` of ``nk.setup.prepare`` for a meridian mesh's check: the axial slide
+    d_z phi (``mesh.axisymmetric.axial_translation``) as the one excluded mode (``slide_modulo``)."""
+    from vesicle_opt.mesh.axisymmetric import axial_translation  # scikit-fem: meridian meshes only
+
+    def slide(phi, scale: float = 1.0, coordinates: bool = False):
+        return None if coordinates else (scale * axial_translation(disc, phi))[:, None]
+    return slide
+
+
+def slide_modulo(so: SecondOrder) -> SecondOrder:
+    """A branch's verdict on a meridian mesh with the axial slide excluded (d_z phi projected out of
+    the check, ``axial_slide``), as the front door's refined solve excludes it by its pin
+    (``nlp.reuse``): between the natural end walls the slide is near-null (+-1e-5 mu_ref), and kept
+    it is the least eigenvalue of every point, whose sign flips along a branch are no stability
+    change (measured: the eps = 0.03 oblate, v 0.62 -> 0.59, +6.6e-5 -> -6.5e-5 mu_ref); the
+    shape's own least mode is then the branch's critical one (by interlacing between the kept
+    check's first and second eigenvalues; ``tests/branch/test_meridian_slide.py``). The verdict is
+    classified without the projected direction's Rayleigh quotient (O(1): the averaged nodal d_z phi
+    is close to, not exactly, the discrete slide), which stays as ``axial_rayleigh``."""
+    if not so.errors or len(so.excluded_rayleigh) != 1:
+        return so
+    verdict, reason = V.classify(so.relative_min_eigenvalue, so.errors[0], ())
+    note = f"axial slide excluded (d_z phi projected out, its Rayleigh quotient {so.excluded_rayleigh[0]:.3g} mu_ref)"
+    return dataclasses.replace(so, verdict=verdict, reason="; ".join(x for x in (reason, note) if x),
+                               axial_rayleigh=float(so.excluded_rayleigh[0]))
 
 
 def rotation_modulo(so: SecondOrder, dim: int) -> SecondOrder:

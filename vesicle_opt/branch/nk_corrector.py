@@ -66,6 +66,7 @@ import numpy as np
 
 from vesicle_opt import resources
 from vesicle_opt.api import with_reports
+from vesicle_opt.branch.corrector import axial_slide, slide_modulo
 from vesicle_opt.branch.events import spectrum_extra
 from vesicle_opt.errors import NotSupported
 from vesicle_opt.mesh.spectral import fft_library, resolve_fft
@@ -151,7 +152,15 @@ class NewtonKrylovCorrector:
 
     def check(self, scene: Scene, res: Result, setup, prev: _Warm):
         """(SecondOrder, warm used): warm from ``prev`` where that applies and agrees (module
-        docstring), else cold; ``prev`` then holds this point's levels and verdict."""
+        docstring), else cold; ``prev`` then holds this point's levels and verdict. On a meridian mesh
+        the axial slide is excluded (``branch.corrector.slide_modulo``)."""
+        slide = getattr(setup[0], "axisymmetric", False)
+        if slide:
+            setup = (*setup[:3], axial_slide(setup[0]))
+        so, used = self._check(scene, res, setup, prev)
+        return (slide_modulo(so) if slide else so), used
+
+    def _check(self, scene: Scene, res: Result, setup, prev: _Warm):
         if prev.levels and prev.verdict not in (None, "not checked") and prev.since_cold + 1 < COLD_EVERY:
             so, levels = lobpcg.check_levels(scene, res, setup, self.rotations, warm=prev.levels)
             if so.verdict == prev.verdict:

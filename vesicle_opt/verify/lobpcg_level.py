@@ -65,6 +65,9 @@ def symmetry_modes(disc, translations, phi, rotations: bool):
     fourier = getattr(disc, "fourier", None)
     if fourier is None:
         modes = translation_modes(disc, phi)
+        extra = None if modes or translations is None else translations(phi)
+        if extra is not None:  # a caller's near-null modes (the branch's axial slide on a meridian mesh)
+            modes = [np.ascontiguousarray(c) for c in np.asarray(extra, float).T]
         return V.excluded_label(disc, modes), modes
     g = fourier.derivatives(phi)  # the translations d_i phi (what ``translations`` gives, as rows)
     if not g:  # a mirror grid (``mesh.cosine``): only mirror-symmetric perturbations exist at all
