@@ -29,8 +29,9 @@ the rotation symmetry only weakly: kept, its soft mode (~2e-3 mu_ref) is the lea
 the assembled check and changes sign along the 2D elastica branch near nu ~ 0.70 (a grid effect,
 not a fold). Elsewhere (consistent mass, Gauss quadrature) the assembled check of the front door
 (translations only). Meridian meshes (``mesh.kind = "axisymmetric"``) take the assembled check too,
-with the IPOPT solver's own Hessian and Jacobian (``nlp.reuse.derivatives``): there the unpinned axial
-slide is a near-null mode (+-1e-5 mu_ref) whose sign the verdict needs, which the matrix-free check's
+with the IPOPT solver's own Hessian and Jacobian (``nlp.reuse.derivatives``) and the axial slide
+excluded (``slide_row``: T held M-orthogonal to d_z phi; the front door keeps it and names it). The
+slide is a near-null mode (+-1e-5 mu_ref) whose sign needs resolving, which the matrix-free check's
 LOBPCG did not resolve within its cap on the stomatocyte walks' 8.9-17 k-node meshes ("not checked"
 at every walked point, the seed's front-door check "minimum"); the shift-invert Lanczos resolves it
 to ~1e-9 mu_ref at any size. Measured at 128^2 (FD, eps = 0.2): assembled 2.5 s, matrix-free 0.17 s per point,
@@ -167,7 +168,9 @@ class IpoptCorrector:
         if scene.solver.second_order and res.converged:
             if getattr(self.disc, "axisymmetric", False):  # the assembled check with the solver's own derivatives
                 p = parameter_values(scene, self.disc, nlp.alpha, nlp.beta)
-                so = second_order.check(nlp, res, derivatives=derivatives(nlp, self._cold or self.solver, p))
+                so = second_order.check(nlp, res, derivatives=derivatives(nlp, self._cold or self.solver, p),
+                                        pin=slide_row(self.disc, res.phi))
+                so = dataclasses.replace(so, reason=so.reason.replace(V.PINNED, SLIDE_EXCLUDED))
             elif self.matrix_free:  # with the FFTs the front door's check uses (solver.fft)
                 with fft_library(scene.solver.fft):
                     setup = prepare(scene, self.fourier)
@@ -185,6 +188,19 @@ class IpoptCorrector:
         if so is not None and so.excluded == V.TRANSLATIONS_ROTATIONS:
             res = dataclasses.replace(res, extra={**res.extra, "rotation_rayleigh": min(so.excluded_rayleigh[scene.dim:])})
         return res
+
+
+SLIDE_EXCLUDED = ("axial slide excluded (T held M-orthogonal to d_z phi: the slide between the natural end "
+                  "walls is near-null, +-1e-5 mu_ref, and its sign flips along a branch are no stability change)")
+
+
+def slide_row(disc, phi) -> np.ndarray:
+    """The row M d_z phi (lumped weights) whose kernel is T's part M-orthogonal to the axial slide: the
+    assembled check's ``pin`` on a meridian mesh, so that a branch's verdict excludes the slide as
+    ``slide_modulo`` does on the matrix-free path (the walks' sign flips of the near-null slide were
+    read as stability changes: ``tests/branch/test_meridian_slide.py``)."""
+    from vesicle_opt.mesh.axisymmetric import axial_translation  # scikit-fem: meridian meshes only
+    return np.asarray(disc.weights, float) * axial_translation(disc, phi)
 
 
 def axial_slide(disc):
