@@ -149,3 +149,12 @@ def test_replacing_the_physical_targets_alone_is_refused_and_with_overrides_rede
     moved = sc.with_overrides({"constraints.reduced_volume": 0.7})
     alpha, beta = targets(0.7, sc.constraints.area, 3, sc.domain.volume)
     assert (moved.constraints.alpha, moved.constraints.beta) == (alpha, beta)  # the same formula, bit for bit
+
+
+def test_resolution_warning_is_silent_at_exactly_the_recommended_eps_over_h():
+    """eps / h = 2 exactly on paper, 1.9999999 by the box's float division (0.03 / (1.44 / 24 / 4)):
+    no warning that "2 is below the recommended 2"."""
+    sc = load("oblate-axisymmetric")
+    assert resolution_warning(sc) is None
+    coarse = sc.with_overrides({"mesh.levels": 1})  # eps / h = 1
+    assert "epsilon / h = 1" in resolution_warning(coarse)
