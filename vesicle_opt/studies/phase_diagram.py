@@ -1,36 +1,37 @@
 """The spontaneous-curvature phase diagram at c0 = 0 on the meridian half-plane (``mesh.axisymmetric``):
-the prolate and oblate branches at several eps, their crossing per eps and its eps -> 0 limit,
-against the sharp references (``sharp.axisymmetric``), in the literature's units (f, v; Seifert, Berndl
-& Lipowsky, Phys. Rev. A 44, 1182 (1991)).
+the prolate, oblate and stomatocyte branches at four eps, their transitions per eps (the prolate/oblate
+and oblate/stomatocyte crossings, the stomatocyte's fold) and their eps -> 0 limits, against the sharp
+references (``sharp.axisymmetric``, ``sharp.stomatocyte``) and the published values (``PUBLISHED``),
+in the literature's units (f, v; Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 1182 (1991)).
 
-Cases: one per (branch, eps), so the branches and the eps values run in parallel through the study
-runner (``studies.runner.run_cases``: local processes, or any executor, e.g. a dask cluster's), and
-the CSV is resumable. A case walks its branch down the reduced volumes ``vs`` on one meridian box,
-each point warm-started from the previous one; the first point is SEEDED with the tanh profile of the
-sharp shape at that v (``io.meridian.phase_field_of``; the column ``seed`` says so): the tanh
-ellipsoid start reached another state at eps = 0.02 (f 1.502 against 1.284 from the sharp seed,
-measured). The box is the sharp shapes' extent plus ``WALL`` eps on every side (natural walls
-attract a vesicle: ``mesh.axisymmetric``'s documentation). R0 = 1 (area 4 pi), exact constraints,
-IPOPT, second-order checked (axisymmetric perturbations only).
+Meshes: interface-refined meridian meshes (``mesh.refine = "interface"``, ``studies._meridian``),
+eps/h = 4 in a band of 8 eps about the interface, coarse cells of 4 eps elsewhere, walls ``WALL`` eps
+from the sharp shapes. Every walk is SEEDED with the tanh profile of the sharp shape at its first v
+(``io.meridian.phase_field_of``, the mesh refined about that shape; the column ``seed`` says so): the
+tanh ellipsoid start reached another state at eps = 0.02 (f 1.502 against 1.284 from the sharp seed,
+measured), and the phase-field stomatocyte has no seedless route here (``studies._stomatocyte``).
+R0 = 1 (area 4 pi), exact constraints, IPOPT, second-order checked (axisymmetric perturbations only).
 
-Outputs: ``phase_diagram.csv`` (a row per point: f, c0_reduced, the sharp f, the verdicts),
-``phase_diagram_summary.json`` (per eps the prolate/oblate crossing, ``branch.crossing``; its eps -> 0
-extrapolation, ``branch.crossing.extrapolate_crossing``; the sharp crossing), ``phase_diagram.png``
-(f against v per eps, the sharp branches, the crossings). Full: eps = 0.1, 0.0707, 0.05 at
-eps/h = 3, v = 0.75 ... 0.55, sharp references with 16 modes and ``sharp.axisymmetric.crossing``.
-Quick: eps = 0.1 at eps/h = 2, v = 0.7, 0.65, sharp references with 8 modes: the plumbing (at
-eps = 0.1 the oblate seeds' dimples meet, tori: no crossing), in ~20 s.
+Cases, one per (branch, eps, part), run in parallel through the study runner (``runner.run_cases``:
+``--workers N`` local processes, or a dask cluster's executor, ``--scheduler``), the CSV resumable.
+The v grid is fine where the transitions are and coarse elsewhere: ``near`` (prolate and oblate,
+v 0.68 ... 0.62 by 0.01, warm-started along v, about the prolate/oblate crossing, sharp 0.6511), ``low``
+(the oblate 0.63 ... 0.57 by 0.005-0.01, about its crossing with the stomatocyte, sharp 0.5909),
+``far`` (v 0.95, 0.85, 0.75 and the prolate's 0.55, 0.5: each point from its own sharp shape), and
+the stomatocyte's two walks from v = 0.62 (``up`` to its fold, ``down`` to 0.5). A crossing per eps
+is the root of the difference of cubic splines f(v) through certified points of each branch's own
+form (``branch.crossing``; an oblate that turned torus is not used); a fold per eps is the vertex
+of v(lambda) (``_stomatocyte.fold_of``). The eps -> 0 limits (``extrapolate``): free-order Richardson
+through the three finest eps with its observed order, p = 2 through the two finest, and an error
+estimate (the change of the free-order limit from the three coarsest eps to the three finest).
 
-The stomatocyte (``studies._stomatocyte``; full run only): the sharp branch, its fold and its
-crossing with the oblate (``sharp.stomatocyte``, 32 modes; eps = 0 rows of kind point / fold /
-crossing), and per eps in ``stomatocyte_epsilons`` (eps/h = 2) the phase-field branch seeded with
-the sharp stomatocyte at v = 0.62 and walked by the branch package past its fold (IPOPT, p free near
-it) and down to v = 0.575, with an oblate walk on a finer v grid (``oblate_low_vs``) for the crossing.
-``stomatocyte_summary``: the fold and the oblate/stomatocyte crossing per eps, their eps -> 0 limit
-(``extrapolate_crossing``: free order through three eps, p = 2 through the finest two), the sharp
-and the published values (``PUBLISHED``). Not here yet: c0 = 2.4 (pears; see ``sharp.spontaneous``,
-whose pear seeds a phase-field pear whose neck the phase field pinches at eps >= 0.05:
-docs/guide/axisymmetric.md), and the runner's dask executor from the CLI.
+Outputs: ``phase_diagram.csv`` (a row per point: f, c0_reduced, the sharp f, the verdicts, nodes, the
+case's CPU time on its first row), ``phase_diagram_summary.json`` (``crossings``, ``extrapolated``,
+``stomatocyte_fold``, ``oblate_stomatocyte_crossing``: per eps, eps -> 0, sharp, published),
+``phase_diagram.png`` (f against v per eps, the sharp branches, the transitions, meridian pictures).
+Full: eps = 0.05, 0.04, 0.03, 0.025. Quick: eps = 0.1 at eps/h = 2 on the uniform mesh, v = 0.7,
+0.65, sharp references with 8 modes: the plumbing (at eps = 0.1 the oblate seeds' dimples meet,
+tori: no crossing). Extensions (other c0: ``EXTENSIONS``) add their own cases, rows and summary.
 """
 
 from __future__ import annotations
