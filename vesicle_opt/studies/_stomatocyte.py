@@ -33,7 +33,7 @@ import math
 import numpy as np
 
 from vesicle_opt.sharp import stomatocyte as sharp_s
-from vesicle_opt.studies import _meridian
+from vesicle_opt.studies._meridian import layout, walk
 
 V_SEED = 0.62  # the seed's reduced volume: the lower side, 0.04 below the sharp fold (0.6604)
 V_DOWN = 0.575  # the sharp reference's lower end: below the crossing with the oblate (0.5903)
@@ -94,14 +94,14 @@ def phase_case(case: dict, point_row) -> list[dict]:
     eps, name = case["epsilon"], f"phase_diagram-stomatocyte-{case['walk']}"
     seed_pt = sharp_s.start_point(case["vs"][0], 0.0, case["n_modes"])
     r, z = seed_pt.meridian(2048)
-    lay = _meridian.layout([(r, z)], eps, case["eps_over_h"], case.get("refine", True))
+    lay = layout([(r, z)], eps, case["eps_over_h"], case.get("refine", True))
     sharp_pts = {case["vs"][0]: seed_pt}
     rows = []
 
     def stop(res) -> bool:  # past the fold (no minimiser), or no stomatocyte any more (a torus, an oblate)
         return not res.converged or point_row(res, math.nan, eps, lay, math.nan, "", "", "")["shape"] != "cup"
 
-    for v, res, label in _meridian.walk(lay, eps, case["vs"], (r, z), name, stop):
+    for v, res, label in walk(lay, eps, case["vs"], (r, z), name, stop):
         q = sharp_pts.get(v)
         if q is None:
             try:

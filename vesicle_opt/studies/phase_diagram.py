@@ -50,7 +50,7 @@ from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
 from vesicle_opt.io.meridian import meridian_curves
 from vesicle_opt.sharp import axisymmetric as sharp
 from vesicle_opt.sharp import stomatocyte as sharp_s
-from vesicle_opt.studies import _meridian
+from vesicle_opt.studies._meridian import layout, walk
 from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._common import plt, savefig
 from vesicle_opt.studies.runner import run_into
@@ -170,12 +170,12 @@ def _run(case: dict) -> list[dict]:
     refs = sharp.branch(vs, which, case["n_modes"], second_order=False) if case["part"] != "far" else \
         [sharp.solve(v, which, case["n_modes"], second_order=False) for v in vs]
     meridians = [ref.meridian(2048) for ref in refs]
-    lay = _meridian.layout(meridians, eps, case["eps_over_h"], case.get("refine", True))
+    lay = layout(meridians, eps, case["eps_over_h"], case.get("refine", True))
     name = f"{NAME}-{which}"
     if case["part"] == "far":  # each point from its own sharp shape
-        points = [next(_meridian.walk(lay, eps, [v], m, name)) for v, m in zip(vs, meridians)]
+        points = [next(walk(lay, eps, [v], m, name)) for v, m in zip(vs, meridians)]
     else:
-        points = list(_meridian.walk(lay, eps, vs, meridians[0], name))
+        points = list(walk(lay, eps, vs, meridians[0], name))
     return [_row(which, res, v, eps, lay, ref.reduced_energy, seed, part=case["part"])
             for (v, res, seed), ref in zip(points, refs)]
 
