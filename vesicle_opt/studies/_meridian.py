@@ -32,6 +32,8 @@ from vesicle_opt.scene import from_dict
 WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
 LEVELS = 4  # the coarse cells are 2^LEVELS band cells: 4 eps at eps/h = 4 (fewer where the box is small)
 BAND = 8.0  # the band's half-width in eps (mesh.band's default: narrower bands perturb the axial slide)
+MAX_ITER = 150  # IPOPT iterations a point: the full run's converged points took <= 67 (warm prolate at eps
+# 0.025, dv = 0.01) and 49 (a cold stomatocyte seed); a point past the fold ran into the default 500
 
 
 def layout(meridians, eps: float, eps_over_h: float, refine: bool = True) -> dict:
@@ -60,7 +62,7 @@ def layout(meridians, eps: float, eps_over_h: float, refine: bool = True) -> dic
 def scene(lay: dict, eps: float, v: float, name: str):
     raw = {"domain": {"box": lay["box"], "boundary": "natural"}, "mesh": lay["mesh"], "model": {"epsilon": eps},
            "constraints": {"reduced_volume": v, "area": 4 * math.pi},
-           "initial": {"shape": "sphere", "radius": 1.0}, "solver": {"method": "exact"}}
+           "initial": {"shape": "sphere", "radius": 1.0}, "solver": {"method": "exact", "max_iter": MAX_ITER}}
     return from_dict(raw, name=name)
 
 

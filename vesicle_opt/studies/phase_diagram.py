@@ -68,7 +68,9 @@ FULL = {"epsilons": (0.05, 0.04, 0.03, 0.025), "eps_over_h": 4.0, "refine": True
         "oblate_low": (0.63, 0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58, 0.57),
         # the stomatocyte from the seed at 0.62: up to the fold (sharp 0.6604) in shrinking steps, down past
         # the oblate crossing to 0.5
-        "stomatocyte_up": (0.62, 0.63, 0.64, 0.645, 0.65, 0.653, 0.656, 0.658, 0.66, 0.662, 0.664, 0.666),
+        # (the phase field's fold lies above the sharp one: the grid goes on to 0.69, the walk ends past it)
+        "stomatocyte_up": (0.62, 0.63, 0.64, 0.645, 0.65, 0.653, 0.656, 0.658, 0.66, 0.662, 0.664, 0.666, 0.668,
+                           0.67, 0.672, 0.675, 0.678, 0.682, 0.686, 0.69),
         "stomatocyte_down": (0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58, 0.57, 0.55, 0.5),
         "stomatocyte_modes": 32}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "refine": False, "n_modes": 8, "near": (0.7, 0.65)}
