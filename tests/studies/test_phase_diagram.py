@@ -116,3 +116,51 @@ def test_stomatocyte_summary_on_known_branches():
     assert fold["extrapolated"]["reduced_volume_p2"] == pytest.approx(0.66, abs=1e-9)  # round-off / (1 - r^2)
     assert cross["extrapolated"]["reduced_volume_p2"] == pytest.approx(0.59, abs=1e-9)
     assert fold["sharp"] == {"v": 0.6604, "f": 1.9633} and cross["published"] == {"v": 0.59, "f": 1.98}
+
+
+def test_fold_from_the_lower_side_is_the_vertex_ahead():
+    """Points of v = 0.66 - 3 (lambda - 0.5)^2, f = 1.96 + (lambda - 0.5)^2 on one side of the fold only
+    (lambda 0.2, 0.3, 0.4: the walk ends below it): the vertex of the parabola through the last three is
+    the fold, exact on parabolas (round-off of polyfit); a vertex more than AHEAD lambda steps ahead is
+    no fold (None), nor is a walk whose v still rises linearly (no vertex ahead)."""
+    from vesicle_opt.studies import _stomatocyte as S
+    lam = np.array([0.1, 0.2, 0.3, 0.4])
+    v, f = 0.66 - 3 * (lam - 0.5) ** 2, 1.96 + (lam - 0.5) ** 2
+    fv = S.fold_of(v, f, lam)
+    assert fv[0] == pytest.approx(0.66, abs=1e-12) and fv[1] == pytest.approx(1.96, abs=1e-12)  # polyfit round-off
+    far = np.array([0.34, 0.36, 0.38, 0.40])  # steps of 0.02 ending 0.1 (5 steps) before the vertex
+    assert S.fold_of(0.66 - 3 * (far - 0.5) ** 2, far, far) is None
+    assert S.fold_of(0.6 + 0.01 * lam, lam, lam) is None
+
+
+def test_extrapolate_reports_order_and_error():
+    """Crossings y = y0 + c eps^p at four eps: the free-order limit and order are exact (p = 1.7 here,
+    not 2), the error estimate (three coarsest against three finest) is round-off; with an eps^3 term
+    added the estimate equals the actual change of the limit between the two triples, and bounds the
+    actual error of the finest triple within a factor of a few (the next term's size)."""
+    eps = (0.05, 0.04, 0.03, 0.025)
+    exact = {e: {"reduced_volume": 0.65 + 2.0 * e**1.7, "reduced_energy": 1.83 - 3 * e**1.7} for e in eps}
+    x = P.extrapolate(exact)
+    assert x["reduced_volume_richardson"] == pytest.approx(0.65, abs=1e-10)  # brentq on p: xtol 2e-12, amplified
+    assert x["order_reduced_volume"] == pytest.approx(1.7, abs=1e-6)
+    assert x["reduced_volume_error"] < 1e-9 and x["order_reduced_energy_coarse"] == pytest.approx(1.7, abs=1e-6)
+    bent = {e: {"reduced_volume": 0.65 + 2.0 * e**2 + 40 * e**3, "reduced_energy": 1.83 + e**2} for e in eps}
+    y = P.extrapolate(bent)
+    assert 0 < abs(y["reduced_volume_richardson"] - 0.65) < 5 * y["reduced_volume_error"]
+    three = P.extrapolate({e: bent[e] for e in eps[1:]})
+    assert three["reduced_volume_error"] == pytest.approx(abs(three["reduced_volume_richardson"] - three["reduced_volume_p2"]))
+
+
+def test_layout_is_square_cells_about_the_shapes():
+    """The box of ``_meridian.layout``: whole coarse cells of side 2^levels h (square: refined meshes
+    need right isosceles triangles), r from 0, and at least WALL eps of free space about the meridian."""
+    from vesicle_opt.studies import _meridian as M
+    t = np.linspace(0, np.pi, 401)
+    r, z = 0.8 * np.sin(t), 1.3 * np.cos(t) + 0.1
+    for eps in (0.05, 0.025):
+        lay = M.layout([(r, z)], eps, 4.0)
+        (r0, r1), (z0, z1) = lay["box"]
+        side = lay["h"] * 2 ** lay["mesh"]["levels"]
+        assert r0 == 0 and lay["h"] == eps / 4
+        assert (r1 - r0) / lay["n"][0] == pytest.approx(side) and (z1 - z0) / lay["n"][1] == pytest.approx(side)
+        assert r1 >= r.max() + M.WALL * eps and z0 <= z.min() - M.WALL * eps and z1 >= z.max() + M.WALL * eps

@@ -1,6 +1,6 @@
 """Command line: ``vesicle-opt solve SCENE [--out DIR] [--set KEY=VALUE ...]`` (SCENE: a TOML path
 or a bundled name), ``vesicle-opt flow SCENE --scheme ... [--out DIR]`` (a gradient flow) and
-``vesicle-opt study NAME --out DIR [--quick]`` (``vesicle-opt study --list``: the names) and
+``vesicle-opt study NAME --out DIR [--quick] [--workers N | --scheduler ADDRESS]`` (``vesicle-opt study --list``: the names) and
 ``vesicle-opt branch SCENE --param reduced_volume|c0 --to VALUE [--step DS] [--out DIR]``.
 
 Exit codes: 0 converged; 1 the solver did not converge (results still written); 2 bad input

@@ -148,6 +148,10 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--list", action="store_true", help="print the study names, one per line")
     st.add_argument("--out", default=None, help="output directory (required with a study name)")
     st.add_argument("--quick", action="store_true", help="small, fast variant")
+    st.add_argument("--workers", default=None, metavar="N",
+                    help="local worker processes for the study's independent cases (default 1; studies that run cases in parallel)")
+    st.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="run the cases on the dask cluster of this scheduler (e.g. tcp://host:8786; the 'dask' extra)")
     _add_verbosity(st)
     st.set_defaults(func=cmd_study)
     _flow_parser(sub)

@@ -20,7 +20,7 @@ from vesicle_opt.errors import InputError
 from vesicle_opt.io import interrupt, outdir, output, staging
 from vesicle_opt.scene import load as load_scene
 from vesicle_opt.scene import bundled, resolved
-from vesicle_opt.studies import DESCRIPTIONS, STUDIES, run_study, study
+from vesicle_opt.studies import DESCRIPTIONS, STUDIES, check_workers, run_study, study
 
 
 def out_dir(arg: str) -> Path:
@@ -104,8 +104,22 @@ def cmd_study(args) -> int:
     study(args.name)  # an unknown name is refused before the directory is made
     if args.out is None:  # the README's contract: a study writes many files, so it names its directory
         raise InputError("--out", "a study needs --out DIR (the directory for its CSV and figures)")
+    workers = None
+    if args.workers is not None:  # the flag's text: one line naming --workers, before any work
+        try:
+            workers = int(args.workers)
+        except ValueError:
+            raise InputError("--workers", f"allowed: an integer >= 1 (local worker processes), got {args.workers!r}") from None
+        check_workers(args.name, workers, "--workers")
+    if args.scheduler is not None and args.workers is not None:
+        raise InputError("--scheduler", "give --workers (local processes) or --scheduler (a dask cluster), not both")
     with _preflight(None, args.out, None) as out:
-        return run_study(args.name, out, quick=args.quick)
+        try:
+            return run_study(args.name, out, quick=args.quick, workers=workers, scheduler=args.scheduler)
+        except InputError as exc:  # the API's keys as the flags that set them
+            if exc.key in ("scheduler", "workers"):
+                raise InputError(f"--{exc.key}", str(exc)[len(exc.key) + 2:]) from None
+            raise
 
 
 def cmd_flow(args) -> int:

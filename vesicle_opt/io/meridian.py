@@ -26,7 +26,7 @@ N_THETA = 128  # angles of the revolved surface: its area is the polyline's to 1
 
 def _segments(mesh, phi: np.ndarray):
     """(edge keys (S, 2), crossing points by key): one segment per triangle crossing phi = 0."""
-    t = mesh.t
+    t = np.asarray(mesh.t, np.int64)  # the edge keys below reach n^2: int32 wraps above 46341 nodes
     inside = phi[t] > 0
     crossing = inside.any(axis=0) & ~inside.all(axis=0)
     t = t[:, crossing]

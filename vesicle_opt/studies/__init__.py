@@ -7,13 +7,14 @@
 ``DESCRIPTIONS``); ``study(name)`` imports
 one (``-`` or ``_`` in the name), ``run_study`` runs it. The other modules here serve the studies
 and are not studies: ``runner`` (one resumable CSV writer over any executor), ``_common`` and
-``_flowkit`` (shared helpers), ``bare_casadi`` (the hand-written CasADi baseline of the benchmarks).
+``_flowkit`` (shared helpers), ``_meridian`` and ``_stomatocyte`` (the cases of ``phase_diagram``), ``bare_casadi`` (the hand-written CasADi baseline of the benchmarks).
 Studies are imported by name on demand, so importing ``vesicle_opt`` loads none of them.
 """
 
 from __future__ import annotations
 
 import importlib
+import inspect
 from pathlib import Path
 from types import ModuleType
 
@@ -47,7 +48,7 @@ DESCRIPTIONS = {
     "torus_section5": "Section 5 by the gradient flow: a flat disk pinches into a torus (Figures 1-2)",
 }
 STUDIES = tuple(sorted(DESCRIPTIONS))  # the registry: a study is registered by its description
-NOT_STUDIES = ("_common", "_escape", "_flowkit", "_pear", "_stomatocyte", "runner", "bare_casadi")
+NOT_STUDIES = ("_common", "_escape", "_flowkit", "_meridian", "_pear", "_stomatocyte", "runner", "bare_casadi")
 
 
 def study(name: str) -> ModuleType:
@@ -64,12 +65,45 @@ def docstring(name: str) -> str:
     return (study(name).__doc__ or DESCRIPTIONS[str(name).replace("-", "_")]).strip()
 
 
-def run_study(name: str, out: str | Path, quick: bool = False, **kwargs) -> int:
+def takes(name: str, keyword: str) -> bool:
+    """Whether the study's ``main`` takes ``keyword`` (``workers``: its cases run on a local pool of
+    that many processes; ``executor``: on any ``concurrent.futures.Executor``)."""
+    return keyword in inspect.signature(study(name).main).parameters
+
+
+def check_workers(name: str, workers, key: str = "workers") -> int:
+    """``workers`` as an int >= 1 for a study whose cases run in parallel; InputError (``key``)
+    otherwise, before any work."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(key, f"allowed: an integer >= 1 (local worker processes), got {workers!r}")
+    if workers > 1 and not takes(name, "workers"):
+        names = ", ".join(n for n in STUDIES if takes(n, "workers"))
+        raise InputError(key, f"the study {name} runs in one process; parallel studies: {names}")
+    return workers
+
+
+def run_study(name: str, out: str | Path, quick: bool = False, workers: int | None = None,
+              scheduler: str | None = None, **kwargs) -> int:
     """Run a study into the directory ``out``: ``main(out, quick, **kwargs)`` of ``study(name)``
     (some take more keywords, e.g. ``executor=``); returns its status (0: every check passed).
-    An ``out`` that cannot be a directory (``io.outdir.check``) is an InputError (key ``out``)
-    before any work."""
+    ``workers``: local worker processes for a study whose cases run in parallel (``check_workers``);
+    ``scheduler``: a dask scheduler's address (the ``dask`` extra), whose workers run the cases
+    (``runner.dask_executor``; for a study that takes an ``executor``). An ``out`` that cannot be a
+    directory (``io.outdir.check``), a bad ``workers`` or ``scheduler`` is an InputError before any work."""
     mod = study(name)  # an unknown name is refused before the directory is made
     if not isinstance(quick, bool):
         raise InputError("quick", f"expected True or False, got {type(quick).__name__}")
-    return int(mod.main(outdir.check(out, "out"), quick=quick, **kwargs) or 0)
+    if workers is not None:
+        kwargs["workers"] = check_workers(name, workers)
+        if not takes(name, "workers"):  # workers = 1: what the study does anyway
+            del kwargs["workers"]
+    if scheduler is None:
+        return int(mod.main(outdir.check(out, "out"), quick=quick, **kwargs) or 0)
+    from vesicle_opt.studies.runner import dask_executor  # the runner loads with the studies that run cases
+
+    if not takes(name, "executor") or "executor" in kwargs or workers not in (None, 1):
+        raise InputError("scheduler", f"the study {name} takes no executor" if not takes(name, "executor")
+                         else "give a scheduler or an executor / workers, not both")
+    target = outdir.check(out, "out")
+    with dask_executor(scheduler) as executor:
+        return int(mod.main(target, quick=quick, executor=executor, **kwargs) or 0)

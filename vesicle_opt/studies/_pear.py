@@ -247,9 +247,12 @@ def run(case: dict) -> list[dict]:
     return sharp_case(case) if case["epsilon"] == 0 else phase_case(case)
 
 
-def cases(cfg: dict | None = None) -> list[dict]:
+def cases(quick: bool = False, cfg: dict | None = None) -> list[dict]:
     """The sharp case and one case per (branch, eps) of ``cfg`` (default ``FULL``), the finest eps
-    first (the longest: the pool takes the cases in order)."""
+    first (the longest: the pool takes the cases in order); none in the quick run (``phase_diagram``'s
+    extension hook: its quick run is the c0 = 0 plumbing)."""
+    if quick:
+        return []
     cfg = cfg or FULL
     out = [{"case": "pear-sharp", "branch": "pear", "epsilon": 0.0, "vs": list(cfg["sharp_vs"]),
             "n_modes": cfg["sharp_modes"]}]

@@ -1,56 +1,56 @@
 """The spontaneous-curvature phase diagram at c0 = 0 on the meridian half-plane (``mesh.axisymmetric``):
-the prolate and oblate branches at several eps, their crossing per eps and its eps -> 0 limit,
-against the sharp references (``sharp.axisymmetric``), in the literature's units (f, v; Seifert, Berndl
-& Lipowsky, Phys. Rev. A 44, 1182 (1991)).
+the prolate, oblate and stomatocyte branches at four eps, their transitions per eps (the prolate/oblate
+and oblate/stomatocyte crossings, the stomatocyte's fold) and their eps -> 0 limits, against the sharp
+references (``sharp.axisymmetric``, ``sharp.stomatocyte``) and the published values (``PUBLISHED``),
+in the literature's units (f, v; Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 1182 (1991)).
 
-Cases: one per (branch, eps), so the branches and the eps values run in parallel through the study
-runner (``studies.runner.run_cases``: local processes, or any executor, e.g. a dask cluster's), and
-the CSV is resumable. A case walks its branch down the reduced volumes ``vs`` on one meridian box,
-each point warm-started from the previous one; the first point is SEEDED with the tanh profile of the
-sharp shape at that v (``io.meridian.phase_field_of``; the column ``seed`` says so): the tanh
-ellipsoid start reached another state at eps = 0.02 (f 1.502 against 1.284 from the sharp seed,
-measured). The box is the sharp shapes' extent plus ``WALL`` eps on every side (natural walls
-attract a vesicle: ``mesh.axisymmetric``'s documentation). R0 = 1 (area 4 pi), exact constraints,
-IPOPT, second-order checked (axisymmetric perturbations only).
+Meshes: interface-refined meridian meshes (``mesh.refine = "interface"``, ``studies._meridian``),
+eps/h = 4 in a band of 8 eps about the interface, coarse cells of 4 eps elsewhere, walls ``WALL`` eps
+from the sharp shapes. Every walk is SEEDED with the tanh profile of the sharp shape at its first v
+(``io.meridian.phase_field_of``, the mesh refined about that shape; the column ``seed`` says so): the
+tanh ellipsoid start reached another state at eps = 0.02 (f 1.502 against 1.284 from the sharp seed,
+measured), and the phase-field stomatocyte has no seedless route here (``studies._stomatocyte``).
+R0 = 1 (area 4 pi), exact constraints, IPOPT, second-order checked (axisymmetric perturbations only).
 
-Outputs: ``phase_diagram.csv`` (a row per point: f, c0_reduced, the sharp f, the verdicts),
-``phase_diagram_summary.json`` (per eps the prolate/oblate crossing, ``branch.crossing``; its eps -> 0
-extrapolation, ``branch.crossing.extrapolate_crossing``; the sharp crossing), ``phase_diagram.png``
-(f against v per eps, the sharp branches, the crossings). Full: eps = 0.1, 0.0707, 0.05 at
-eps/h = 3, v = 0.75 ... 0.55, sharp references with 16 modes and ``sharp.axisymmetric.crossing``.
-Quick: eps = 0.1 at eps/h = 2, v = 0.7, 0.65, sharp references with 8 modes: the plumbing (at
-eps = 0.1 the oblate seeds' dimples meet, tori: no crossing), in ~20 s.
+Cases, one per (branch, eps, part), run in parallel through the study runner (``runner.run_cases``:
+``--workers N`` local processes, or a dask cluster's executor, ``--scheduler``), the CSV resumable.
+The v grid is fine where the transitions are and coarse elsewhere: ``near`` (prolate and oblate,
+v 0.68 ... 0.62 by 0.01, warm-started along v, about the prolate/oblate crossing, sharp 0.6511), ``low``
+(the oblate 0.63 ... 0.57 by 0.005-0.01, about its crossing with the stomatocyte, sharp 0.5909),
+``far`` (v 0.95, 0.85, 0.75 and the prolate's 0.55, 0.5: each point from its own sharp shape), and
+the stomatocyte's two walks from v = 0.62 (``up`` to its fold, ``down`` to 0.5). A crossing per eps
+is the root of the difference of cubic splines f(v) through certified points of each branch's own
+form (``branch.crossing``; an oblate that turned torus is not used); a fold per eps is the vertex
+of v(lambda) (``_stomatocyte.fold_of``). The eps -> 0 limits (``extrapolate``): free-order Richardson
+through the three finest eps with its observed order, p = 2 through the two finest, and an error
+estimate (the change of the free-order limit from the three coarsest eps to the three finest).
 
-The stomatocyte (``studies._stomatocyte``; full run only): the sharp branch, its fold and its
-crossing with the oblate (``sharp.stomatocyte``, 32 modes; eps = 0 rows of kind point / fold /
-crossing), and per eps in ``stomatocyte_epsilons`` (eps/h = 2) the phase-field branch seeded with
-the sharp stomatocyte at v = 0.62 and walked by the branch package past its fold (IPOPT, p free near
-it) and down to v = 0.575, with an oblate walk on a finer v grid (``oblate_low_vs``) for the crossing.
-``stomatocyte_summary``: the fold and the oblate/stomatocyte crossing per eps, their eps -> 0 limit
-(``extrapolate_crossing``: free order through three eps, p = 2 through the finest two), the sharp
-and the published values (``PUBLISHED``). c0 = 2.4 (full run only): the pear/prolate crossing,
-``studies._pear`` (summary key ``pear_prolate_crossing``). Not here yet: the runner's dask executor
-from the CLI.
+Outputs: ``phase_diagram.csv`` (a row per point: f, c0_reduced, the sharp f, the verdicts, nodes, the
+case's CPU time on its first row), ``phase_diagram_summary.json`` (``crossings``, ``extrapolated``,
+``stomatocyte_fold``, ``oblate_stomatocyte_crossing``: per eps, eps -> 0, sharp, published),
+``phase_diagram.png`` (f against v per eps, the sharp branches, the transitions, meridian pictures).
+Full: eps = 0.05, 0.04, 0.03, 0.025. Quick: eps = 0.1 at eps/h = 2 on the uniform mesh, v = 0.7,
+0.65, sharp references with 8 modes: the plumbing (at eps = 0.1 the oblate seeds' dimples meet,
+tori: no crossing). Extensions (other c0: ``EXTENSIONS``) add their own cases, rows and summary.
 """
 
 from __future__ import annotations
 
+import importlib
 import json
 import logging
 import math
+import time
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from vesicle_opt.api import solve
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
-from vesicle_opt.io.meridian import meridian_curves, phase_field_of
-from vesicle_opt.mesh import discretize
-from vesicle_opt.scene import from_dict
+from vesicle_opt.io.meridian import meridian_curves
 from vesicle_opt.sharp import axisymmetric as sharp
 from vesicle_opt.sharp import stomatocyte as sharp_s
-from vesicle_opt.studies import _pear as pear
+from vesicle_opt.studies._meridian import layout, walk
 from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._common import plt, savefig
 from vesicle_opt.studies.runner import run_into
@@ -59,35 +59,61 @@ log = logging.getLogger(__name__)
 
 NAME = "phase_diagram"
 BRANCHES = ("prolate", "oblate")
-WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
-FULL = {"epsilons": (0.1, 0.070711, 0.05), "eps_over_h": 3.0, "vs": (0.75, 0.7, 0.65, 0.6, 0.55), "n_modes": 16,
-        # the oblate/stomatocyte row: eps small enough that the oblate's dimples stay apart near v = 0.59
-        # (its centre is 0.22 R0 thick there; at eps = 0.05 the oblate at v = 0.62 is not one: f 1.77, and
-        # at eps = 0.03 it is a torus at v = 0.58, measured), at eps/h = 2 (the time this machine has)
-        "stomatocyte_epsilons": (0.04, 0.03, 0.025), "stomatocyte_eps_over_h": 2.0, "stomatocyte_modes": 32,
-        "oblate_low_vs": (0.64, 0.63, 0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58)}
-QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "vs": (0.7, 0.65), "n_modes": 8}
+NEAR = (0.68, 0.67, 0.66, 0.65, 0.64, 0.63, 0.62)  # about the prolate/oblate crossing (sharp 0.6511): 0.01 steps
+FULL = {"epsilons": (0.05, 0.04, 0.03, 0.025), "eps_over_h": 4.0, "refine": True, "n_modes": 16, "near": NEAR,
+        # far from the transitions: coarse, each point seeded from its sharp shape (independent solves)
+        "far": {"prolate": (0.95, 0.85, 0.75, 0.55, 0.5), "oblate": (0.95, 0.85, 0.75)},
+        # the oblate about its crossing with the stomatocyte (sharp 0.5909); at eps >= 0.04 its dimples
+        # meet near there (a torus: measured), so that crossing has eps <= 0.03 only
+        "oblate_low": (0.63, 0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58, 0.57),
+        # the stomatocyte from the seed at 0.62: up to the fold (sharp 0.6604) in shrinking steps, down past
+        # the oblate crossing to 0.5
+        # (the phase field's fold lies above the sharp one: the grid goes on to 0.69, the walk ends past it)
+        "stomatocyte_up": (0.62, 0.63, 0.64, 0.645, 0.65, 0.653, 0.656, 0.658, 0.66, 0.662, 0.664, 0.666, 0.668,
+                           0.67, 0.672, 0.675, 0.678, 0.682, 0.686, 0.69),
+        "stomatocyte_down": (0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58, 0.57, 0.55, 0.5),
+        "stomatocyte_modes": 32}
+QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "refine": False, "n_modes": 8, "near": (0.7, 0.65)}
+EXTENSIONS: tuple[str, ...] = ("_pear",)  # c0 = 2.4 (full run only); the hook: private modules of this package (e.g. "_pear") with
+# cases(quick) -> [case], run(case) -> [row] and summary(rows) -> dict; their cases carry "extension"
 CUP = 0.1  # a pole dimple deeper than the other by this fraction of the height: a cup (stomatocyte)
 COLUMNS = ["branch", "shape", "c0", "target_v", "epsilon", "n", "h", "f", "c0_reduced", "reduced_volume", "sharp_f",
            "f_minus_sharp", "converged", "second_order", "second_order_min_eigenvalue", "topology",
-           "kkt_residual", "iterations", "wall_time_s", "seed", "status", "kind", "side", "lambda", "walk"]
+           "kkt_residual", "iterations", "wall_time_s", "seed", "status", "kind", "side", "lambda", "walk",
+           "part", "nodes", "cpu_time_s"]
+
+
+def _extension(name: str):
+    return importlib.import_module(f"vesicle_opt.studies.{name}")
 
 
 def cases(quick: bool) -> list[dict]:
+    """One case per (branch, eps, part): the parts and eps values run in parallel (the runner), in
+    the order of what the transitions need (the pool takes them in order; a run stopped early, and
+    resumed, has the transitions first): the sharp stomatocyte; the prolate/oblate ``near`` walks;
+    the stomatocyte's ``up`` walks (its fold); the ``low`` oblate and the stomatocyte's ``down`` walks
+    (their crossing); the ``far`` points; within each the finest (longest) eps first."""
     cfg = QUICK if quick else FULL
-    out = [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "eps_over_h": cfg["eps_over_h"],
-            "vs": list(cfg["vs"]), "n_modes": cfg["n_modes"]} for b in BRANCHES for eps in cfg["epsilons"]]
-    if quick:
-        return out
-    low = [{"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]}]
-    for eps in sorted(cfg["stomatocyte_epsilons"]):  # the finest (longest) first
-        low.append({"case": f"stomatocyte-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps,
-                    "eps_over_h": cfg["stomatocyte_eps_over_h"], "n_modes": 24})
-        low.append({"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps,
-                    "eps_over_h": cfg["stomatocyte_eps_over_h"], "vs": list(cfg["oblate_low_vs"]),
-                    "n_modes": cfg["n_modes"]})
-    out = low + out  # the long cases first (the pool takes them in order)
-    return pear.cases() + out  # c0 = 2.4: the pear/prolate crossing (studies._pear)
+    common = {"eps_over_h": cfg["eps_over_h"], "refine": cfg["refine"], "n_modes": cfg["n_modes"]}
+    order = sorted(cfg["epsilons"])
+    out = [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "part": "near", "vs": list(cfg["near"]), **common}
+           for eps in order for b in BRANCHES]
+    if not quick:
+        st = {"eps_over_h": cfg["eps_over_h"], "refine": cfg["refine"], "n_modes": 24}
+
+        def walk_case(w, eps):
+            return {"case": f"stomatocyte-{w}-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps, "walk": w,
+                    "vs": list(cfg[f"stomatocyte_{w}"]), **st}
+        out = [{"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]}] \
+            + out + [walk_case("up", eps) for eps in order]
+        for eps in order:
+            out += [{"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps, "part": "low",
+                     "vs": list(cfg["oblate_low"]), **common}, walk_case("down", eps)]
+        out += [{"case": f"{b}-far-eps{eps:g}", "branch": b, "epsilon": eps, "part": "far", "vs": list(vs), **common}
+                for eps in order for b, vs in cfg["far"].items()]
+    for name in EXTENSIONS:
+        out += [{**c, "extension": name} for c in _extension(name).cases(quick)]
+    return out
 
 
 def shape_of(disc, phi) -> str:
@@ -110,76 +136,53 @@ def shape_of(disc, phi) -> str:
     return "prolate" if height > 2 * float(r.max()) else "oblate"
 
 
-def _box(meridians, eps: float) -> list[list[float]]:
-    r_max = max(float(r.max()) for r, _ in meridians)
-    z_lo = min(float(z.min()) for _, z in meridians)
-    z_hi = max(float(z.max()) for _, z in meridians)
-    pad = WALL * eps
-    return [[0.0, r_max + pad], [z_lo - pad, z_hi + pad]]
-
-
-def _stomatocyte_row(res, v: float, eps: float, n, box, sharp_f: float, seed: str, side: str, walk: str) -> dict:
-    """A study row of a stomatocyte point: a Result (the seed) or a branch row (the walks)."""
-    if isinstance(res, dict):
-        q = res
-        ok = str(q.get("converged")) in ("True", "true") and str(q.get("accepted")) in ("True", "true")
-        f = _num(q.get("f", q.get("reduced_energy")))
-        return {"branch": "stomatocyte", "shape": None, "c0": 0.0, "target_v": v, "epsilon": eps,
-                "n": "x".join(map(str, n)), "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
-                "c0_reduced": q.get("c0_reduced"), "reduced_volume": q.get("reduced_volume"), "sharp_f": sharp_f,
-                "f_minus_sharp": f - sharp_f, "converged": ok, "second_order": q.get("second_order"),
-                "second_order_min_eigenvalue": q.get("second_order_min_eigenvalue"), "topology": q.get("topology"),
-                "kkt_residual": q.get("kkt_residual"), "iterations": q.get("iterations"),
-                "wall_time_s": q.get("wall_time_s"), "seed": seed, "status": q.get("corrector"), "kind": "point",
-                "side": side, "lambda": q.get("dE_dp"), "walk": walk}
-    row = _row("stomatocyte", res, v, eps, n, box, sharp_f, seed)
-    row.update({"kind": "point", "side": side, "walk": walk})
-    return row
-
-
-def _row(which, res, v, eps, n, box, sharp_f, seed) -> dict:
+def _row(which, res, v, eps, lay, sharp_f, seed, side="", walk="", part="") -> dict:
+    """A study row of one solve (``_meridian``): literature units, verdicts, mesh and cost."""
     ex = res.extra
     f = ex.get("f", math.nan)
     return {"branch": which, "shape": shape_of(res.disc, res.phi) if res.converged else None, "c0": 0.0,
-            "target_v": v, "epsilon": eps, "n": "x".join(map(str, n)),
-            "h": max((hi - lo) / k for (lo, hi), k in zip(box, n)), "f": f,
+            "target_v": v, "epsilon": eps, "n": "x".join(map(str, lay["n"])), "h": lay["h"], "f": f,
             "c0_reduced": ex.get("c0_reduced"), "reduced_volume": ex.get("reduced_volume"),
             "sharp_f": sharp_f, "f_minus_sharp": f - sharp_f,
             "converged": res.converged, "second_order": ex.get("second_order"),
             "second_order_min_eigenvalue": ex.get("second_order_min_eigenvalue"),
             "topology": ex.get("topology"), "kkt_residual": res.kkt_residual,
             "iterations": res.iterations, "wall_time_s": res.wall_time_s, "seed": seed,
-            "status": res.outcome, "kind": "point", "side": ""}
+            "status": res.outcome, "kind": "point", "side": side, "walk": walk, "part": part,
+            "lambda": res.lambda_volume, "nodes": res.disc.n_nodes}
+
+
+def _stomatocyte_row(res, v, eps, lay, sharp_f, seed, side, walk) -> dict:
+    return _row("stomatocyte", res, v, eps, lay, sharp_f, seed, side, walk, walk)
 
 
 def run(case: dict) -> list[dict]:
-    if case["branch"] in pear.BRANCHES:
-        return pear.run(case)
+    t0 = time.process_time()
+    rows = _run(case)
+    if rows:  # the case's CPU time (this process's), on its first row
+        rows[0]["cpu_time_s"] = time.process_time() - t0
+    return rows
+
+
+def _run(case: dict) -> list[dict]:
+    if "extension" in case:
+        return _extension(case["extension"]).run(case)
     if case["branch"] == "stomatocyte":
         if case["epsilon"] == 0:
             return stoma.sharp_case(case)
         return stoma.phase_case(case, _stomatocyte_row)
-    eps, which = case["epsilon"], case["branch"]
-    refs = sharp.branch(case["vs"], which, case["n_modes"], second_order=False)
+    eps, which, vs = case["epsilon"], case["branch"], case["vs"]
+    refs = sharp.branch(vs, which, case["n_modes"], second_order=False) if case["part"] != "far" else \
+        [sharp.solve(v, which, case["n_modes"], second_order=False) for v in vs]
     meridians = [ref.meridian(2048) for ref in refs]
-    box = _box(meridians, eps)
-    h = eps / case["eps_over_h"]
-    n = [max(4, math.ceil((hi - lo) / h)) for lo, hi in box]
-    rows, start, seed = [], None, "sharp shape"
-    for v, ref, (r, z) in zip(case["vs"], refs, meridians):
-        raw = {"domain": {"box": box, "boundary": "natural"}, "mesh": {"kind": "axisymmetric", "n": n},
-               "model": {"epsilon": eps}, "constraints": {"reduced_volume": v, "area": 4 * math.pi},
-               "initial": {"shape": "sphere", "radius": 1.0}, "solver": {"method": "exact"}}
-        sc = from_dict(raw, name=f"{NAME}-{which}-v{v:g}-eps{eps:g}")
-        if start is None:
-            start = phase_field_of(r, z, discretize(sc).nodes, eps)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
-            res = solve(sc, x0=start)
-        rows.append(_row(which, res, v, eps, n, box, ref.reduced_energy, seed))
-        if res.converged:
-            start, seed = res.phi, "previous point"
-    return rows
+    lay = layout(meridians, eps, case["eps_over_h"], case.get("refine", True))
+    name = f"{NAME}-{which}"
+    if case["part"] == "far":  # each point from its own sharp shape
+        points = [next(walk(lay, eps, [v], m, name)) for v, m in zip(vs, meridians)]
+    else:
+        points = list(walk(lay, eps, vs, meridians[0], name))
+    return [_row(which, res, v, eps, lay, ref.reduced_energy, seed, part=case["part"])
+            for (v, res, seed), ref in zip(points, refs)]
 
 
 def _num(v) -> float:
@@ -189,28 +192,61 @@ def _num(v) -> float:
         return math.nan
 
 
+def _by_v(rows: list[dict], key: str = "reduced_volume", value: str = "f") -> tuple[list[float], list[float]]:
+    """(v, f) of rows, one per v (parts of a branch overlap: the first row at a v), v increasing."""
+    pts: dict[float, float] = {}
+    for r in rows:
+        pts.setdefault(round(_num(r[key]), 9), _num(r[value]))
+    vs = sorted(v for v in pts if math.isfinite(v) and math.isfinite(pts[v]))
+    return vs, [pts[v] for v in vs]
+
+
+def extrapolate(per_eps: dict) -> dict:
+    """``branch.crossing.extrapolate_crossing`` of {eps: crossing} and an error estimate of its
+    free-order limit (``*_error``): with four levels the change of the free-order Richardson limit
+    from the three coarsest to the three finest eps (and ``order_*_coarse``, the order those
+    give), with three its distance to the p = 2 limit of the two finest; nan with two."""
+    out = extrapolate_crossing(per_eps)
+    eps = sorted(per_eps, reverse=True)
+    for key in ("reduced_volume", "reduced_energy"):
+        out[key + "_error"] = math.nan
+        if len(eps) >= 4:
+            coarse = extrapolate_crossing({e: per_eps[e] for e in eps[:3]})
+            out[key + "_error"] = abs(out[key + "_richardson"] - coarse[key + "_richardson"])
+            out["order_" + key + "_coarse"] = coarse["order_" + key]
+        elif len(eps) == 3:
+            out[key + "_error"] = abs(out[key + "_richardson"] - out[key + "_p2"])
+    return out
+
+
 def summarise(rows: list[dict]) -> dict:
     """Per eps the prolate/oblate crossing in (v, f) of certified points of their branch's form (a
-    walk that left its form, e.g. an oblate turned cup, is not used), and its eps -> 0 limit."""
+    walk that left its form, e.g. an oblate turned torus, is not used), and its eps -> 0 limit
+    (``extrapolate``); the stomatocyte's transitions (``stomatocyte_summary``); the extensions'."""
+    every, rows = rows, _c0_zero(rows)  # the extensions' rows (other c0) go to their own summary
     ok = [r for r in rows if str(r.get("converged")) == "True" and r.get("shape", r["branch"]) == r["branch"]]
     per_eps = {}
     for eps in sorted({_num(r["epsilon"]) for r in ok}, reverse=True):
-        sel = {b: sorted([r for r in ok if _num(r["epsilon"]) == eps and r["branch"] == b],
-                         key=lambda r: _num(r["reduced_volume"])) for b in BRANCHES}
-        x = crossing(*[[_num(r[k]) for r in sel[b]] for b in BRANCHES for k in ("reduced_volume", "f")])
+        x = crossing(*[c for b in BRANCHES for c in _by_v([r for r in ok if _num(r["epsilon"]) == eps
+                                                           and r["branch"] == b])])
         if x is not None:
             per_eps[eps] = x
     out = {"crossings": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()}}
     if len(per_eps) >= 2:
-        out["extrapolated"] = extrapolate_crossing(per_eps)
+        out["extrapolated"] = extrapolate(per_eps)
     out.update(stomatocyte_summary(rows))
-    out.update(pear.summary(rows))  # pear_prolate_crossing (c0 = 2.4)
     one_eps = [r for r in rows if _num(r["epsilon"]) == max(_num(q["epsilon"]) for q in rows)]
-    ref = {b: sorted([r for r in one_eps if r["branch"] == b], key=lambda r: _num(r["target_v"])) for b in BRANCHES}
-    x = crossing(*[[_num(r[k]) for r in ref[b]] for b in BRANCHES for k in ("target_v", "sharp_f")])
+    x = crossing(*[c for b in BRANCHES for c in _by_v([r for r in one_eps if r["branch"] == b], "target_v", "sharp_f")])
     if x is not None:  # the sharp branches' crossing through the same points (a spline, as the phase field's)
         out["sharp_crossing_at_these_points"] = {"v": x["reduced_volume"], "f": x["reduced_energy"]}
+    for name in EXTENSIONS:
+        out.update(_extension(name).summary(every))
     return out
+
+
+def _c0_zero(rows: list[dict]) -> list[dict]:
+    """The rows of this module's own branches (c0 = 0), not the extensions'."""
+    return [r for r in rows if r["branch"] in (*BRANCHES, "stomatocyte")]
 
 
 PUBLISHED = {"prolate/oblate": (0.650, 1.830), "oblate/stomatocyte": (0.59, 1.98), "stomatocyte fold": (0.66, 1.96),
@@ -224,15 +260,15 @@ def _stomatocyte_transitions(rows: list[dict], eps: float) -> dict:
     st = [r for r in rows if r["branch"] == "stomatocyte" and _num(r["epsilon"]) == eps
           and str(r.get("kind", "point")) == "point" and str(r.get("converged")) == "True"]
     out = {}
-    up = [r for r in st if r.get("walk") == "up"]  # in walk order (the CSV keeps a case's rows in order)
+    up = [r for r in st if r.get("walk") == "up" and r.get("shape", "cup") in ("cup", None, "")]  # in walk order (the CSV keeps a case's rows in order)
     fv = stoma.fold_of(*[[_num(r[k]) for r in up] for k in ("reduced_volume", "f", "lambda")]) if len(up) >= 3 else None
     if fv is not None:
         out["fold"] = {"reduced_volume": fv[0], "reduced_energy": fv[1]}
-    lower = {round(_num(r["reduced_volume"]), 9): _num(r["f"]) for r in st if r.get("side") == "lower"}
-    obl = {round(_num(r["reduced_volume"]), 9): _num(r["f"]) for r in rows if r["branch"] == "oblate"
-           and _num(r["epsilon"]) == eps and str(r.get("converged")) == "True" and r.get("shape") == "oblate"}
-    if len(lower) >= 2 and len(obl) >= 2:
-        x = crossing(list(lower), list(lower.values()), list(obl), list(obl.values()))
+    lower = _by_v([r for r in st if r.get("side") == "lower" and r.get("shape", "cup") in ("cup", None, "")])
+    obl = _by_v([r for r in rows if r["branch"] == "oblate" and _num(r["epsilon"]) == eps
+                 and str(r.get("converged")) == "True" and r.get("shape") == "oblate"])
+    if len(lower[0]) >= 2 and len(obl[0]) >= 2:
+        x = crossing(*lower, *obl)
         if x is not None:
             out["crossing"] = x
     return out
@@ -255,7 +291,7 @@ def stomatocyte_summary(rows: list[dict]) -> dict:
         if sharp_rows:
             entry["sharp"] = {"v": _num(sharp_rows[0]["reduced_volume"]), "f": _num(sharp_rows[0]["f"])}
         if len(per[k]) >= 2:
-            entry["extrapolated"] = extrapolate_crossing(per[k])
+            entry["extrapolated"] = extrapolate(per[k])
         out[key] = entry
     return out
 
@@ -336,10 +372,12 @@ def _meridian_insets(fig, rows: list[dict]) -> None:
 
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     out, rows, good = run_into(NAME, cases(quick), run, out, executor=executor, workers=workers,
-                               extra_columns=COLUMNS + pear.COLUMNS)
+                               extra_columns=COLUMNS + [c for n in EXTENSIONS for c in _extension(n).COLUMNS
+                                                        if c not in COLUMNS])
     summary = summarise(good)
     v_s, f_s = sharp.crossing() if not quick else (math.nan, math.nan)  # ~20 s: the full run's reference
     summary["sharp_crossing"] = {"v": v_s, "f": f_s}
+    summary["timings"] = timings(good)
     (out / f"{NAME}_summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     for e, x in summary["crossings"].items():
         log.info(f"eps {e}: crossing v = {x['v']:.5f}, f = {x['f']:.5f} (sharp {v_s:.5f}, {f_s:.5f})")
@@ -347,6 +385,23 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
         for e, x in summary.get(key, {}).get("per_eps", {}).items():
             log.info(f"eps {e}: {key} v = {x['v']:.5f}, f = {x['f']:.5f}")
     if good:
-        figure(good, summary, out / f"{NAME}.png")
-    certified = all(str(r.get("converged")) == "True" for r in good)
+        figure(_c0_zero(good), summary, out / f"{NAME}.png")
+    # the up walk's last point lies past the phase field's fold (no stomatocyte there): its expected end
+    certified = all(str(r.get("converged")) == "True" for r in good
+                    if not (r["branch"] == "stomatocyte" and r.get("walk") == "up"))
     return 0 if good and len(good) == len(rows) and certified else 1
+
+
+def timings(rows: list[dict]) -> dict:
+    """Per case its CPU time (``cpu_time_s``: the worker process's, on its first row), its solves'
+    wall time (sum of ``wall_time_s``) and points; their totals: what the idle wall time on N cores
+    is judged by (CPU seconds / N for cases balanced over the workers)."""
+    per: dict[str, dict] = {}
+    for r in rows:
+        c = per.setdefault(r.get("case", ""), {"cpu_s": 0.0, "solve_wall_s": 0.0, "points": 0})
+        cpu, wall = _num(r.get("cpu_time_s")), _num(r.get("wall_time_s"))
+        c["cpu_s"] += cpu if math.isfinite(cpu) else 0.0
+        c["solve_wall_s"] += wall if math.isfinite(wall) else 0.0
+        c["points"] += 1
+    return {"per_case": per, "cpu_s_total": sum(c["cpu_s"] for c in per.values()),
+            "solve_wall_s_total": sum(c["solve_wall_s"] for c in per.values())}

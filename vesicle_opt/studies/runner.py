@@ -23,6 +23,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import gc
 import io
@@ -39,6 +40,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from vesicle_opt.errors import InputError
 from vesicle_opt.io import interrupt, progress
 from vesicle_opt.io.files import json_safe, write_json
 from vesicle_opt.io.state import read_csv
@@ -50,6 +52,7 @@ BOOKKEEPING = ["case", "case_rows"]
 FAILURE = ["outcome", "reason", "certifiable_tol"]  # a row that failed says how and why (``failed_line``); after the
 # bookkeeping columns, so that the rows of a CSV written before them keep their places
 PARENT_POLL_S = 0.5  # a worker notices its parent's death within this (the SIGKILL test allows a few s)
+SCHEDULER_TIMEOUT_S = 10.0  # a dask scheduler that does not answer in this long is bad input (``dask_executor``)
 TERMINATE_WAIT_S = 5.0  # a SIGTERMed worker is gone in ~10 ms; a bound, so an interrupt never hangs
 
 
@@ -275,6 +278,29 @@ def run_study(name: str, case_list: list[dict], fn: Callable[[dict], list[dict]]
     info = summary(rows, case_list)
     write_json(out / f"{name}.json", json_safe(info))
     return rows, info
+
+
+@contextlib.contextmanager
+def dask_executor(address: str):
+    """The executor of the dask scheduler at ``address`` (``distributed.Client(address).get_executor()``:
+    its workers run the cases; they need this package installed), the client closed after. InputError
+    (key ``scheduler``) when dask.distributed is not installed (the ``dask`` extra) or no scheduler
+    answers there within ``SCHEDULER_TIMEOUT_S``, before any case runs."""
+    if not isinstance(address, str) or not address.strip():
+        raise InputError("scheduler", f"a dask scheduler address such as tcp://host:8786, got {address!r}")
+    try:
+        from distributed import Client  # the optional ``dask`` extra: loaded for --scheduler only
+    except ImportError:
+        raise InputError("scheduler", "needs dask.distributed: pip install 'vesicle-opt[dask]'") from None
+    try:
+        client = Client(address, timeout=f"{SCHEDULER_TIMEOUT_S}s")
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        raise InputError("scheduler", f"no dask scheduler at {address!r} ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else 'no answer'})") from None
+    try:
+        yield client.get_executor()
+    finally:
+        client.close()
 
 
 def worker_logging(level: int) -> None:

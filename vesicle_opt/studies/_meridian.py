@@ -1,0 +1,98 @@
+"""Meridian-plane solves of the ``phase_diagram`` study (not a study): the box and interface-refined
+mesh about a sharp shape, the tanh seed of that shape on it, and a walk along the reduced volume.
+
+* ``layout``: the box is the sharp meridians' extent plus ``WALL`` eps on every side (natural walls
+  attract a vesicle: ``mesh.axisymmetric``), widened to whole coarse cells of side
+  h0 = 2^levels h (``mesh.refine = "interface"`` needs square cells), h = eps / eps_over_h the band's
+  spacing; ``refine = False``: the uniform mesh of spacing h (the quick run).
+* ``seed``: the mesh refined about the sharp meridian (``mesh.refine.curve_distance``) and on it
+  phi = tanh(d / (sqrt2 eps)) (``io.meridian.phase_field_of``): a cold start whose band already sits
+  on the interface (the front door keeps a start's own refined mesh while its interface is deep in
+  the band: ``mesh.band_start``).
+* ``walk``: fixed-v exact solves (IPOPT, second-order checked) at the reduced volumes in order,
+  each warm from the previous converged point (its mesh and multipliers; the front door re-meshes
+  when the interface leaves the band); a point that fails is a row, the next starts from the last
+  converged one.
+"""
+
+from __future__ import annotations
+
+import math
+import types
+import warnings
+
+import numpy as np
+
+from vesicle_opt.api import solve
+from vesicle_opt.io.meridian import phase_field_of
+from vesicle_opt.mesh import discretize
+from vesicle_opt.mesh.refine import curve_distance
+from vesicle_opt.scene import from_dict
+
+WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
+LEVELS = 4  # the coarse cells are 2^LEVELS band cells: 4 eps at eps/h = 4 (fewer where the box is small)
+BAND = 8.0  # the band's half-width in eps (mesh.band's default: narrower bands perturb the axial slide)
+MAX_ITER = 150  # IPOPT iterations a point: the full run's converged points took <= 67 (warm prolate at eps
+# 0.025, dv = 0.01) and 49 (a cold stomatocyte seed); a point past the fold ran into the default 500
+
+
+def layout(meridians, eps: float, eps_over_h: float, refine: bool = True) -> dict:
+    """{"box", "n", "h", "mesh"}: the box about the meridians [(r, z), ...] and its mesh keys."""
+    h = eps / eps_over_h
+    pad = WALL * eps
+    r_hi = max(float(r.max()) for r, _ in meridians) + pad
+    z_lo = min(float(z.min()) for _, z in meridians) - pad
+    z_hi = max(float(z.max()) for _, z in meridians) + pad
+    if not refine:
+        n = [max(4, math.ceil(r_hi / h)), max(4, math.ceil((z_hi - z_lo) / h))]
+        box = [[0.0, r_hi], [z_lo, z_hi]]
+        return {"box": box, "n": n, "h": max(r_hi / n[0], (z_hi - z_lo) / n[1]),
+                "mesh": {"kind": "axisymmetric", "n": n}}
+    levels = LEVELS
+    while levels > 1 and r_hi / (h * 2**levels) < 4:  # mesh.n >= 4 cells a side (small boxes, large eps)
+        levels -= 1
+    h0 = h * 2**levels
+    n = [max(4, math.ceil(r_hi / h0)), max(4, math.ceil((z_hi - z_lo) / h0))]
+    mid = (z_lo + z_hi) / 2
+    box = [[0.0, n[0] * h0], [mid - n[1] * h0 / 2, mid + n[1] * h0 / 2]]
+    return {"box": box, "n": n, "h": h,
+            "mesh": {"kind": "axisymmetric", "n": n, "refine": "interface", "levels": levels, "band": BAND}}
+
+
+def scene(lay: dict, eps: float, v: float, name: str):
+    raw = {"domain": {"box": lay["box"], "boundary": "natural"}, "mesh": lay["mesh"], "model": {"epsilon": eps},
+           "constraints": {"reduced_volume": v, "area": 4 * math.pi},
+           "initial": {"shape": "sphere", "radius": 1.0}, "solver": {"method": "exact", "max_iter": MAX_ITER}}
+    return from_dict(raw, name=name)
+
+
+def seed(sc, r, z, eps: float, h: float):
+    """The tanh profile of the meridian (r, z) on the scene's mesh (refined about that meridian)."""
+    if sc.mesh.refine == "interface":
+        disc = discretize(sc, interface=curve_distance(np.column_stack([r, z]), h))
+    else:
+        disc = discretize(sc)
+    return types.SimpleNamespace(disc=disc, phi=phase_field_of(r, z, disc.nodes, eps))
+
+
+def solve_quiet(sc, start):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
+        return solve(sc, x0=start)
+
+
+def walk(lay: dict, eps: float, vs, first, name: str, stop=None):
+    """Yield (v, Result, seed label) along ``vs``: the first from ``first`` ((r, z) of a sharp shape
+    at vs[0]), then each warm from the last converged point; ``stop(result) -> bool`` ends the walk
+    after a point (e.g. one that left its branch's form)."""
+    start, label = None, "sharp shape"
+    for v in vs:
+        sc = scene(lay, eps, v, f"{name}-v{v:g}-eps{eps:g}")
+        if start is None:
+            start = seed(sc, *first, eps, lay["h"])
+        res = solve_quiet(sc, start)
+        yield v, res, label
+        if stop is not None and stop(res):
+            return
+        if res.converged:
+            start, label = res, "previous point"
