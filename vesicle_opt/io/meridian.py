@@ -34,7 +34,7 @@ def _segments(mesh, phi: np.ndarray):
     n = len(phi)
     keys, points = [], {}
     for a, b in pairs:
-        i, j = t[a].astype(np.int64), t[b].astype(np.int64)  # keys i n + j: past 2^31 from 46 341 nodes
+        i, j = t[a], t[b]
         cut = (phi[i] > 0) != (phi[j] > 0)
         k = np.minimum(i, j) * n + np.maximum(i, j)
         keys.append(np.where(cut, k, -1))
