@@ -123,7 +123,6 @@ class IpoptCorrector:
         self._cold = None  # the cold solver (the scene's max_iter, IPOPT's own multipliers): on demand
         self.matrix_free = supports(self.scene, "newton-krylov")
         self.fourier = on_fourier_grid(self.disc) if self.matrix_free else None
-        self.slide = self.matrix_free and getattr(self.disc, "axisymmetric", False)  # ``slide_modulo``
 
     def solve(self, scene: Scene, phi0: np.ndarray, lam0: tuple[float, float] | None = None,
               feasibility: bool = True) -> Result:
@@ -174,12 +173,8 @@ class IpoptCorrector:
             elif self.matrix_free:  # with the FFTs the front door's check uses (solver.fft)
                 with fft_library(scene.solver.fft):
                     setup = prepare(scene, self.fourier)
-                    if self.slide:  # the meridian mesh: the axial slide excluded (``slide_modulo``)
-                        setup = (*setup[:3], axial_slide(self.disc))
                     so = rotation_modulo(lobpcg.check(scene, res, setup, rotations=V.excludes_rotations(scene)),
                                          scene.dim)
-                    if self.slide:
-                        so = slide_modulo(so)
             else:  # the front door's assembled check on the point's own (constant) NLP
                 so = second_order.check(build_nlp(scene, self.disc, check=False), res)
         res = with_reports(res, so, seconds=time.perf_counter() - t0, scene=scene)
