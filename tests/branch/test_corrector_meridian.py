@@ -7,7 +7,6 @@ ends "not checked" at its 300-iteration cap; the corrector now decides it. One a
 interlacing the corrector's least eigenvalue lies between the front door's first and second (the
 front door keeps the slide in T), which the tests check on the front door's own assembled check."""
 
-import math
 import warnings
 
 import pytest
@@ -18,7 +17,7 @@ from vesicle_opt.io.meridian import phase_field_of
 from vesicle_opt.mesh import discretize
 from vesicle_opt.nk.setup import prepare
 from vesicle_opt.sharp import stomatocyte as sharp_s
-from vesicle_opt.studies import _stomatocyte as st
+from vesicle_opt.studies import _meridian, _stomatocyte as st
 from vesicle_opt.nlp import build_nlp
 from vesicle_opt.verify import lobpcg, second_order
 
@@ -29,10 +28,9 @@ EPS = 0.04
 def test_corrector_decides_the_stomatocyte_seed_as_the_front_door():
     seed = sharp_s.start_point(st.V_SEED, 0.0, 24)
     r, z = seed.meridian(2048)
-    pad = st.WALL * EPS
-    box = [[0.0, float(r.max()) + pad], [float(z.min()) - pad, float(z.max()) + pad]]
-    n = [max(4, math.ceil((hi - lo) / (EPS / 2))) for lo, hi in box]  # eps / h = 2, as the study
-    sc = st._scene(box, n, EPS, st.V_SEED, {"shape": "sphere", "radius": 1.0}, "stomatocyte")
+    # the study's box about the seed (WALL eps of pad), the uniform mesh at eps / h = 2 (9.1 k nodes)
+    lay = _meridian.layout([(r, z)], EPS, 2.0, refine=False)
+    sc = _meridian.scene(lay, EPS, st.V_SEED, "stomatocyte")
     phi0 = phase_field_of(r, z, discretize(sc).nodes, EPS)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the near-bound warnings of the seed do not apply here
