@@ -28,9 +28,34 @@
 * ``diagram``: the energy-diagram PNG (matplotlib is imported there only).
 """
 
+import sys as _sys
+import types as _types
+
 from vesicle_opt.branch.params import PARAMS
 from vesicle_opt.branch.run import Branch, branch
 from vesicle_opt.branch.store import COLUMNS
 from vesicle_opt.branch.transition_vesicle import Line, transition_line
 
 __all__ = ["PARAMS", "COLUMNS", "Branch", "branch", "Line", "transition_line"]
+
+
+def _submodule(package, name: str, value) -> bool:
+    return isinstance(value, _types.ModuleType) and value.__name__ == f"{package.__name__}.{name}"
+
+
+class _Package(_types.ModuleType):
+    """This package: ``vesicle_opt.branch`` is the ``branch`` function (``vesicle_opt._Package``), and
+    ``import vesicle_opt.branch.run as r`` takes ``run`` as an attribute of that (Python's
+    ``import a.b.c as d`` walks attributes from ``a``), so each submodule bound here is bound on the
+    function too."""
+
+    def __setattr__(self, name, value):
+        super().__setattr__(name, value)
+        if _submodule(self, name, value):
+            setattr(branch, name, value)
+
+
+for _name, _value in list(vars(_sys.modules[__name__]).items()):  # those loaded above, before the class
+    if _submodule(_sys.modules[__name__], _name, _value):
+        setattr(branch, _name, _value)
+_sys.modules[__name__].__class__ = _Package
