@@ -63,3 +63,26 @@ def test_the_jax_array_adds_its_device_buffers():
                                            "solver.array='jax'"])
     extra = resources.bytes_per_node(sj, "newton-krylov") - resources.bytes_per_node(sc, "newton-krylov")
     assert extra == resources.JAX_DEVICE_BYTES_PER_NODE[3] >= memory_bytes_per_node(3, 1)
+
+
+@pytest.mark.parametrize("sets", [[], ["model.epsilon=0.04", "mesh.band=8.0", "mesh.levels=4",
+                                       "domain.box=[[0.0, 1.92], [-0.96, 0.96]]", "mesh.n=[6, 6]"]])
+def test_an_interface_refined_mesh_is_estimated_from_its_band(sets):
+    """mesh.n counts a refined meridian mesh's coarse cells only (648 of the bundled oblate's 10.5 k
+    nodes): the estimate counts its band about the start shape, against the mesh built
+    (``refine.band_mesh``): the bundled oblate (levels 2) and a 4-level band as the phase diagram's."""
+    from vesicle_opt import mesh
+    from vesicle_opt.mesh import refine
+
+    sc = vo.load_scene("oblate-axisymmetric", sets)
+    est, how = resources.estimate_bytes(sc, "ipopt")
+    nodes = resources._nodes(sc)
+    built = refine.band_mesh(sc.domain.box, sc.mesh.n, mesh.initial_distance(sc), sc.mesh.band * sc.model.epsilon,
+                             sc.mesh.levels).p.shape[1]
+    # a pointwise area of whole-triangle marking (plus green closures): measured 0.93-0.98 of the nodes
+    assert 0.85 * built < nodes < 1.15 * built, (nodes, built)
+    assert f"{nodes:.4g} nodes" in how and nodes > 10 * sc.mesh.n[0] * sc.mesh.n[1]
+    coarse = est - (nodes - sc.mesh.n[0] * sc.mesh.n[1]) * resources.bytes_per_node(sc, "ipopt")
+    limit = vo.load_scene("oblate-axisymmetric", sets + [f"solver.max_memory_gb={2 * coarse / resources.GB}"])
+    with pytest.raises(InputError, match="mesh.n"):  # twice what mesh.n alone would need: refused
+        resources.check(limit, "ipopt")

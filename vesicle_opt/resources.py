@@ -1,6 +1,7 @@
 """The resource guard: a scene's memory estimate against the memory available, before any work.
 
-    estimate = nodes x bytes per node (of the chosen backend / flow scheme, mesh and dimension)
+    estimate = nodes x bytes per node (of the chosen backend / flow scheme, mesh and dimension;
+               an interface-refined mesh's nodes estimated from its band about the start shape)
              + the feasibility bound's radial grid (``model.feasibility``: max(N_RADIAL, 20 r_out / eps)
                points per candidate, each an IPOPT solve on CasADi SX)
 
@@ -49,8 +50,18 @@ BYTES_PER_RADIAL_POINT = 20_000  # the feasibility bound's 1D IPOPT (CasADi SX g
 
 
 def _nodes(scene) -> int | None:
-    """Grid nodes of a box mesh (None for a mesh file: its size is known only once it is read)."""
-    return None if scene.mesh.file is not None else math.prod(scene.mesh.n)
+    """Grid nodes of a box mesh (None for a mesh file: its size is known only once it is read); an
+    interface-refined meridian mesh's from its band about the start shape (``mesh.refine.estimate_nodes``:
+    mesh.n counts only its coarse cells, 648 of the bundled oblate's 10.5 k nodes)."""
+    if scene.mesh.file is not None:
+        return None
+    if getattr(scene.mesh, "refine", None) == "interface":
+        from vesicle_opt import mesh  # the start's distance (scene.shapes); only refined scenes pay it
+        from vesicle_opt.mesh import refine  # scikit-fem: as the mesh it estimates, loaded only here
+
+        return refine.estimate_nodes(scene.domain.box, scene.mesh.n, mesh.initial_distance(scene),
+                                     scene.mesh.band * scene.model.epsilon, scene.mesh.levels)
+    return math.prod(scene.mesh.n)
 
 
 def bytes_per_node(scene, path: str) -> float:

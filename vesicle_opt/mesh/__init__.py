@@ -33,7 +33,7 @@ def discretize(scene, interface=None) -> Discretization:
     if scene.mesh.kind == "axisymmetric":
         from vesicle_opt.mesh import axisymmetric  # scikit-fem: loaded with the first FEM mesh (below)
         if scene.mesh.refine == "interface":
-            return axisymmetric.band_p1(scene.domain.box, scene.mesh.n, interface or _initial_distance(scene),
+            return axisymmetric.band_p1(scene.domain.box, scene.mesh.n, interface or initial_distance(scene),
                                         scene.mesh.band, scene.mesh.levels, scene.model.epsilon,
                                         mass=scene.mesh.mass, quadrature=scene.mesh.quadrature)
         return axisymmetric.p1(scene.domain.box, scene.mesh.n, mass=scene.mesh.mass,
@@ -44,7 +44,7 @@ def discretize(scene, interface=None) -> Discretization:
                   mass=scene.mesh.mass, quadrature=scene.mesh.quadrature, mesh_file=scene.mesh.file)
 
 
-def _initial_distance(scene):
+def initial_distance(scene):
     """The distance of the meridian points (r, z) to the scene's ``initial`` shape (evaluated at the 3D
     points (r, 0, z), as ``AxisymmetricDiscretization.scene_points``)."""
     import numpy as np

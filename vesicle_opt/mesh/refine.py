@@ -39,6 +39,7 @@ from vesicle_opt.errors import InputError
 from vesicle_opt.scene.ranges import check_square
 
 GRADE = 2.0  # each level keeps a ring of at least this many of its cells around the next finer one
+MAX_SAMPLES = 4_000_000  # estimate_nodes' distance samples at most (a 32 MB array)
 LEG_TOL = 1e-6  # relative: two legs of the same level agree to round-off (sides are h0 / 2^k)
 
 
@@ -62,7 +63,7 @@ def band_mesh(box, n, distance, width: float, levels: int) -> skfem.MeshTri:
     mesh = mirrored_tensor(box, n)
     for k in range(levels):
         h_next = h0 / 2 ** (k + 1)
-        reach = width + GRADE * sum(h0 / 2**j for j in range(k + 1, levels))
+        reach = _reach(width, h0, levels, k)
         d = np.abs(np.asarray(distance(mesh.p.T), float))
         leg = legs(mesh)
         near = d[mesh.t].min(axis=0) - math.sqrt(2.0) * leg <= reach  # some point of T within reach
@@ -71,6 +72,29 @@ def band_mesh(box, n, distance, width: float, levels: int) -> skfem.MeshTri:
             break
         mesh = mesh.refined(marked)
     return mesh
+
+
+def _reach(width: float, h0: float, levels: int, k: int) -> float:
+    """How far from the interface :func:`band_mesh`'s round k marks (the graded band's ring)."""
+    return width + GRADE * sum(h0 / 2**j for j in range(k + 1, levels))
+
+
+def estimate_nodes(box, n, distance, width: float, levels: int) -> int:
+    """About the nodes of :func:`band_mesh` (same arguments), without building it (the memory guard,
+    ``resources``): the tensor box's nodes plus, per round k, the area A_k within that round's reach
+    (+ sqrt2 leg_k, its marking test) times the nodes per unit area the halving adds, 3 x 4^k / h0^2
+    (a square cell of side h holds one node per h^2). A_k counts the points of a sampling grid of
+    spacing h0 / 2 (coarser on boxes past MAX_SAMPLES points) whose distance is within the reach."""
+    h0 = square_side(box, n)
+    (r0, r1), (z0, z1) = box
+    s = max(h0 / 2, math.sqrt((r1 - r0) * (z1 - z0) / MAX_SAMPLES))
+    R, Z = np.meshgrid(np.arange(r0 + s / 2, r1, s), np.arange(z0 + s / 2, z1, s), indexing="ij")
+    d = np.abs(np.asarray(distance(np.column_stack([R.ravel(), Z.ravel()])), float))
+    nodes = (n[0] + 1) * (n[1] + 1)
+    for k in range(levels):
+        area = np.count_nonzero(d <= _reach(width, h0, levels, k) + math.sqrt(2.0) * h0 / 2**k) * s * s
+        nodes += area * 3 * 4**k / h0**2
+    return int(math.ceil(nodes))
 
 
 def mirrored_tensor(box, n) -> skfem.MeshTri:
