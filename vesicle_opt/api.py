@@ -222,7 +222,7 @@ def _solve(problem, backend, method, x0, options, remesh: bool = False) -> Resul
             opts = options or IpoptOptions.from_scene(scene)
             nlp, solver, p, start = reuse.point(scene, disc, opts, x0)
             _log_start(scene, chosen, backend, disc.n_nodes)
-            result = reuse.unpinned(solve_exact(nlp, solver=solver, options=opts, p=p, **start))
+            result = reuse.unpinned(solve_exact(nlp, solver=solver, options=opts, p=p, **start), nlp, opts.tol)
             derivs = reuse.derivatives(nlp, solver, p)
             pin = reuse.pin_of(p, disc.n_nodes)  # the check's T: the solve's rows, the pin's included
         else:

@@ -56,3 +56,39 @@ def test_a_shifted_start_certifies_and_solves_the_centred_problem():
     assert again.converged and again.disc is d
     assert abs(_centre(up) - _centre(again)) < 1e-9
     assert again.energy == pytest.approx(up.energy, rel=1e-10)
+
+
+def test_the_front_door_remeshes_only_where_the_pin_fails_the_kkt_test(monkeypatch):
+    """``band_start.held``: a pinned kkt_not_met is re-meshed only where the pin's force is what fails
+    the KKT test (``pin_held``). The start 0.37 up, on its own band: the residual without the row is
+    the row's force alone (r = -f_scale lambda_pin c at IPOPT's point: the same norm), and with it the
+    point is stationary; the same point with the pin's multiplier made negligible fails with the row
+    too: no re-mesh (the front door solved such a point REMESH_ROUNDS more times before)."""
+    from vesicle_opt import api
+    from vesicle_opt.mesh import band_start, discretize
+    from vesicle_opt.model.metric import natural_metric
+    from vesicle_opt.nlp.solve import solve_exact
+    from vesicle_opt.verify.certify import KKT_FACTOR
+
+    sc = vo.load_scene("prolate-axisymmetric", {**REFINED, "initial.center": [0.0, 0.0, SHIFT]})
+    opts = vo.IpoptOptions.from_scene(sc)
+    nlp, solver, p, start = reuse.point(sc, discretize(sc), opts, None)
+    raw = solve_exact(nlp, solver=solver, options=opts, p=p, **start)
+    res = reuse.unpinned(raw, nlp, opts.tol)
+    ex = res.extra
+    assert res.outcome == vo.Status.KKT_NOT_MET and ex["pin_held"] and band_start.held(res)
+    force = nlp.f_scale * ex["translation_multiplier"] * reuse.pin_row(res.disc)[:-1]
+    share = natural_metric(res.disc, sc.model.epsilon).dual_norm(force) / ex["kkt_dual_scale"]
+    # the row's force is the residual: measured 7.879e-6 both, 2e-8 apart (IPOPT's tol on a 1e-5 residual)
+    assert share == pytest.approx(ex["kkt_dual"], rel=1e-4)
+    assert ex["kkt_dual_pinned"] < 1e-3 * KKT_FACTOR * opts.tol  # stationary with the row (measured 6.2e-11)
+    lam = raw.lam_g.copy()
+    lam[-1] *= 1e-9  # the same point, the pin's multiplier negligible: a failure that is not the pin's
+    other = reuse.unpinned(dataclasses.replace(raw, lam_g=lam), nlp, opts.tol)
+    assert other.outcome == vo.Status.KKT_NOT_MET and not other.extra["pin_held"] and not band_start.held(other)
+    assert other.extra["kkt_dual_pinned"] == pytest.approx(ex["kkt_dual"], rel=1e-6)  # the row adds ~nothing
+
+    for given, solves in ((res, 1 + band_start.REMESH_ROUNDS), (other, 1)):
+        given, calls = dataclasses.replace(given, scene=sc), []  # as the front door's results (its log names it)
+        monkeypatch.setattr(api, "_solve", lambda *a, remesh=False, given=given: calls.append(remesh) or given)
+        assert vo.solve(sc) is given and len(calls) == solves, calls

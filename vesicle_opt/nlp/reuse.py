@@ -44,6 +44,8 @@ from vesicle_opt.mesh.axisymmetric import axial_translation  # noqa: F401  (the 
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.nlp.exact import at_point, build_exact, parameter_values
 from vesicle_opt.nlp.ipopt import IpoptOptions, make_solver
+from vesicle_opt.verify.certify import KKT_FACTOR
+from vesicle_opt.verify.kkt import kkt_dual_with
 
 WARM = (("ipopt.warm_start_init_point", "yes"),)  # IPOPT takes the given multipliers (no bounds, no
 # inequalities: nothing else to warm)
@@ -115,14 +117,26 @@ def point(scene, disc, options: IpoptOptions, start):
     return nlp, solver, p, kw
 
 
-def unpinned(result):
+def unpinned(result, nlp=None, tol: float | None = None):
     """The result in the unpinned NLP's layout (as the front door's), the pin's multiplier (IPOPT's
     scaled units) in ``extra["translation_multiplier"]``: the certificate recomputed stationarity
-    without the row, so a pin that held a non-stationary position shows as kkt_residual."""
+    without the row, so a pin that held a non-stationary position shows as kkt_dual. With the point's
+    ``nlp`` (its f_scale) and IPOPT's ``tol``: ``kkt_dual_pinned``, the same residual with the row's
+    force f_scale lambda_pin c (r = -f_scale lambda_pin c at IPOPT's point), and ``pin_held``: the
+    row's force is what fails the test (kkt_dual_pinned within KKT_FACTOR tol, kkt_dual above it;
+    ``mesh.band_start.held``: only then does a re-mesh about the result help)."""
     if result.lam_g is None or result.lam_g.size < 3:
         return result
-    return dataclasses.replace(result, lam_g=result.lam_g[:-1],
-                               extra={**result.extra, "translation_multiplier": float(result.lam_g[-1])})
+    lam = float(result.lam_g[-1])
+    extra = {**result.extra, "translation_multiplier": lam}
+    if nlp is not None and tol is not None and np.isfinite(extra.get("kkt_dual", np.nan)):
+        disc, m = nlp.disc, nlp.scene.model
+        force = nlp.f_scale * lam * pin_row(disc)[:-1]
+        pinned = kkt_dual_with(disc, result.phi, m.epsilon, m.C, m.rigidity, result.lambda_volume,
+                               result.lambda_area, force, extra["kkt_dual_scale"])
+        extra.update(kkt_dual_pinned=pinned,
+                     pin_held=bool(pinned <= KKT_FACTOR * tol < extra["kkt_dual"]))
+    return dataclasses.replace(result, lam_g=result.lam_g[:-1], extra=extra)
 
 
 def _mirrored(pattern):

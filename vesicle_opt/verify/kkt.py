@@ -91,6 +91,15 @@ def kkt_dual_report(disc, phi, epsilon, C, rigidity, lam_A, lam_B, grads=None) -
             "kkt_dual_scale": scale, "kkt_dual_net": num / max(net, tiny)}
 
 
+def kkt_dual_with(disc, phi, epsilon, C, rigidity, lam_A, lam_B, force: np.ndarray, scale: float) -> float:
+    """|r + force|_nat / scale: ``kkt_dual`` (``scale`` its denominator, ``kkt_dual_scale``) of the
+    problem with one more row, ``force`` that row's multiplier times its gradient (the axial pin's,
+    ``nlp.reuse.unpinned``)."""
+    dE, dA, dB = F.gradients(disc, phi, epsilon, C)
+    r = rigidity * dE - lam_A * dA - lam_B * dB + force
+    return natural_metric(disc, epsilon).dual_norm(r) / max(scale, np.finfo(float).tiny)
+
+
 def kkt_dual(disc, phi, epsilon, C, rigidity, lam_A, lam_B, grads=None) -> tuple[float, float]:
     """(kkt_dual, its round-off floor ``dual_floor``) in the natural norm (module docstring)."""
     rep = kkt_dual_report(disc, phi, epsilon, C, rigidity, lam_A, lam_B, grads)
