@@ -1,0 +1,109 @@
+"""``branch.ordinary_fold``: an ordinary fold continued in a second parameter, with another mode
+negative on both of its sheets (as the pair of droplets' rotation below nu_c), on closed forms;
+the vesicle's fold line against independent walks (slow)."""
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vesicle_opt.branch import ordinary_fold as of
+from vesicle_opt.branch.events import Point
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+# an orthogonal mixing of the three coordinates: the fold's null vector on no axis of u
+R, _ = np.linalg.qr(np.array([[2.0, 1.0, 0.5], [-1.0, 1.5, 1.0], [0.3, -0.7, 2.0]]))
+ERR = 1e-6  # the toy's eigenvalue bound: the size the vesicle's check gives at its folds (1.3e-6 - 1.7e-6)
+
+
+class Toy:
+    """E(u; p, q) = e(R^T u), e(x, y, z) = f(x; p, q) + k(p, q) y^2/2 - z^2/2 (the branch y = z = 0):
+    the z mode negative everywhere (the least eigenvalue never changes sign); the critical one f''
+    (a fold) or k (a branch point). ``free(q)``: Newton on ``branch.bordered``'s system, p free."""
+
+    def __init__(self, f, fx, fxx, fxp, k=lambda p, q: 1.0, kp=lambda p, q: 0.0):
+        self.f, self.fx, self.fxx, self.fxp, self.k, self.kp = f, fx, fxx, fxp, k, kp
+        self.weights, self.solves = np.ones(3), 0
+
+    def free(self, q):
+        def point(u_pred, p_pred, t_u, t_p, theta):
+            self.solves += 1
+            u, p = np.array(u_pred, float), float(p_pred)
+            for _ in range(60):
+                x, y, z = R.T @ u
+                J = np.zeros((4, 4))
+                J[:3, :3] = R @ np.diag([self.fxx(x, p, q), self.k(p, q), -1.0]) @ R.T
+                J[:3, 3] = R @ np.array([self.fxp(x, p, q), self.kp(p, q) * y, 0.0])
+                J[3, :3], J[3, 3] = theta**2 * t_u, t_p
+                g = R @ np.array([self.fx(x, p, q), self.k(p, q) * y, -z])
+                d = np.linalg.solve(J, -np.concatenate([g, [theta**2 * (u - u_pred) @ t_u + (p - p_pred) * t_p]]))
+                u, p = u + d[:3], p + d[3]
+                if np.abs(d).max() < 1e-14 * max(1.0, np.abs(u).max(), abs(p)):  # round-off of the solve
+                    x, y, z = R.T @ u
+                    mu = tuple(np.linalg.eigvalsh(R @ np.diag([self.fxx(x, p, q), self.k(p, q), -1.0]) @ R.T))
+                    return Point(p, u, self.f(x, p, q) + self.k(p, q) * y**2 / 2 - z**2 / 2, mu, (ERR,) * 3)
+            return None
+        return point
+
+
+def cusp():
+    """f = x^4/4 - q x^2/2 - p x: p = x^3 - q x folds where 3x^2 = q, at x_f = sqrt(q/3),
+    p_f(q) = -(2q/3) sqrt(q/3), E_f = q^2/12 (the sheets above p_f); no fold for q < 0 (the cusp)."""
+    return Toy(lambda x, p, q: x**4 / 4 - q * x**2 / 2 - p * x, lambda x, p, q: x**3 - q * x - p,
+               lambda x, p, q: 3 * x**2 - q, lambda x, p, q: -1.0)
+
+
+def p_fold(q):
+    return -(2 * q / 3) * math.sqrt(q / 3)
+
+
+def start(q, half=0.2):
+    xf = math.sqrt(q / 3)
+    return R @ np.array([xf - half, 1.0, 0.0]), R @ np.array([xf + half, 1.0, 0.0])
+
+
+def test_the_fold_line_of_the_cusp_is_its_closed_form():
+    """Continued from q = 1 to 1.5, 2 and down to 0.5, 0.25: each fold p_f(q) to round-off, E_f =
+    q^2/12, the critical eigenvalue the second (the z mode below it on both sheets) and zero to its
+    bound, both sheets' points above p_f (the parameter turns), the parabola's vertex the same."""
+    toy = cusp()
+    a, b = start(1.0)
+    folds = of.line(toy, 1.0, (a + b) / 2, p_fold(1.0) + 0.01, (b - a) / np.linalg.norm(b - a), 0.2,
+                    [1.5, 2.0, 0.5, 0.25])
+    assert [f.q for f in folds] == [1.0, 1.5, 2.0, 0.5, 0.25] and all(f.converged for f in folds)
+    for f in folds:
+        # |mu| <= 1e-6 puts x within mu / (2 sqrt(3q)) of x_f and p within sqrt(3q) (x - x_f)^2 <= 3e-13 of p_f
+        assert abs(f.p - p_fold(f.q)) < 1e-12 and abs(f.energy - f.q**2 / 12) < 1e-12, (f.q, f.p, f.energy)
+        assert f.critical == 1 and abs(f.eigenvalue) <= f.error and f.point.eigenvalues[0] == pytest.approx(-1.0)
+        assert min(f.sheets) > f.p  # the sheets on one side of p_f: a turn
+        # the parabola through s = -h_a, 0, h_b (s = x - x_f, h_a + h_b = 2h: the ends at sigma = -+h)
+        # misses p = p_f + sqrt(3q) s^2 + s^3 by a vertex shift (h_a h_b)^2 / (4 (sqrt(3q) + h_b - h_a)),
+        # at most h^4 / (4 (sqrt(3q) - 2h)) (measured: 0.06-1.0 of the symmetric ends' h^4 / (4 sqrt(3q)))
+        h = f.chord[1]
+        assert abs(f.vertex - f.p) <= h**4 / (4 * (math.sqrt(3 * f.q) - 2 * h)), (f.q, f.vertex, f.p)
+    assert max(f.solves for f in folds) <= 2 + of.ev.MAX_LOCATE  # the bracket's two, then Illinois (5-9)
+
+
+def test_past_the_cusp_the_line_ends_with_its_reason():
+    """Below q = 0 there is no fold: the direction ends there, said why, with no p."""
+    toy = cusp()
+    a, b = start(0.5)
+    folds = of.line(toy, 0.5, (a + b) / 2, p_fold(0.5), (b - a) / np.linalg.norm(b - a), 0.2, [0.1, -0.3, -0.5])
+    assert [f.q for f in folds] == [0.5, 0.1, -0.3]  # -0.5 not tried after the failure
+    assert all(f.converged for f in folds[:2]) and abs(folds[1].p - p_fold(0.1)) < 1e-12
+    last = folds[-1]
+    assert not last.converged and last.p is None and "no fold" in last.reason
+
+
+def test_an_index_change_without_a_turn_is_not_a_fold():
+    """f = (x - p)^2/2, k = p - 0.3: the branch x = p is monotone in p and k crosses zero at p = 0.3
+    (a branch point): located there, refused as a fold (the sheets on both sides of it)."""
+    toy = Toy(lambda x, p, q: (x - p) ** 2 / 2, lambda x, p, q: x - p, lambda x, p, q: 1.0,
+              lambda x, p, q: -1.0, k=lambda p, q: p - 0.3, kp=lambda p, q: 1.0)
+    a, b = R @ np.array([0.25, 0.0, 0.0]), R @ np.array([0.35, 0.0, 0.0])
+    f = of.locate(toy, 0.0, (a + b) / 2, 0.3, (b - a) / np.linalg.norm(b - a), 0.05)
+    assert not f.converged and f.p is None and "does not turn" in f.reason
+    assert f.sheets == pytest.approx((0.25, 0.35), abs=1e-14)  # p = x on the hyperplanes x = 0.3 -+ 0.05
