@@ -107,3 +107,49 @@ def test_an_index_change_without_a_turn_is_not_a_fold():
     f = of.locate(toy, 0.0, (a + b) / 2, 0.3, (b - a) / np.linalg.norm(b - a), 0.05)
     assert not f.converged and f.p is None and "does not turn" in f.reason
     assert f.sheets == pytest.approx((0.25, 0.35), abs=1e-14)  # p = x on the hyperplanes x = 0.3 -+ 0.05
+
+
+def _pair(nu):
+    from test_run import raw_scene
+
+    from vesicle_opt.scene.schema import from_dict
+    raw = raw_scene(n=48, eps=0.4, second_order=True, initial={"shape": "ellipse", "semi_axes": [1.6, 0.9]})
+    raw["constraints"]["reduced_volume"] = nu
+    return from_dict(raw, "ellipse-c0")
+
+
+@pytest.mark.slow
+def test_the_pairs_fold_line_below_nu_c_agrees_with_an_independent_walk(tmp_path):
+    """The 2D pair of droplets (FD 48^2, eps 0.4) walked in c0 at nu = 0.78: below nu_c ~ 0.802 its
+    first fold is ordinary (the relative translation's eigenvalue crosses zero while the rotation's
+    stays negative: index 1 -> 2), continued to nu = 0.77 against the walk at 0.77 (its own bracket,
+    its own chord location) and the vertex of p(s) through that walk's three points round the turn
+    (no eigenvalue). Measured: 0.7269758050166 vs 0.7269758050201 (chord), 0.7269733 (vertex)."""
+    import csv
+
+    from vesicle_opt.branch import branch
+    from vesicle_opt.branch import events as ev
+    from vesicle_opt.branch.ordinary_fold_vesicle import from_branch
+    walks = {nu: branch(_pair(nu), "c0", to=2.5, step=0.1, max_points=45, switch=False, out=tmp_path / f"{nu}")
+             for nu in (0.78, 0.77)}
+    folds = from_branch(walks[0.78], "reduced_volume", [0.77])  # auto: the walk's fold was on the chord
+    assert [f.q for f in folds] == [0.78, 0.77] and all(f.converged and f.kind == "ordinary" for f in folds)
+    rows = list(csv.DictReader(open(tmp_path / "0.78" / "fold_line.csv")))
+    assert [r["fold_kind"] for r in rows] == ["ordinary"] * 2 and [r["located_by"] for r in rows] == ["chord"] * 2
+    for f in folds:
+        assert abs(f.eigenvalue) <= f.error < 5e-6  # zero to its bound (measured |mu| 1e-8..1.5e-7, bounds 1.6e-6)
+        assert f.critical == 1 and f.point.eigenvalues[0] < -100 * f.point.errors[0]  # the rotation, negative
+        assert max(f.sheets) < f.p  # both sheets' points below the fold: the parameter turns
+        # the vertex of p(sigma) through the two sheets' points and the fold: O(h^3) of the ends
+        # (measured 1.5e-8, 8.6e-8); 1e-5 is the walk's own vertex error below
+        assert abs(f.vertex - f.p) < 1e-5
+    other = walks[0.77]
+    chord = [r for r in other.located(0) if r["event"] == "fold"][0]
+    assert chord["located_by"] == "chord"
+    # two locations to the eigenvalue's bound: p - p_f ~ (mu / mu')^2, ~1e-11 (measured 3.5e-12)
+    assert abs(folds[1].p - chord["target"]) < 1e-9, (folds[1].p, chord["target"])
+    pts = [ev.Point(r["target"], other.field(r["point"])["phi"], r["energy"], ()) for r in other.points(0)]
+    k = ev.turns(pts)[0]
+    vx = ev.locate_fold_parabola(pts[k - 1:k + 2], np.full(pts[0].phi.size, (8 / 48) ** 2), 1.0)
+    # the walked points' vertex is O(ds^3) of the walk's steps: measured 2.5e-6 here, 3.3e-6 and 6.4e-6 at 0.78, 0.76
+    assert abs(folds[1].p - vx.p) < 2e-5, (folds[1].p, vx.p)
