@@ -170,3 +170,55 @@ def test_the_pairs_fold_line_below_nu_c_agrees_with_an_independent_walk(tmp_path
     vx = ev.locate_fold_parabola(pts[k - 1:k + 2], np.full(pts[0].phi.size, (8 / 48) ** 2), 1.0)
     # the walked points' vertex is O(ds^3) of the walk's steps: measured 2.5e-6 here, 3.3e-6 and 6.4e-6 at 0.78, 0.76
     assert abs(folds[1].p - vx.p) < 2e-5, (folds[1].p, vx.p)
+
+
+def test_auto_picks_the_method_by_how_the_walk_located_its_fold(monkeypatch, tmp_path):
+    """auto: a fold the walk located on the chord (an index change) is continued as ordinary, a turn
+    it saw with no index change (parabola) as symmetric; ordinary asked for with no chord fold is no
+    line; a kind the scene cannot run is refused before any work."""
+    from types import SimpleNamespace
+
+    from vesicle_opt.branch import ordinary_fold_vesicle as ofv
+    from vesicle_opt.errors import InputError
+    calls = []
+    monkeypatch.setattr(ofv.sf, "from_branch", lambda b, *a, **k: calls.append("symmetric") or ["s"])
+    monkeypatch.setattr(ofv, "line", lambda *a, **k: calls.append("ordinary") or [])
+    monkeypatch.setattr(ofv, "_ordinary_start", lambda b, row: ({"point": 0}, {"point": 1}))
+
+    def run(located_by, kind, scene=None):
+        rows = [{"event": "branch point", "located_by": "illinois"}, {"event": "fold", "located_by": located_by,
+                                                                       "target": 0.73, "detected_at": 1}]
+        b = SimpleNamespace(scene=scene or _pair(0.8), param="c0", out=tmp_path, located=lambda k: rows,
+                            field=lambda k: {"phi": np.zeros(3)})
+        calls.clear()
+        out = ofv.from_branch(b, "reduced_volume", [0.79], kind=kind)
+        return calls[:], out
+    assert run("chord", "auto")[0] == ["ordinary"]
+    assert run("parabola", "auto")[0] == ["symmetric"]
+    assert run("chord", "symmetric")[0] == ["symmetric"]
+    assert run("parabola", "ordinary") == ([], [])
+    # a 3D grid has no symmetric turn's line (2D only): auto continues the chord's fold as ordinary,
+    # a turn no more; a spectral grid has no IPOPT (the bordered corrector): auto goes symmetric
+    cube = _grid(dim=3)
+    assert run("chord", "auto", cube)[0] == ["ordinary"] and run("parabola", "auto", cube) == ([], [])
+    with pytest.raises(InputError, match="mesh.kind"):
+        run("chord", "symmetric", cube)
+    spectral = _grid(kind="spectral")
+    assert run("chord", "auto", spectral)[0] == ["symmetric"]
+    with pytest.raises(InputError, match="backend"):
+        run("chord", "ordinary", spectral)
+    with pytest.raises(InputError, match="--fold-kind"):
+        run("chord", "both")
+
+
+def _grid(dim=2, kind="fd"):
+    from test_run import raw_scene
+
+    from vesicle_opt.scene.schema import from_dict
+    raw = raw_scene(n=16, eps=0.8, second_order=True, initial={"shape": "ellipse", "semi_axes": [1.6, 0.9]})
+    raw["mesh"]["kind"] = kind
+    if dim == 3:
+        raw["domain"]["box"] = [[-4.0, 4.0]] * 3
+        raw["initial"] = {"shape": "ellipsoid", "semi_axes": [1.6, 0.9, 0.9]}
+        raw["constraints"]["area"] = 20.0
+    return from_dict(raw, "grid")
