@@ -143,6 +143,10 @@ def _cli(args, capsys):
       "--set", 'domain.boundary="natural"'], "mesh.kind"),
     (["--param", "reduced_volume", "--to", "0.8", "--fold-line", "--transition", "initial.semi_axes=[1.3,1.1]",
       "--second", "c0", "--values", "0.1"], "--fold-line"),
+    (["--param", "c0", "--to", "0.5", "--fold-line", "--fold-kind", "ordinary", "--second", "reduced_volume",
+      "--values", "0.8,0.9"], "solver.second_order"),
+    (["--param", "c0", "--to", "0.5", "--fold-line", "--fold-kind", "ordinary", "--second", "reduced_volume",
+      "--values", "0.8,0.9", "--set", 'mesh.kind="spectral"', "--set", "solver.second_order=true"], "backend"),
 ])
 def test_bad_input_is_one_line_exit_2_before_any_work(tmp_path, capsys, args, flag):
     toml = tmp_path / "s.toml"

@@ -18,7 +18,9 @@
   recognition of a known branch (``symmetry``: the grid's images of a field); ``deflation``: other
   roots at the same parameter (Farrell et al. 2015); ``tree``: the recursive diagram, on a
   ``problem`` (``problem``: the rows side; ``vesicle``: the vesicle's correctors); ``lines``: fold
-  lines in a second parameter by sweeps of diagrams;
+  lines in a second parameter by sweeps of diagrams; ``symmetric_fold`` (a symmetric turn) and
+  ``ordinary_fold`` (a fold by its index change; ``ordinary_fold_vesicle.from_branch(b, second,
+  values, kind=)`` picks either for a walked run): a fold continued in a second parameter;
 * ``crossing``: where two branches cross (cubic splines) and its eps -> 0 extrapolation;
 * ``transition``: that crossing continued in a second parameter (a first-order transition line,
   e.g. prolate/oblate in (v, c0)); ``transition_store``: its CSV and fields, resumed;

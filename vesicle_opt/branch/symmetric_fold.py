@@ -48,6 +48,7 @@ import itertools
 import math
 import time
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import scipy.linalg as sla
@@ -173,6 +174,7 @@ class Turn:
     cpu: float
     point: ev.Point | None = dataclasses.field(default=None, repr=False)
     reason: str | None = None
+    kind: ClassVar[str] = "symmetric"  # fold_line.csv's fold_kind
 
     @property
     def converged(self) -> bool:
@@ -296,14 +298,18 @@ def line(scene, param: str, second: str, values, *, at: float, warm, dp: float =
     return out
 
 
-COLUMNS = LINE_COLUMNS + ["converged", "reason", "bracket", "asymmetry", "solves", "wall_time_s", "cpu_time_s"]
+COLUMNS = LINE_COLUMNS + ["converged", "reason", "bracket", "asymmetry", "solves", "wall_time_s", "cpu_time_s",
+                          "fold_kind", "critical", "sheet_a_target", "sheet_b_target", "vertex_target"]
+# fold_kind: "symmetric" (this module's turns) or "ordinary" (``branch.ordinary_fold``); the last four are
+# the ordinary fold's (the critical eigenvalue's position, p on its two sheets' points, the parabola's vertex)
 
 
 def from_branch(b, second: str, values, *, dp: float = 1e-3, options=None, progress=None) -> list[Turn]:
     """The line of the first located fold of a walked branch run ``b`` (``branch.run.Branch``, run
     with ``out``: its snapshots give the warm field, the walked point nearest the fold), continued
     in ``second`` to each of ``values``; ``out/fold_line.csv`` (``COLUMNS``: ``branch.lines``'
-    columns, ``located_by`` = ``symmetric``, and the line's own) where the run has ``out``. No
+    columns, ``located_by`` = ``symmetric``, and the line's own; ``fold_kind`` = ``symmetric``) where
+    the run has ``out``. No
     located fold: []."""
     folds = [r for r in b.located(0) if r["event"] == ev.FOLD]
     if not folds:
@@ -318,7 +324,8 @@ def from_branch(b, second: str, values, *, dp: float = 1e-3, options=None, progr
              "reduced_energy": None if t.point is None or t.p is None else t.point.payload.extra.get("reduced_energy"),
              "branch": 0, "located_by": "symmetric", "detected_at": None, "critical_eigenvalue": t.eigenvalue,
              "critical_error": t.error, "converged": t.converged, "reason": t.reason, "bracket": t.bracket,
-             "asymmetry": t.asymmetry, "solves": t.solves, "wall_time_s": t.wall, "cpu_time_s": t.cpu} for t in turns]
+             "asymmetry": t.asymmetry, "solves": t.solves, "wall_time_s": t.wall, "cpu_time_s": t.cpu,
+             "fold_kind": "symmetric"} for t in turns]
     with open(Path(b.out) / "fold_line.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, COLUMNS, lineterminator="\n")
         w.writeheader()

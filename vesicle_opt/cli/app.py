@@ -180,6 +180,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --second reduced_volume|c0 --values: walk the branch once, then continue its first "
                         "located fold (a symmetric turn of a periodic 2D grid) in --second, in its symmetric "
                         "subspace (branch.symmetric_fold; fold_line.csv)")
+    b.add_argument("--fold-kind", choices=("auto", "symmetric", "ordinary"), default="auto",
+                   help="with --fold-line: the fold's kind; symmetric: a symmetric turn (above); ordinary: a "
+                        "fold where one eigenvalue crosses zero while others stay negative, continued by its "
+                        "index change with p free (branch.ordinary_fold); auto (default): ordinary where the "
+                        "walk located the fold on the chord, symmetric where it saw a turn with no index change")
     b.add_argument("--transition", action="append", default=None, metavar="KEY=VALUE",
                    help="the other branch: the scene with these overrides too (e.g. initial.semi_axes=[1.3,1.3,0.5]); "
                         "with --second c0 --values, the energy crossing of the two branches in reduced_volume, "

@@ -163,8 +163,8 @@ def cmd_branch(args) -> int:
     check_line(args.param, args.second, args.values)
     sc = load_scene(args.scene, args.set)
     if args.fold_line:
-        from vesicle_opt.branch import symmetric_fold  # the line's module only
-        symmetric_fold.check(sc, args.param, args.second)
+        from vesicle_opt.branch import ordinary_fold_vesicle  # the line's module only
+        ordinary_fold_vesicle.check_kind(sc, args.param, args.second, args.fold_kind)
     sharp = None if args.sharp is None else sharp_reference(args.sharp, sc, args.param)  # checked first
 
     def show(row):
@@ -197,17 +197,19 @@ def cmd_branch(args) -> int:
 
 
 def _fold_line(args, sc, show) -> int:
-    """``branch ... --fold-line --second Q --values ...``: the branch walked once (no switch), its
-    first located fold continued in Q (``branch.symmetric_fold.from_branch``)."""
-    from vesicle_opt.branch import symmetric_fold  # the line's module only, as cmd_branch's check
+    """``branch ... --fold-line --second Q --values ... [--fold-kind auto|symmetric|ordinary]``: the
+    branch walked once (no switch), its first located fold continued in Q, a symmetric turn in its
+    symmetric subspace or an ordinary fold by its index change (``branch.ordinary_fold_vesicle.from_branch``)."""
+    from vesicle_opt.branch import ordinary_fold_vesicle  # the line's module only, as cmd_branch's check
     with _preflight(sc, args.out, choose_backend(sc)) as out:
         b = follow_branch(sc, args.param, args.to, args.step, out, progress=show, switch=False)
 
         def turn(t):
             how = f"{args.param} = {t.p:.8g}, eigenvalue {t.eigenvalue:.3g} (bound {t.error:.3g})" \
                 if t.converged else f"not found ({t.reason})"
-            print(f"fold at {args.second} = {t.q:.6g}: {how}, {t.solves} solves, {t.wall:.1f} s", file=sys.stderr)
-        turns = symmetric_fold.from_branch(b, args.second, args.values, progress=turn)
+            print(f"{t.kind} fold at {args.second} = {t.q:.6g}: {how}, {t.solves} solves, {t.wall:.1f} s",
+                  file=sys.stderr)
+        turns = ordinary_fold_vesicle.from_branch(b, args.second, args.values, kind=args.fold_kind, progress=turn)
     if not turns:
         print(f"{sc.name}: no fold located on the branch in {args.param} -> {args.out}/branch.csv")
         return 1
