@@ -6,12 +6,13 @@ The prolate branch at c0 = 0 from v = 0.8 down in steps of ``DV`` on one refined
 front door warm from the points before it, solved three times on the same target from the same points:
 
 * ``old``: the secant in the NLP vector x (2 x_1 - x_0) and the second-order check's LU of the whole
-  bordered matrix (``verify.shift_invert.factorise`` switched off), scipy's default ARPACK ncv;
+  bordered matrix (``verify.shift_invert.factorise`` switched off), scipy's default ARPACK ncv,
+  MUMPS's default ordering;
 * ``schur``: ``nlp.predict.interface_secant`` and the Schur-complement check by SuperLU's LU of
-  H - sM (``factorise(ldl_first=False)``), scipy's default ncv;
-* ``new``: the parabola through the last three points (``nlp.predict.interface_extrapolation``) and
-  the Schur-complement check by the LDL^T kept per pattern (``verify.ldl``, where the extra ``ldl``
-  loads), ncv ``second_order.NCV``.
+  H - sM (``factorise(ldl_first=False)``), scipy's default ncv, MUMPS's default ordering;
+* ``new``: the parabola through the last three points (``nlp.predict.interface_extrapolation``),
+  MUMPS ordered by QAMD (``nlp.reuse.ORDERING``), and the Schur-complement check by the LDL^T kept
+  per pattern (``verify.ldl``, where the extra ``ldl`` loads) with ncv ``second_order.NCV``.
 
 (The Hessian functions and pattern cached per solver, ``nlp.reuse.derivatives``, serve all three.)
 The walk goes on from the ``new`` point. A row per solve: ``mode``, ``reduced_volume``, ``cpu_s``
@@ -41,6 +42,8 @@ from pathlib import Path
 from vesicle_opt.api import solve
 from vesicle_opt.io.meridian import phase_field_of
 from vesicle_opt.mesh import discretize
+from vesicle_opt.nlp import reuse
+from vesicle_opt.nlp.ipopt import IpoptOptions
 from vesicle_opt.nlp.predict import interface_extrapolation, interface_secant
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp
@@ -76,6 +79,7 @@ def _setting(mode: str) -> None:
     shift_invert.factorise = {"old": lambda *args, **kw: None,  # the bordered LU instead
                               "schur": lambda *args, **kw: real(*args, ldl_first=False)}.get(mode, real)
     second_order.NCV = _REAL["ncv"] if mode == "new" else None
+    reuse.ORDERING = _REAL["ordering"] if mode == "new" else ()  # a solver of its own (``reuse.parametric``)
 
 
 def _start(mode: str, walk: list):
@@ -105,7 +109,8 @@ def _walk(case: dict) -> list[dict]:
     a = solve(first, x0=a)  # on the band about its own interface
     walk = [a, solve(scene(V0 - DV), x0=a)]
     walk.append(solve(scene(V0 - 2 * DV), x0=interface_secant(*walk)))  # three points: the parabola's start
-    _REAL.update(factorise=shift_invert.factorise, ncv=second_order.NCV, check=second_order.check)
+    _REAL.update(factorise=shift_invert.factorise, ncv=second_order.NCV, check=second_order.check,
+                 ordering=reuse.ORDERING)
     captured: dict = {}
 
     def capture(*args, **kw):  # the check's arguments, for ``min_eigenvalue_lu``
@@ -114,6 +119,9 @@ def _walk(case: dict) -> list[dict]:
     rows = []
     try:
         second_order.check = capture
+        for mode in MODES:  # each ordering's IPOPT solver built before the timed solves
+            _setting(mode)
+            reuse.parametric(walk[-1].scene, walk[-1].disc, IpoptOptions.from_scene(walk[-1].scene), True)
         for k in range(3, points + 3):
             v = V0 - k * DV
             for mode in MODES:
