@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
 from vesicle_opt.mesh.axisymmetric import axial_translation
 from vesicle_opt.mesh.spectral import FourierGrid
@@ -137,6 +138,15 @@ def _eigenpairs(H, B, J, Aop, Mphi, C_rows, mu_ref, n, nx, n_eig):
 
 
 def check(nlp, result, n_eig: int = N_EIG, derivatives=None, pin=None) -> SecondOrder:
+    """``_check`` (below) with one BLAS thread: its dense work is ARPACK's Krylov basis and vector
+    products, where a second OpenBLAS thread only spin-waits on a busy machine, as in ``nk.solve``
+    (measured, refined meridian prolate at eps/R0 = 0.02, 20.3 k nodes, OMP_NUM_THREADS=2, load
+    ~19 on 2 cores, 6 points: check median 3.48 s wall with the default threads against 1.01 s)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _check(nlp, result, n_eig, derivatives, pin)
+
+
+def _check(nlp, result, n_eig: int = N_EIG, derivatives=None, pin=None) -> SecondOrder:
     """Smallest eigenvalues by shift-invert Lanczos (ARPACK) on the bordered system
 
         [[H - sigma B, J^T], [J, 0]] [u; y] = [M r; 0],   B = blockdiag(M, 0 for w),
