@@ -12,7 +12,8 @@ front door warm from the points before it, solved three times on the same target
   H - sM (``factorise(ldl_first=False)``), scipy's default ncv, MUMPS's default ordering;
 * ``new``: the parabola through the last three points (``nlp.predict.interface_extrapolation``),
   MUMPS ordered by QAMD (``nlp.reuse.ORDERING``), and the Schur-complement check by the LDL^T kept
-  per pattern (``verify.ldl``, where the extra ``ldl`` loads) with ncv ``second_order.NCV``.
+  per pattern (``verify.ldl``, where the extra ``ldl`` loads) with ncv ``second_order.NCV``, on one
+  BLAS thread (``second_order.check``; the other modes run ``second_order._check`` on all of them).
 
 (The Hessian functions and pattern cached per solver, ``nlp.reuse.derivatives``, serve all three.)
 The walk goes on from the ``new`` point. A row per solve: ``mode``, ``reduced_volume``, ``cpu_s``
@@ -113,9 +114,9 @@ def _walk(case: dict) -> list[dict]:
                  ordering=reuse.ORDERING)
     captured: dict = {}
 
-    def capture(*args, **kw):  # the check's arguments, for ``min_eigenvalue_lu``
+    def capture(*args, **kw):  # the check's arguments, for ``min_eigenvalue_lu``; old modes: all BLAS threads
         captured.update(args=args, kw=kw)
-        return _REAL["check"](*args, **kw)
+        return (_REAL["check"] if captured["mode"] == "new" else second_order._check)(*args, **kw)
     rows = []
     try:
         second_order.check = capture
@@ -128,6 +129,7 @@ def _walk(case: dict) -> list[dict]:
                 _setting(mode)
                 start = _start(mode, walk)
                 captured.clear()
+                captured["mode"] = mode
                 c0, w0 = time.process_time(), time.perf_counter()
                 res = solve(scene(v), x0=start)
                 cpu, wall = time.process_time() - c0, time.perf_counter() - w0
@@ -138,7 +140,7 @@ def _walk(case: dict) -> list[dict]:
                        "ipopt_wall_s": res.wall_time_s, "check_wall_s": res.extra.get("second_order_time_s"),
                        "verdict": res.extra.get("second_order"), "load_average": os.getloadavg()[0],
                        "min_eigenvalue": so, "error_bound": res.extra.get("second_order_error_bound")}
-                if mode == "new" and captured and so is not None:
+                if mode == "new" and "args" in captured and so is not None:
                     row["min_eigenvalue_lu"] = lu = _lu_check(captured)
                     row["eigenvalue_gap"] = abs(so - lu) / row["error_bound"] if row["error_bound"] else None
                 rows.append(row)
