@@ -88,3 +88,13 @@ def test_the_check_through_the_ldl_reports_the_lu_eigenvalues(sets, verdict, mon
     # one pencil's eigenvalues through two factorisations: apart by round-off, below the check's own
     # error bound (here its floor eps ||M^-1 H||, 1.3e-12 mu_ref at the saddle; measured 6e-14 apart)
     assert np.abs(np.subtract(new.eigenvalues, old.eigenvalues)).max() < new.residual
+
+
+def test_a_large_factor_is_not_kept(monkeypatch):
+    H, m = _problem()
+    ldl.clear()
+    monkeypatch.setattr(ldl, "KEEP_FILL", 10)  # every factor is "large" (this one has ~600 nonzeros)
+    f = ldl.factor(H, m, -1.0)
+    assert ldl._CACHE == []
+    b = np.ones(H.shape[0])
+    assert np.linalg.norm(H @ f.solve(b) + m * f.solve(b) - b) < 1e-9 * np.linalg.norm(b)  # still solves

@@ -15,7 +15,8 @@ therefore tests every factorisation by the residual of a bordered solve and fall
 pivoted LU. The update path runs the same numeric code on the same permuted values as a first
 factorisation, so a reused analysis gives bitwise the same factors as a fresh one.
 
-A ``Factor`` refers to its pattern's one solver: factorising again on that pattern (the next point,
+Patterns whose factor is larger than ``KEEP_FILL`` are not kept. A ``Factor`` refers to its
+pattern's one solver: factorising again on that pattern (the next point,
 or the check's next shift) makes the earlier ``Factor`` stale, and its ``solve`` raises rather than
 answer for another matrix.
 """
@@ -30,6 +31,7 @@ import scipy.sparse as sp
 from vesicle_opt import extras
 
 PATTERNS = 2  # patterns kept (LRU): one mesh's along a walk, and the mesh a re-mesh moves to (~16 MB each at 20 k nodes)
+KEEP_FILL = 20_000_000  # a pattern whose L has more nonzeros (~240 MB) is not kept: its factors die with the check
 _CACHE: list = []  # [_Pattern], most recently used last
 
 
@@ -129,6 +131,8 @@ def factor(H, m: np.ndarray, shift: float) -> Factor | None:
     try:
         if pat.solver is None:
             pat.solver = qdldl.Solver(K, upper=True)
+            if pat.solver.factors()[0].nnz > KEEP_FILL and pat in _CACHE:
+                _CACHE.remove(pat)  # too large to hold between checks (the Factor keeps it while in use)
         else:
             pat.solver.update(K, upper=True)
     except (RuntimeError, ValueError):

@@ -6,7 +6,7 @@ must be positive semi-definite on the tangent space T = {v : dA.v = 0, dB.v = 0}
 minimiser. ``check`` computes the quantity of ``verify.verdict`` (the smallest eigenvalues of
 H v = mu M v on T, over mu_ref) by shift-invert Lanczos on a bordered sparse system (consistent
 mass: the Hessian reduced to phi with w = Delta_h phi through the NLP's own linear rows; lumped
-mass: one LU of H - sigma M and the Schur complement on the constraint columns,
+mass: one factorisation of H - sigma M (LDL^T kept per pattern, or LU) and the Schur complement on the constraint columns,
 ``verify.shift_invert``), and decides with ``verdict.classify``, the rule the matrix-free check (``verify.lobpcg``) uses too.
 
 Excluded modes (``SecondOrder.excluded``, ``verdict``'s docstring): on periodic grids the spectral
@@ -115,7 +115,7 @@ def _floor(reduced, Mphi, solve_mass, n: int, steps: int = POWER_STEPS) -> float
 
 def _eigenpairs(H, B, J, Aop, Mphi, C_rows, mu_ref, n, nx, n_eig):
     """Shift-invert Lanczos (ARPACK) from sigma = -mu_ref / 2, moved below the least eigenvalue found
-    until none lies below it (``check``); on lumped meshes the bordered solve by one LU of H - sigma M
+    until none lies below it (``check``); on lumped meshes the bordered solve by one factorisation of H - sigma M
     and the Schur complement (``shift_invert.factorise``; the bordered LU where that fails).
     Returns (mu, vectors)."""
     pad = np.zeros(J.shape[0] + nx - n)
