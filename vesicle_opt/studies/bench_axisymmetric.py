@@ -12,8 +12,9 @@ front door warm from the points before it, solved three times on the same target
   H - sM (``factorise(ldl_first=False)``), scipy's default ncv, MUMPS's default ordering;
 * ``new``: the parabola through the last three points (``nlp.predict.interface_extrapolation``),
   MUMPS ordered by QAMD (``nlp.reuse.ORDERING``), and the Schur-complement check by the LDL^T kept
-  per pattern (``verify.ldl``, where the extra ``ldl`` loads) with ncv ``second_order.NCV``, on one
-  BLAS thread (``second_order.check``; the other modes run ``second_order._check`` on all of them).
+  per pattern (``verify.ldl``, where the extra ``ldl`` loads) with ncv ``second_order.NCV``, numpy's
+  BLAS on one thread in the solve and the check (``api.REFINED_BLAS_THREADS``, ``second_order.check``;
+  the other modes run on all of them, the check as ``second_order._check``).
 
 (The Hessian functions and pattern cached per solver, ``nlp.reuse.derivatives``, serve all three.)
 The walk goes on from the ``new`` point. A row per solve: ``mode``, ``reduced_volume``, ``cpu_s``
@@ -40,6 +41,7 @@ import sys
 import time
 from pathlib import Path
 
+from vesicle_opt import api
 from vesicle_opt.api import solve
 from vesicle_opt.io.meridian import phase_field_of
 from vesicle_opt.mesh import discretize
@@ -81,6 +83,7 @@ def _setting(mode: str) -> None:
                               "schur": lambda *args, **kw: real(*args, ldl_first=False)}.get(mode, real)
     second_order.NCV = _REAL["ncv"] if mode == "new" else None
     reuse.ORDERING = _REAL["ordering"] if mode == "new" else ()  # a solver of its own (``reuse.parametric``)
+    api.REFINED_BLAS_THREADS = _REAL["threads"] if mode == "new" else None
 
 
 def _start(mode: str, walk: list):
@@ -111,7 +114,7 @@ def _walk(case: dict) -> list[dict]:
     walk = [a, solve(scene(V0 - DV), x0=a)]
     walk.append(solve(scene(V0 - 2 * DV), x0=interface_secant(*walk)))  # three points: the parabola's start
     _REAL.update(factorise=shift_invert.factorise, ncv=second_order.NCV, check=second_order.check,
-                 ordering=reuse.ORDERING)
+                 ordering=reuse.ORDERING, threads=api.REFINED_BLAS_THREADS)
     captured: dict = {}
 
     def capture(*args, **kw):  # the check's arguments, for ``min_eigenvalue_lu``; old modes: all BLAS threads
