@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from threadpoolctl import threadpool_limits
+
 from vesicle_opt import nk_jax, resources
 from vesicle_opt.backends import METHODS, choose_backend, reason
 from vesicle_opt.errors import InputError, NotSupported, SolverError
@@ -65,6 +67,9 @@ from vesicle_opt.verify import band, lobpcg, second_order, shape, topology, verd
 EXACT_METHODS = ("exact", "augmented")
 
 log = logging.getLogger(__name__)  # one INFO line per phase of a solve (the CLI shows them; -q hides them)
+REFINED_BLAS_THREADS = 1  # numpy's BLAS threads in a refined mesh's IPOPT solve and certificate (vector
+# products: a second OpenBLAS thread only spin-waits on a busy machine; measured, 20.3 k-node meridian
+# points, OMP_NUM_THREADS=2, load ~13: 1.06 -> 0.87 s CPU, 2.5 -> 2.1 s wall a point); None: no limit
 
 
 def _log_start(scene, chosen: str, backend: str | None, n_nodes: int) -> None:
@@ -222,7 +227,8 @@ def _solve(problem, backend, method, x0, options, remesh: bool = False) -> Resul
             opts = options or IpoptOptions.from_scene(scene)
             nlp, solver, p, start = reuse.point(scene, disc, opts, x0)
             _log_start(scene, chosen, backend, disc.n_nodes)
-            result = reuse.unpinned(solve_exact(nlp, solver=solver, options=opts, p=p, **start), nlp, opts.tol)
+            with threadpool_limits(limits=REFINED_BLAS_THREADS, user_api="blas"):
+                result = reuse.unpinned(solve_exact(nlp, solver=solver, options=opts, p=p, **start), nlp, opts.tol)
             derivs = reuse.derivatives(nlp, solver, p)
             pin = reuse.pin_of(p, disc.n_nodes)  # the check's T: the solve's rows, the pin's included
         else:

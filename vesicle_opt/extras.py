@@ -23,7 +23,7 @@ import sys
 
 from vesicle_opt.errors import InputError
 
-EXTRAS = {"pyfftw": "fftw", "jax": "jax"}  # module -> the extra of pyproject.toml that installs it
+EXTRAS = {"pyfftw": "fftw", "jax": "jax", "qdldl": "ldl"}  # module -> the extra of pyproject.toml that installs it
 PYFFTW_UNUSED = ("dask.array.fft", "scipy.fftpack")  # what pyfftw's interfaces wrap, never used here
 _outcome: dict[str, str | None] = {}  # module -> None (loads) or the import error, one line
 _warned: set[str] = set()
