@@ -145,7 +145,8 @@ def test_bulk_carried_sphere_is_wrong_shape_and_open_curves_are_not_measured():
     disc = _disc(60)
     r, z = disc.nodes.T
     w = disc.weights
-    t = _tanh(1 - np.hypot(r, z), eps)  # exact zeros at the nodes on rho = 1: one curve through them
+    t = _tanh(1 - np.hypot(r, z), eps)
+    assert np.any(t == 0)  # nodes on rho = 1 (h = 0.05): the curve passes through phi = 0 nodes
     phi = np.where(t < 0, (1 + delta) * t, t)
     check = shape.measure(disc, phi, eps, float(w @ phi), 1.0)
     ramp = delta * float(w[t < 0] @ (1 + t[t < 0])) / 2 / check.phase_field_volume

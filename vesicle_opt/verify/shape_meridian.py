@@ -19,9 +19,11 @@ need no chaining for the volume and the area:
   a torus 0 + 4 pi^2 R.
 
 A node where phi = 0 exactly is outside (as in ``io.meridian``); the cuts of its edges are that one
-point, which the curve passes once (one key per node). The field is closed only if every curve ends on the axis or returns to its start: a curve ending on
-the box's wall r = R or z = z0, z1 gives None (no closed surface), as a 2D contour leaving the box.
-Accuracy: the P1 interpolant's zero level is O(h^2) from the field's.
+point, which the curve passes once (one key per node). The field is closed only if every curve ends
+on the axis or returns to its start: a curve ending on the box's wall r = R or z = z0, z1 gives None
+(no closed surface), as a 2D contour leaving the box; so does a node where two inside sectors touch
+(the curve is not simple there). Accuracy: the P1 interpolant's zero level is O(h^2) from the
+field's (the closed forms of ``tests/verify/test_shape_meridian.py``).
 """
 
 from __future__ import annotations
@@ -30,11 +32,11 @@ import math
 
 import numpy as np
 
-AXIS_TOL = 1e-12  # r <= AXIS_TOL x the box's radius: a point on the axis (the cut of an axis edge is r = 0 exactly)
+AXIS_TOL = 1e-12  # r <= AXIS_TOL x the box radius: on the axis (the cut of an axis edge has r = 0 exactly)
 
 
 def _oriented_segments(p: np.ndarray, t: np.ndarray, phi: np.ndarray):
-    """(start keys, end keys, start points, end points): one segment per crossing triangle, the inside on its left."""
+    """(start keys, end keys, start points, end points): a segment per crossing triangle, inside on its left."""
     t = np.asarray(t, np.int64)
     inside = phi[t] > 0
     count = inside.sum(axis=0)
@@ -49,7 +51,8 @@ def _oriented_segments(p: np.ndarray, t: np.ndarray, phi: np.ndarray):
 
     def cut(i, j):  # the key of edge i-j, or of the node where phi = 0 exactly (its cuts are one point)
         s = phi[i] / (phi[i] - phi[j])
-        key = np.where(phi[i] == 0, n * n + i, np.where(phi[j] == 0, n * n + j, np.minimum(i, j) * n + np.maximum(i, j)))
+        edge = np.minimum(i, j) * n + np.maximum(i, j)
+        key = np.where(phi[i] == 0, n * n + i, np.where(phi[j] == 0, n * n + j, edge))
         return key, p[:, i] + (p[:, j] - p[:, i]) * s
 
     k1, P1 = cut(L, o1)
@@ -66,8 +69,8 @@ def _oriented_segments(p: np.ndarray, t: np.ndarray, phi: np.ndarray):
 def _turning(ks, ke, A, B, axis_r: float) -> float | None:
     """sum 2 pi r theta over the polyline's vertices (module docstring); None if a curve ends off the axis."""
     nxt = {int(a): i for i, a in enumerate(ks)}
-    if len(nxt) != len(ks):
-        return None  # a key starting two segments: not a simple curve
+    if len(nxt) != len(ks) or len(np.unique(ke)) != len(ke):
+        return None  # a key starting (ending) two segments: not a simple curve
     d = B - A
     length = np.hypot(d[0], d[1])
     angle = np.arctan2(d[1], d[0])
