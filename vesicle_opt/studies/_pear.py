@@ -50,6 +50,7 @@ from vesicle_opt.mesh import discretize, refine
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp_sym
 from vesicle_opt.sharp import spontaneous as S
+from vesicle_opt.verify.metrics import richardson
 
 C0 = 2.4  # literature c0 = C0 R0 (scene model.c0 = C0 / 2 at R0 = 1)
 PUBLISHED = (0.746, 0.107)  # SBL 1991, read off their figure (+-0.005 in v, +-0.01 in f)
@@ -67,7 +68,7 @@ WALL = 12.0  # walls this many eps from the seed's sharp shape (as the study's o
 MARGIN = 0.1  # and this much more room (R0 units) for the walk's shapes
 EPS_OVER_H = 4.0  # the band's spacing: the sphere's f is off 0.39 % at eps / h = 4 (docs/guide/axisymmetric.md)
 H0 = 0.12  # about this coarse cell side (levels = log2(H0 / h_fine), rounded)
-COLUMNS = ["neck_over_eps", "asymmetry", "nodes", "cpu_s"]
+COLUMNS = ["neck_over_eps", "neck_radius", "asymmetry", "nodes", "cpu_s", "chain"]
 
 
 def _num(v) -> float:
@@ -194,37 +195,93 @@ def sharp_case(case: dict) -> list[dict]:
                              reduced_volume=s.v, f=s.f, sharp_f=s.f, c0_reduced=C0, converged=s.converged,
                              kkt_residual=s.kkt_residual, asymmetry=asym, neck_over_eps=math.nan,
                              seed="symmetric shape + 0.3 sin 3s at v = 0.72" if b == "pear" else "c0 = 0 prolate",
-                             status=f"neck radius {neck:.5f}"))
+                             neck_radius=neck, status=f"neck radius {neck:.5f}"))
     sym = br["prolate_c2.4"]
     for n, pears in br["ladder"].items():
         if not all(q.converged for q in pears):
             continue
         x = crossing([q.v for q in pears], [q.f for q in pears], [q.v for q in sym], [q.f for q in sym])
-        if x is not None:
+        if x is not None:  # the neck at the crossing: linear in v between the pears about it
+            neck = float(np.interp(x["reduced_volume"], [q.v for q in pears],
+                                   [measure(*q.meridian(4096))[0] for q in pears]))
             rows.append(_row("pear", x["reduced_volume"], 0.0, kind="crossing", n=str(n),
-                             reduced_volume=x["reduced_volume"], f=x["reduced_energy"], converged=True))
+                             reduced_volume=x["reduced_volume"], f=x["reduced_energy"], converged=True,
+                             neck_radius=neck))
     rows[-1]["cpu_s"] = time.process_time() - t0
     return rows
 
 
+def _densify(curve: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """(r, z) of a polyline resampled (linearly) at most ``spacing`` apart: ``phase_field_of`` measures
+    the distance to the vertices, so the seed's profile is the polyline's to spacing / 2."""
+    seg = np.linalg.norm(np.diff(curve, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    t = np.linspace(0.0, s[-1], max(2, math.ceil(s[-1] / spacing) + 1))
+    return np.interp(t, s, curve[:, 0]), np.interp(t, s, curve[:, 1])
+
+
+def seed_from(res, eps: float):
+    """An eps-continuation's seed at ``eps`` from a coarser eps's solution ``res``: its phi = 0 curve
+    (one curve from the axis to the axis, densified) as the sharp curve of the band mesh and of the
+    tanh profile at the new eps (module docstring): its (r, z), or None when the solution's meridian
+    is not one such curve."""
+    curves = meridian_curves(res.disc, res.phi)
+    if len(curves) != 1 or curves[0][0][0] > 0 or curves[0][-1][0] > 0:
+        return None
+    return _densify(curves[0], eps / EPS_OVER_H / 8)
+
+
+def _solve_quiet(sc, start):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
+        return solve(sc, x0=start)
+
+
+def _first(case: dict, which: str, v: float, r, z):
+    """The first point's (box, n, levels, start, seed text, chain text): seeded at ``case["epsilon"]``
+    with the sharp shape (r, z), or, with ``case["chain"]`` (coarser eps, descending), solved at the
+    first of them from the sharp shape and carried down the chain by ``seed_from``, each step's
+    CPU-s and IPOPT iterations in the chain text (the last step's solve is the case's first point)."""
+    eps, steps, notes = case["epsilon"], [*case.get("chain", ()), case["epsilon"]], []
+    for k, e in enumerate(steps):
+        box, n, levels = box_of(r, z, e)
+        disc = discretize(_scene(box, n, levels, e, v, "seed"), interface=refine.curve_distance(
+            np.column_stack([r, z]), e / EPS_OVER_H))
+        start = types.SimpleNamespace(disc=disc, phi=phase_field_of(r, z, disc.nodes, e))
+        if e == eps:
+            break
+        c1 = time.process_time()
+        res = _solve_quiet(_scene(box, n, levels, e, v, f"phase_diagram-{which}-v{v:g}-eps{e:g}-chain"), start)
+        notes.append(f"eps {e:g}: {time.process_time() - c1:.1f} CPU-s, {res.iterations} it, "
+                     f"{'converged' if res.converged else 'failed'}")
+        nxt = seed_from(res, steps[k + 1]) if res.converged else None
+        if nxt is None:  # the chain broke: the sharp seed at eps (a cold start), said so
+            notes.append("chain broken: sharp seed")
+            box, n, levels = box_of(r, z, eps)
+            disc = discretize(_scene(box, n, levels, eps, v, "seed"), interface=refine.curve_distance(
+                np.column_stack([r, z]), eps / EPS_OVER_H))
+            start = types.SimpleNamespace(disc=disc, phi=phase_field_of(r, z, disc.nodes, eps))
+            break
+        r, z = nxt
+    seed = f"sharp {which} at v = {v:g} ({case['n_modes']} modes; a seed)"
+    if case.get("chain") and "chain broken: sharp seed" not in notes:
+        seed = f"eps-continuation {' -> '.join(f'{e:g}' for e in steps)} from the " + seed
+    return box, n, levels, start, seed, "; ".join(notes)
+
+
 def phase_case(case: dict) -> list[dict]:
-    """One phase-field branch at one eps (module docstring): the seeded first point, then the walk."""
+    """One phase-field branch at one eps (module docstring): the seeded first point (``_first``: from
+    the sharp shape, or through the eps-continuation ``case["chain"]``), then the walk."""
     eps, which, t0 = case["epsilon"], case["branch"], time.process_time()
     vs = sorted(case["vs"], reverse=which != "pear")
     ref = sharp_branches(vs, case["n_modes"], (which,))[which]
     ref = ref if which == "pear" else ref[::-1]  # sharp_branches returns ascending v
-    r, z = ref[0].meridian(4096)
-    box, n, levels = box_of(r, z, eps)
-    rows, start, seed = [], None, f"sharp {which} at v = {vs[0]:g} ({case['n_modes']} modes; a seed)"
+    box, n, levels, start, seed, chain = _first(case, which, vs[0], *ref[0].meridian(4096))
+    rows = []
     for v, s in zip(vs, ref):
         sc = _scene(box, n, levels, eps, v, f"phase_diagram-{which}-v{v:g}-eps{eps:g}")
-        if start is None:  # the band about the sharp meridian, the field its tanh profile
-            disc = discretize(sc, interface=refine.curve_distance(np.column_stack([r, z]), eps / EPS_OVER_H))
-            start = types.SimpleNamespace(disc=disc, phi=phase_field_of(r, z, disc.nodes, eps))
         c1 = time.process_time()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
-            res = solve(sc, x0=start)
+        res = _solve_quiet(sc, start)
         ex = res.extra
         shape, neck, asym = form(meridian_curves(res.disc, res.phi), eps) if res.converged else (None, math.nan, math.nan)
         f = _num(ex.get("f"))
@@ -234,11 +291,11 @@ def phase_case(case: dict) -> list[dict]:
                          second_order_min_eigenvalue=ex.get("second_order_min_eigenvalue"),
                          topology=ex.get("topology"), kkt_residual=res.kkt_residual, iterations=res.iterations,
                          wall_time_s=res.wall_time_s, seed=seed, status=res.outcome, walk="up" if which == "pear"
-                         else "down", neck_over_eps=neck, asymmetry=asym, nodes=res.disc.n_nodes,
-                         cpu_s=time.process_time() - c1))
+                         else "down", neck_over_eps=neck, neck_radius=neck * eps, asymmetry=asym, nodes=res.disc.n_nodes,
+                         cpu_s=time.process_time() - c1, chain=chain))
         if not res.converged:
             break
-        start, seed = res, "previous point"
+        start, seed, chain = res, "previous point", ""
     rows[0]["cpu_s"] = _num(rows[0]["cpu_s"]) + (time.process_time() - t0 - sum(_num(q["cpu_s"]) for q in rows))
     return rows
 
@@ -262,41 +319,82 @@ def cases(quick: bool = False, cfg: dict | None = None) -> list[dict]:
     return out
 
 
-def _per_eps(rows: list[dict], pear_forms) -> dict:
-    """{eps: crossing} of the certified points whose form is their branch's (a pear's in ``pear_forms``)."""
+def _per_eps(rows: list[dict]) -> dict:
+    """{eps: crossing} of the certified prolates and one-curve asymmetric pears (shape "pear", or
+    "pinched" with a neck: not two bodies), each crossing with ``neck_over_eps``: the pears' neck / eps
+    linear in v at the crossing (nan without necks)."""
     ok = [r for r in rows if r.get("branch") in BRANCHES and str(r.get("converged")) == "True"
           and str(r.get("kind", "point")) == "point" and _num(r.get("epsilon")) > 0
-          and (r.get("shape") in pear_forms if r["branch"] == "pear" else r.get("shape") == "prolate")]
+          and (r.get("shape") == "pear" or (r.get("shape") == "pinched" and math.isfinite(_num(r.get("neck_over_eps"))))
+               if r["branch"] == "pear" else r.get("shape") == "prolate")]
     per_eps = {}
     for eps in sorted({_num(r["epsilon"]) for r in ok}, reverse=True):
-        sel = [[r for r in ok if _num(r["epsilon"]) == eps and r["branch"] == b] for b in BRANCHES]
-        x = crossing(*[[_num(r[k]) for r in s] for s in sel for k in ("reduced_volume", "f")])
+        sel = [sorted([r for r in ok if _num(r["epsilon"]) == eps and r["branch"] == b],
+                      key=lambda r: _num(r["reduced_volume"])) for b in BRANCHES]
+        x = crossing(*[[_num(r[k]) for r in q] for q in sel for k in ("reduced_volume", "f")])
         if x is not None:
-            per_eps[eps] = x
+            pv, pn = [_num(r["reduced_volume"]) for r in sel[0]], [_num(r.get("neck_over_eps")) for r in sel[0]]
+            per_eps[eps] = {**x, "neck_over_eps": float(np.interp(x["reduced_volume"], pv, pn))}
     return per_eps
 
 
+def extrapolate_modes(per_modes: dict) -> dict:
+    """N -> infinity of the sharp crossing from {N: {"v", "f"[, "neck_radius"]}} (the ladder's rungs):
+    y = y_inf + C N^-p through the three largest N (``metrics.richardson`` with h = 1/N, free order
+    ``order_*``), its stated error ``error_*`` = the shift of y_inf when the largest N is dropped
+    (the same fit through the three before it; nan with fewer than four rungs), and ``correction_*``
+    = y_inf - y(largest N). nan where no order in [0.25, 8] fits."""
+    pm = {int(n): x for n, x in per_modes.items()}
+    ns = sorted(pm)
+    out = {"n_modes": ns}
+    h = 1.0 / np.array(ns, float)
+    for key in ("v", "f", "neck_radius"):
+        y = np.array([_num(pm[n].get(key)) for n in ns])
+        y_inf, p = richardson(h, y) if len(ns) >= 3 else (math.nan, math.nan)
+        prev = richardson(h[:-1], y[:-1])[0] if len(ns) >= 4 else math.nan
+        out[key], out["order_" + key] = y_inf, p
+        out["error_" + key] = abs(y_inf - prev)
+        out["correction_" + key] = y_inf - y[-1]
+    return out
+
+
+def _plain(per_eps: dict) -> dict:
+    return {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"], "neck_over_eps": x["neck_over_eps"]}
+            for e, x in per_eps.items()}
+
+
+def _extrapolated(per_eps: dict) -> dict:
+    """``extrapolate_crossing`` and the same free-order fit of the pears' neck radius at the crossing."""
+    out = extrapolate_crossing(per_eps)
+    necks = {e: {"reduced_volume": x["neck_over_eps"] * e, "reduced_energy": math.nan} for e, x in per_eps.items()}
+    n = extrapolate_crossing(necks)
+    out["neck_radius_richardson"], out["order_neck_radius"] = n["reduced_volume_richardson"], n["order_reduced_volume"]
+    return out
+
+
 def summary(rows: list[dict]) -> dict:
-    """``pear_prolate_crossing``: per eps the crossing of the certified points of their branch's form,
-    its eps -> 0 limit (free order through three eps, p = 2 through the finest two), the sharp
-    crossing (eps = 0 rows of kind crossing: the most modes, and per N) and the published value;
-    ``narrow_neck``: the same with the pears whose neck is under NECK_EPS eps (one curve, "pinched")
-    counted as pears, for comparison only (their neck is the phase field's, not the sharp pear's)."""
-    per_eps = _per_eps(rows, ("pear",))
-    out = {"per_eps": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()},
-           "published": {"v": PUBLISHED[0], "f": PUBLISHED[1]}}
+    """``pear_prolate_crossing``: per eps the crossing of the certified prolates and one-curve pears
+    whose neck at the crossing (linear in v between the pear points) is at least NECK_EPS eps, its
+    eps -> 0 limit (free order through three eps, p = 2 through the finest two), the sharp crossing
+    (eps = 0 rows of kind crossing: the most modes, per N, and its N -> infinity limit with its order
+    and stated error, ``extrapolate_modes``) and the published value; ``narrow_neck``: the same with
+    every one-curve pear whatever its neck (the crossings whose pears' neck is under NECK_EPS eps
+    counted too), for comparison: their neck is narrower than the interface resolves."""
+    every = _per_eps(rows)
+    per_eps = {e: x for e, x in every.items() if x["neck_over_eps"] >= NECK_EPS}
+    out = {"per_eps": _plain(per_eps), "published": {"v": PUBLISHED[0], "f": PUBLISHED[1]}}
     if len(per_eps) >= 2:
-        out["extrapolated"] = extrapolate_crossing(per_eps)
-    narrow = _per_eps([r for r in rows if r.get("shape") != "pinched" or math.isfinite(_num(r.get("neck_over_eps")))],
-                      ("pear", "pinched"))
-    out["narrow_neck"] = {"per_eps": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]}
-                                      for e, x in narrow.items()}}
-    if len(narrow) >= 2:
-        out["narrow_neck"]["extrapolated"] = extrapolate_crossing(narrow)
+        out["extrapolated"] = _extrapolated(per_eps)
+    out["narrow_neck"] = {"per_eps": _plain(every)}
+    if len(every) >= 2:
+        out["narrow_neck"]["extrapolated"] = _extrapolated(every)
     sharp_rows = sorted([r for r in rows if r.get("branch") in BRANCHES and r.get("kind") == "crossing"],
                         key=lambda r: _num(r.get("n")))
-    if sharp_rows:  # the most modes; and every rung (the pear's convergence in N)
+    if sharp_rows:  # the most modes; every rung (the pear's convergence in N); N -> infinity
         out["sharp"] = {"v": _num(sharp_rows[-1]["reduced_volume"]), "f": _num(sharp_rows[-1]["f"]),
                         "n_modes": int(_num(sharp_rows[-1].get("n")))}
-        out["sharp_per_modes"] = {str(r.get("n")): {"v": _num(r["reduced_volume"]), "f": _num(r["f"])} for r in sharp_rows}
+        out["sharp_per_modes"] = {str(int(_num(r.get("n")))): {"v": _num(r["reduced_volume"]), "f": _num(r["f"]),
+                                                            "neck_radius": _num(r.get("neck_radius"))}
+                                  for r in sharp_rows}
+        out["sharp_extrapolated"] = extrapolate_modes(out["sharp_per_modes"])
     return {"pear_prolate_crossing": out}
