@@ -19,19 +19,22 @@ the shapes: SLSQP returns NaN, measured).
 Phase field: one case per (branch, eps). The first point is SEEDED (column ``seed``) with the tanh
 profile of the sharp shape at that v (``io.meridian.phase_field_of``) on a band mesh built about the
 sharp meridian (``refine.curve_distance``), and the walk goes on warm-started (the front door re-meshes
-where the interface leaves its band). The pear walks up in v from the lowest of ``vs``, the prolate down from
-the highest. A point counts for its branch only if its meridian is that shape (``form``): a pear is one
-curve from the axis to the axis, up-down asymmetric (|``asymmetry``| >= ``ASYM_MIN``) with a neck of
-radius >= ``NECK_EPS`` eps (not pinched: the two interfaces of a neck narrower than a few eps overlap,
-and at eps >= 0.05 the phase field pinches the sharp pear's neck, docs/guide/axisymmetric.md); a
-prolate is up-down symmetric (|asymmetry| < ``ASYM_MIN``). The second-order verdicts are those of the
+where the interface leaves its band). With ``case["chain"]`` (coarser eps, descending) the first point
+is an eps-continuation instead: solved at the first of them from the sharp seed, then re-seeded at each
+finer eps from the previous solution's phi = 0 curve (``seed_from``: its band mesh and tanh profile at
+the new eps), each step's cost in the column ``chain``. The pear walks up in v from the lowest of
+``vs``, the prolate down from the highest. A point counts for its branch only if its meridian is that
+shape (``form``): a pear is one curve from the axis to the axis, up-down asymmetric (|``asymmetry``| >=
+``ASYM_MIN``), called "pinched" where its neck radius is under ``NECK_EPS`` eps (the two interfaces of
+a neck narrower than a few eps overlap; docs/guide/axisymmetric.md); a prolate is up-down symmetric
+(|asymmetry| < ``ASYM_MIN``). A crossing counts as the pear's (``summary``) where the pears' neck AT
+the crossing (linear in v between the pear points; the neck widens with v) is at least NECK_EPS eps;
+the others are reported apart (``narrow_neck``). The second-order verdicts are those of the
 axisymmetric class only (the meridian's check: axisymmetric perturbations).
 
-Measured (docs/guide/axisymmetric.md, "c0 = 2.4"): the sharp crossing moves from (0.7417, 0.1044) at
-24 modes to (0.7476, 0.1076) at 64 (algebraic convergence; the pear's neck narrows with N); at
-eps = 0.03 the phase field pinches the pear's neck to ~1 eps (f 0.014 below the sharp pear): no
-pear of this form there, and the crossing with the pinched pears, (0.7561, 0.1084), is reported
-apart (``narrow_neck``). The full setting costs hours of CPU at eps <= 0.02 on 2 shared cores.
+Sharp limit: the crossing per N and its N -> infinity limit (``extrapolate_modes``: free order through
+the three largest N, error = the limit's shift when the largest N is dropped), and the pear's neck at
+the crossing likewise. Measured: docs/guide/axisymmetric.md, "c0 = 2.4".
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ import numpy as np
 
 from vesicle_opt.api import solve
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
+from vesicle_opt.errors import SolverError
 from vesicle_opt.io.meridian import meridian_curves, phase_field_of
 from vesicle_opt.mesh import discretize, refine
 from vesicle_opt.scene import from_dict
@@ -58,7 +62,7 @@ BRANCHES = ("pear", "prolate_c2.4")  # not "prolate": the c0 = 0 prolate rows of
 # the phase field's v grid: its crossing lies above the sharp one at finite eps (at eps = 0.03 the pear
 # lies 0.013 below its sharp f, measured, the prolate above it), so the grid reaches v = 0.77
 FULL = {"epsilons": (0.03, 0.02, 0.015), "vs": (0.74, 0.75, 0.76, 0.77), "seed_modes": 48,
-        "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 96}
+        "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 128, "chain": True}
 V_KICK, KICK = 0.72, 0.3  # the pear is reached here from the symmetric shape + KICK sin(3 s) (24 modes)
 LADDER = (24, 32, 48, 64, 96, 128)  # the pear's modes, each solve from the previous N's coefficients
 ASYM_MIN = 0.02  # |asymmetry| of a pear: measured 0.10-0.13 on the sharp pears (v = 0.74, 0.76; N = 24 .. 64);
@@ -276,6 +280,8 @@ def phase_case(case: dict) -> list[dict]:
     vs = sorted(case["vs"], reverse=which != "pear")
     ref = sharp_branches(vs, case["n_modes"], (which,))[which]
     ref = ref if which == "pear" else ref[::-1]  # sharp_branches returns ascending v
+    if not ref[0].converged:  # no seed (e.g. the kicked SLSQP left the shapes): said so, not meshed on NaN
+        raise SolverError(f"the sharp {which} seed at v = {vs[0]:g} did not converge ({case['n_modes']} modes)")
     box, n, levels, start, seed, chain = _first(case, which, vs[0], *ref[0].meridian(4096))
     rows = []
     for v, s in zip(vs, ref):
@@ -306,7 +312,8 @@ def run(case: dict) -> list[dict]:
 
 def cases(quick: bool = False, cfg: dict | None = None) -> list[dict]:
     """The sharp case and one case per (branch, eps) of ``cfg`` (default ``FULL``), the finest eps
-    first (the longest: the pool takes the cases in order); none in the quick run (``phase_diagram``'s
+    first (the longest: the pool takes the cases in order), the pear's with ``chain`` (every coarser
+    eps) where ``cfg["chain"]``; none in the quick run (``phase_diagram``'s
     extension hook: its quick run is the c0 = 0 plumbing)."""
     if quick:
         return []
@@ -316,6 +323,9 @@ def cases(quick: bool = False, cfg: dict | None = None) -> list[dict]:
     for eps in sorted(cfg["epsilons"]):
         out += [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "vs": list(cfg["vs"]),
                  "n_modes": cfg["seed_modes"]} for b in BRANCHES]
+        coarser = sorted((e for e in cfg["epsilons"] if e > eps), reverse=True)
+        if cfg.get("chain") and coarser:  # the pear's first point through the coarser eps (``_first``)
+            out[-2]["chain"] = coarser
     return out
 
 
