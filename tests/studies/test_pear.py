@@ -43,6 +43,11 @@ def test_measure_of_two_fused_spheres_matches_closed_forms():
     expected = (centroid - (top + bottom) / 2) / (top - bottom)
     # frusta on 2 x 20001 points: second order in the spacing, 1e-8 relative (measured ~1e-9)
     assert asym == pytest.approx(expected, abs=1e-7)
+    # the box is centred on the volume centroid (where the solve's pin holds the centre of mass), the
+    # walls at least WALL eps + MARGIN from both ends (frusta: the same 1e-7 as above)
+    box, _, _ = P.box_of(r, z, 0.05)
+    assert (box[1][0] + box[1][1]) / 2 == pytest.approx(centroid, abs=1e-7)
+    assert min(box[1][1] - top, bottom - box[1][0]) >= P.WALL * 0.05 + P.MARGIN - 1e-12
     # the mirror image: the same neck, the opposite asymmetry; a sphere: no neck, no asymmetry
     assert P.measure(r[::-1], -z[::-1]) == pytest.approx((neck, -asym), abs=1e-12)
     t = np.linspace(0, math.pi, 4001)
