@@ -9,12 +9,10 @@ Units: the scene's ``model.c0`` is C0 / 2 (the energy (3) tends to (2 sqrt2 / 3)
 C0 = 2 c0; docs/guide/axisymmetric.md), so at R0 = 1 (area 4 pi) ``model.c0`` = 1.2 and the summary's
 ``c0_reduced`` reads 2.4.
 
-Sharp: the symmetric branch is walked down from the c0 = 0 prolate at v = 0.9 with the odd modes held
-at zero; the pear is reached at v = ``V_KICK`` from it kicked along sin(3 s) (24 modes) and walked up
-in v. The pear's neck is narrow (~0.1 R0), so its f converges in the number of modes N only
-algebraically (uniform arc length puts few points in the neck): each pear is carried up the ladder
-``LADDER`` of N, each solve started from the previous N's coefficients (a cold kick at N >= 48 leaves
-the shapes: SLSQP returns NaN, measured).
+Sharp: the symmetric branch is walked down from the c0 = 0 prolate at v = 0.9 (odd modes held at
+zero); the pear is reached at v = ``V_KICK`` from it kicked along sin(3 s) (24 modes), walked up in v
+and carried up the ladder ``LADDER`` of N, each solve from the previous N's coefficients (its narrow
+neck converges only algebraically in N; a cold kick at N >= 48 leaves the shapes, measured).
 
 Phase field: one case per (branch, eps). The first point is SEEDED (column ``seed``) with the tanh
 profile of the sharp shape at that v (``io.meridian.phase_field_of``) on a band mesh built about the
