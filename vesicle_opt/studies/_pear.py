@@ -60,9 +60,9 @@ BRANCHES = ("pear", "prolate_c2.4")  # not "prolate": the c0 = 0 prolate rows of
 # the phase field's v grid: its crossing lies above the sharp one at finite eps (at eps = 0.03 the pear
 # lies 0.013 below its sharp f, measured, the prolate above it), so the grid reaches v = 0.77
 FULL = {"epsilons": (0.03, 0.02, 0.015), "vs": (0.74, 0.75, 0.76, 0.77), "seed_modes": 48,
-        "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 128, "chain": False}
-# chain off: the eps-continuation 0.03 -> 0.02 -> 0.015 of the pear at v = 0.74 ended on the up-down
-# symmetric branch (measured once, docs/guide/axisymmetric.md); the cold sharp seed stays the default
+        "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 128, "chain": True}
+# chain: the pear's first point through the coarser eps (at eps = 0.015 through 0.03, 0.02: pears at
+# v = 0.75, 0.76, 283-302 CPU-s in all, measured; docs/guide/axisymmetric.md)
 V_KICK, KICK = 0.72, 0.3  # the pear is reached here from the symmetric shape + KICK sin(3 s) (24 modes)
 LADDER = (24, 32, 48, 64, 96, 128)  # the pear's modes, each solve from the previous N's coefficients
 ASYM_MIN = 0.02  # |asymmetry| of a pear: measured 0.10-0.13 on the sharp pears (v = 0.74, 0.76; N = 24 .. 64);
