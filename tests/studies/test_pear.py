@@ -43,6 +43,11 @@ def test_measure_of_two_fused_spheres_matches_closed_forms():
     expected = (centroid - (top + bottom) / 2) / (top - bottom)
     # frusta on 2 x 20001 points: second order in the spacing, 1e-8 relative (measured ~1e-9)
     assert asym == pytest.approx(expected, abs=1e-7)
+    # the box is centred on the volume centroid (where the solve's pin holds the centre of mass), the
+    # walls at least WALL eps + MARGIN from both ends (frusta: the same 1e-7 as above)
+    box, _, _ = P.box_of(r, z, 0.05)
+    assert (box[1][0] + box[1][1]) / 2 == pytest.approx(centroid, abs=1e-7)
+    assert min(box[1][1] - top, bottom - box[1][0]) >= P.WALL * 0.05 + P.MARGIN - 1e-12
     # the mirror image: the same neck, the opposite asymmetry; a sphere: no neck, no asymmetry
     assert P.measure(r[::-1], -z[::-1]) == pytest.approx((neck, -asym), abs=1e-12)
     t = np.linspace(0, math.pi, 4001)
@@ -93,13 +98,15 @@ def test_tanh_seed_keeps_the_sharp_form_on_the_band_mesh(sharp_074):
                   eps)[0] == "pinched"  # two bodies
 
 
-def _rows(eps: float, v_x: float, f_x: float) -> list[dict]:
+def _rows(eps: float, v_x: float, f_x: float, neck=lambda v: 4.0) -> list[dict]:
     out = []
     for v in (0.72, 0.74, 0.76, 0.78):
         for b, slope in (("pear", 1.6), ("prolate_c2.4", 0.5)):
+            n = neck(v)
             out.append({"branch": b, "epsilon": eps, "kind": "point", "converged": "True", "reduced_volume": v,
-                        "f": f_x + slope * (v - v_x), "shape": "pear" if b == "pear" else "prolate"})
-    out.append({**out[0], "shape": "pinched", "f": 0.0})  # a pinched pear: not used
+                        "f": f_x + slope * (v - v_x), "neck_over_eps": n if b == "pear" else math.nan,
+                        "shape": ("pear" if n >= P.NECK_EPS else "pinched") if b == "pear" else "prolate"})
+    out.append({**out[0], "shape": "pinched", "f": 0.0, "neck_over_eps": math.nan})  # two bodies: never used
     return out
 
 
@@ -108,17 +115,67 @@ def test_summary_extrapolates_a_known_crossing_with_its_order():
              "n": "96", "converged": "True"}]
     for eps in (0.03, 0.02, 0.015):
         rows += _rows(eps, 0.746 + 4 * eps**2, 0.107 - 3 * eps**2)
-    pinched = [{**r, "shape": "pinched", "neck_over_eps": 1.5} if r["branch"] == "pear" else r
-               for r in _rows(0.04, 0.76, 0.11)[:-1]]  # at eps = 0.04 every pear's neck is under NECK_EPS eps
-    out = P.summary(rows + pinched)["pear_prolate_crossing"]
+    pinched = _rows(0.04, 0.76, 0.11, neck=lambda v: 1.5)  # at eps = 0.04 every pear's neck is under NECK_EPS eps
+    # at eps = 0.05 the neck grows with v through NECK_EPS: pinched below v = 0.745, a pear at the crossing
+    grows = _rows(0.05, 0.77, 0.12, neck=lambda v: 2.0 + 25 * (v - 0.705))
+    out = P.summary(rows + pinched + grows)["pear_prolate_crossing"]
     assert "0.04" not in out["per_eps"] and out["narrow_neck"]["per_eps"]["0.04"]["v"] == pytest.approx(0.76, abs=1e-12)
+    # the neck at the crossing, linear in v between the pear points: 2 + 25 (0.77 - 0.705) = 3.625
+    assert out["per_eps"]["0.05"]["neck_over_eps"] == pytest.approx(3.625, abs=1e-12)
     assert out["per_eps"]["0.02"]["v"] == pytest.approx(0.746 + 4 * 0.02**2, abs=1e-12)  # lines: spline-exact
+    assert out["extrapolated"]["epsilons"] == [0.05, 0.03, 0.02, 0.015]
     ext = out["extrapolated"]
-    # crossings exactly v* + c eps^2: Richardson recovers v*, f* and the order 2 to round-off
+    # crossings exactly v* + c eps^2 (the eps = 0.05 level off that line is not among the three finest):
+    # Richardson recovers v*, f* and the order 2 to round-off
     assert ext["reduced_volume_richardson"] == pytest.approx(0.746, abs=1e-9)
     assert ext["reduced_energy_richardson"] == pytest.approx(0.107, abs=1e-9)
     assert ext["order_reduced_volume"] == pytest.approx(2.0, abs=1e-6)
+    # the neck radius at the crossing, 4 eps here, extrapolates linearly to 0: order 1
+    assert ext["neck_radius_richardson"] == pytest.approx(0.0, abs=1e-12)
+    assert ext["order_neck_radius"] == pytest.approx(1.0, abs=1e-9)
+    assert set(out["narrow_neck"]["per_eps"]) == {"0.05", "0.04", "0.03", "0.02", "0.015"}
     assert out["sharp"]["v"] == 0.7476 and out["published"] == {"v": 0.746, "f": 0.107}
+
+
+def test_extrapolate_modes_recovers_an_algebraic_limit_and_bounds_its_error():
+    ns = (24, 32, 48, 64, 96)
+    exact = {n: {"v": 0.7483 - 2.0 * n**-2.5, "f": 0.1079 - 1.0 * n**-2.6, "neck_radius": 0.04 + 2 * n**-1.0}
+             for n in ns}
+    ext = P.extrapolate_modes({str(n): x for n, x in exact.items()})
+    # y_inf + C N^-p exactly: the three-point fit is exact (brentq's root to ~1e-12 in p, measured)
+    assert ext["v"] == pytest.approx(0.7483, abs=1e-10) and ext["order_v"] == pytest.approx(2.5, abs=1e-6)
+    assert ext["f"] == pytest.approx(0.1079, abs=1e-10) and ext["neck_radius"] == pytest.approx(0.04, abs=1e-9)
+    assert ext["error_v"] < 1e-9 and ext["n_modes"] == list(ns)  # dropping N = 96 refits the same law
+    assert ext["correction_v"] == pytest.approx(2.0 * 96**-2.5, rel=1e-6)
+    # a second term (N^-3.5, a tenth of the first at N = 24 .. a fortieth at 96): the estimate is off
+    # (3.4e-7, measured) and the stated error (the shift when the largest N is dropped: 9.4e-7) exceeds it
+    two = {n: {"v": 0.7483 - 2.0 * n**-2.5 + 5.0 * n**-3.5, "f": math.nan} for n in ns}
+    e2 = P.extrapolate_modes(two)
+    off = abs(e2["v"] - 0.7483)
+    assert 0 < off < e2["error_v"], (off, e2["error_v"])
+    assert math.isnan(e2["f"]) and math.isnan(P.extrapolate_modes({24: {"v": 1.0}, 32: {"v": 0.9}, 48: {"v": 0.8}})["error_v"])
+
+
+def test_seed_from_carries_a_solutions_curve_to_a_finer_eps():
+    """The eps-continuation's transfer on a sphere's tanh field: the new curve is the old phi = 0 line
+    (the unit half circle to the P1 interpolant's accuracy), densified below the new spacing."""
+    t = np.linspace(0.0, math.pi, 2049)
+    r, z = np.sin(t), np.cos(t)
+    eps = 0.06
+    box, n, levels = P.box_of(r, z, eps)
+    sc = P._scene(box, n, levels, eps, 1.0, "sphere")
+    disc = discretize(sc, interface=refine.curve_distance(np.column_stack([r, z]), eps / P.EPS_OVER_H))
+    phi = phase_field_of(r, z, disc.nodes, eps)
+    import types
+    rr, zz = P.seed_from(types.SimpleNamespace(disc=disc, phi=phi), 0.04)
+    h = eps / P.EPS_OVER_H
+    # the zero line of a P1 interpolant of tanh(d / sqrt2 eps): O(h^2) off the circle (measured 0.030 h on
+    # these 17 k nodes); a tenth of a cell flags a curve taken off the wrong line or unscaled
+    assert np.max(np.abs(np.hypot(rr, zz) - 1.0)) < 0.1 * h
+    assert rr[0] <= 0 and rr[-1] <= 0 and abs(abs(zz[0] - zz[-1]) - 2.0) < 0.1 * h  # axis to axis (same bound)
+    assert np.max(np.hypot(np.diff(rr), np.diff(zz))) <= 0.04 / P.EPS_OVER_H / 8 + 1e-12
+    two = types.SimpleNamespace(disc=disc, phi=np.where(np.abs(disc.nodes[:, 1]) < 0.1, -1.0, phi))  # cut in two
+    assert P.seed_from(two, 0.04) is None
 
 
 def test_cases_put_the_sharp_case_and_the_finest_eps_first():
@@ -126,3 +183,8 @@ def test_cases_put_the_sharp_case_and_the_finest_eps_first():
     assert cs[0]["epsilon"] == 0.0 and [c["epsilon"] for c in cs[1:3]] == [min(P.FULL["epsilons"])] * 2
     assert {c["branch"] for c in cs} == set(P.BRANCHES) and len({c["case"] for c in cs}) == len(cs)
 
+    # the pear's first point goes through every coarser eps (descending); the prolate and the coarsest don't
+    chains = {c["case"]: c.get("chain") for c in cs}
+    assert chains["pear-eps0.015"] == [0.03, 0.02] and chains["pear-eps0.02"] == [0.03]
+    assert chains["pear-eps0.03"] is None and chains["prolate_c2.4-eps0.015"] is None
+    assert all("chain" not in c for c in P.cases(cfg={**P.FULL, "chain": False}))
