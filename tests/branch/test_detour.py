@@ -75,3 +75,12 @@ def test_detour_without_an_unstable_point_finds_nothing():
 def test_detour_bad_input(q_out, amp):
     with pytest.raises(InputError):
         detour(*_problem(0.2), q_out=q_out, amplitude=amp)
+
+
+def test_detour_stops_where_a_leaves_its_form():
+    """A point of A that ``is_source`` rejects (here every q <= -0.1) ends the detour there, before
+    any push: no switch is made from a state that is not A."""
+    solve, check, push, is_b = _problem(0.2)
+    d = detour(solve, check, push, is_b, q_out=[0.0, -0.1, -0.2, -0.3], amplitude=0.1,
+               is_source=lambda s: s["q"] > -0.05)
+    assert not d.reached and d.stopped == "A left its form at q = -0.1" and not d.leg("switch")

@@ -77,11 +77,12 @@ def _check_grid(q_out: Sequence[float]) -> list[float]:
 
 
 def detour(solve: Callable, check: Callable, push: Callable, is_target: Callable, q_out: Sequence[float],
-           amplitude: float, push_beyond: float | None = None) -> Detour:
+           amplitude: float, push_beyond: float | None = None, is_source: Callable | None = None) -> Detour:
     """The detour of the module docstring. ``q_out``: q0 first, then monotone away from it;
     ``amplitude``: a of the push; ``push_beyond``: no switch is tried before q passes this value
     (None: at the first unstable point), where A's least eigenvalue is still small and a minimiser
-    leaves it slowly."""
+    leaves it slowly; ``is_source(state)``: A still of its form (else the detour stops: it would
+    switch from something else, e.g. an oblate whose dimples met)."""
     qs = _check_grid(q_out)
     if not (isinstance(amplitude, (int, float)) and amplitude > 0):
         raise InputError("amplitude", f"a positive number, got {amplitude!r}")
@@ -100,6 +101,8 @@ def detour(solve: Callable, check: Callable, push: Callable, is_target: Callable
         if not s.converged:
             return Detour(tuple(steps), False, None, f"A not converged at q = {q}")
         start = s.state
+        if is_source is not None and not s.target and not is_source(s.state):
+            return Detour(tuple(steps), False, None, f"A left its form at q = {q}")
         if s.target:  # A turned into B by itself (a warm solve off an unstable A)
             landed, k_land = s, k
             break

@@ -29,11 +29,15 @@ in lambda of at most ``AHEAD`` times the last lambda step), f the parabola f(lam
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 
+from vesicle_opt.branch.detour import detour
+from vesicle_opt.sharp import axisymmetric as sharp_a
 from vesicle_opt.sharp import stomatocyte as sharp_s
-from vesicle_opt.studies._meridian import layout, walk
+from vesicle_opt.studies._meridian import MAX_ITER, layout, scene, seed, solve_quiet, walk
+from vesicle_opt.verify import updown
 
 V_SEED = 0.62  # the seed's reduced volume: the lower side, 0.04 below the sharp fold (0.6604)
 V_DOWN = 0.575  # the sharp reference's lower end: below the crossing with the oblate (0.5903)
@@ -89,19 +93,32 @@ def sharp_case(case: dict) -> list[dict]:
 
 def phase_case(case: dict, point_row) -> list[dict]:
     """The phase-field stomatocyte at ``case["epsilon"]``, the walk ``case["walk"]`` (up / down) over
-    ``case["vs"]`` from the seed at vs[0] = ``V_SEED`` (module docstring); ``point_row(res, v, eps,
-    lay, sharp_f, seed, side, walk)`` makes a study row (side "lower": fixed-v minimisers)."""
+    ``case["vs"]`` from the seed at vs[0] = ``V_SEED`` (module docstring), or with ``case["seedless"]``
+    from the detour in c0 (``seedless``: its solves are rows of kind "detour", their c0 their own);
+    ``point_row(res, v, eps, lay, sharp_f, seed, side, walk)`` makes a study row (side "lower":
+    fixed-v minimisers)."""
     eps, name = case["epsilon"], f"phase_diagram-stomatocyte-{case['walk']}"
-    seed_pt = sharp_s.start_point(case["vs"][0], 0.0, case["n_modes"])
+    seed_pt = sharp_s.start_point(case["vs"][0], 0.0, case["n_modes"])  # the sharp reference (and the seed)
     r, z = seed_pt.meridian(2048)
-    lay = layout([(r, z)], eps, case["eps_over_h"], case.get("refine", True))
     sharp_pts = {case["vs"][0]: seed_pt}
-    rows = []
+    rows, start, first = [], None, f"sharp stomatocyte at v = {case['vs'][0]} (a seed)"
+    if case.get("seedless"):
+        d, lay = seedless(case["vs"][0], eps, case["eps_over_h"], case.get("refine", True), name=f"{name}-detour")
+        for st in d.steps:
+            rows.append({**point_row(st.state, case["vs"][0], eps, lay, math.nan, f"detour {st.leg}", "", "detour"),
+                         "c0": st.q, "kind": "detour"})
+        if not d.reached:
+            rows[-1]["status"] = f"detour not reached: {d.stopped}"
+            return rows
+        start = d.end.state
+        first = f"no seed: detour in c0 from the oblate (switched at c0 = {d.switched_at:g})"
+    else:
+        lay = layout([(r, z)], eps, case["eps_over_h"], case.get("refine", True))
 
     def stop(res) -> bool:  # past the fold (no minimiser), or no stomatocyte any more (a torus, an oblate)
         return not res.converged or point_row(res, math.nan, eps, lay, math.nan, "", "", "")["shape"] != "cup"
 
-    for v, res, label in walk(lay, eps, case["vs"], (r, z), name, stop):
+    for k, (v, res, label) in enumerate(walk(lay, eps, case["vs"], (r, z), name, stop, start)):
         q = sharp_pts.get(v)
         if q is None:
             try:
@@ -109,6 +126,52 @@ def phase_case(case: dict, point_row) -> list[dict]:
                 sharp_pts[v] = q
             except (sharp_s.NotConverged, np.linalg.LinAlgError):
                 q = None  # past the sharp fold: no lower-side point
-        seed = f"sharp stomatocyte at v = {case['vs'][0]} (a seed)" if label == "sharp shape" else label
+        seed = first if k == 0 else label
         rows.append(point_row(res, v, eps, lay, q.f if q is not None else math.nan, seed, "lower", case["walk"]))
     return rows
+
+
+# --- the seedless start: a detour in c0 (``branch.detour``) ----------------------------------------
+DETOUR_C0 = (0.0, -1.0, -1.5, -2.0)  # the way out at V_SEED (literature c0): the sharp oblate's odd branch
+# point at v = 0.62 is at c0 = -0.985 (odd eigenvalue +0.088 at -0.75, -0.0055 at -1.0); the meridian oblate
+# at eps 0.03 is a saddle from c0 = -1.0 (least eigenvalue -0.0014 mu_ref; -0.0092 at -1.5; +0.0053 at -0.5)
+PUSH_BEYOND = -1.5  # no push before: at c0 = -1.0 (mu -0.0014) two pushes ran 150 IPOPT iterations and
+# moved f by 8e-4 only (measured, eps 0.03)
+PUSH_AMPLITUDE = 0.5  # the push's largest change of phi (the critical mode scaled to this max |.|)
+PUSH_ITER = 800  # IPOPT iterations of a pushed solve: the oblate turns into the cup, a long way
+OBLATE_MODES = 16  # the sharp oblate of the detour's start (as phase_diagram's oblate rows)
+
+
+def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=DETOUR_C0,
+             name: str = "phase_diagram-stomatocyte-detour"):
+    """The phase-field stomatocyte at (v, c0 = c0s[0] = 0) reached WITHOUT a stomatocyte seed
+    (``branch.detour``): the oblate from its sharp shape (as the oblate rows start), walked in c0
+    at fixed v down ``c0s`` until its least eigenvalue (the odd mode) is negative, the solve from it
+    pushed along that mode, the cup it lands on walked back to c0 = 0. Returns (the Detour, the
+    layout); ``detour.end.state`` is the certified stomatocyte (a Result) when ``detour.reached``."""
+    ref = sharp_a.solve(v, "oblate", OBLATE_MODES, second_order=False)
+    mer = ref.meridian(2048)
+    lay = layout([mer], eps, eps_over_h, refine)
+
+    def solve(c0, start):
+        pushed = isinstance(start, types.SimpleNamespace) and getattr(start, "pushed", False)
+        sc = scene(lay, eps, v, f"{name}-c{c0:g}-eps{eps:g}", c0=c0, max_iter=PUSH_ITER if pushed else MAX_ITER)
+        return solve_quiet(sc, seed(sc, *mer, eps, lay["h"]) if start is None else start)
+
+    def check(res):
+        mu = res.extra.get("second_order_min_eigenvalue")
+        mode = res.history.get("second_order_mode")
+        return res.converged, (math.nan if mu is None else float(mu)), mode
+
+    def push(res, mode, a):
+        mode = np.asarray(mode, float)
+        phi = np.clip(res.phi + a * mode / np.abs(mode).max(), -1.0, 1.0)
+        return types.SimpleNamespace(disc=res.disc, phi=phi, pushed=True)
+
+    def is_cup(res):
+        return updown.describe(res.disc, res.phi).get("form") == "cup"
+
+    def is_oblate(res):
+        return updown.describe(res.disc, res.phi).get("form") == "oblate"
+
+    return detour(solve, check, push, is_cup, c0s, PUSH_AMPLITUDE, PUSH_BEYOND, is_oblate), lay
