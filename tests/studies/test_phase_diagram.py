@@ -164,3 +164,23 @@ def test_layout_is_square_cells_about_the_shapes():
         assert r0 == 0 and lay["h"] == eps / 4
         assert (r1 - r0) / lay["n"][0] == pytest.approx(side) and (z1 - z0) / lay["n"][1] == pytest.approx(side)
         assert r1 >= r.max() + M.WALL * eps and z0 <= z.min() - M.WALL * eps and z1 >= z.max() + M.WALL * eps
+
+
+@pytest.mark.slow
+def test_seedless_detour_finds_the_oblates_odd_instability_where_the_sharp_one_is():
+    """The detour's way out (``_stomatocyte.seedless``, eps 0.03, v 0.62, no push): the meridian
+    oblate's least eigenvalue changes sign between c0 = -0.5 and -1.0 (measured +0.0053, -0.0014
+    mu_ref), the bracket of the sharp oblate's odd branch point (c0 = -0.985 at v = 0.62,
+    ``sharp.stomatocyte_switch``: +0.088 at -0.75, -0.0055 at -1.0), and every point is an oblate.
+    ~40 CPU-s."""
+    from vesicle_opt.sharp import stomatocyte as st
+    from vesicle_opt.sharp import stomatocyte_switch as sw
+    from vesicle_opt.studies import _stomatocyte as S
+
+    assert sw.odd_eigenvalue(st.KKTSystem(24, -0.5), st.oblate_point(0.62, -0.5, 24))[0] > 0  # the sharp bracket, at 24 modes
+    assert sw.odd_eigenvalue(st.KKTSystem(24, -1.0), st.oblate_point(0.62, -1.0, 24))[0] < 0
+    d, _ = S.seedless(0.62, 0.03, 4.0, True, c0s=(0.0, -0.5, -1.0), push_beyond=-9.0)
+    mus = [s.eigenvalue for s in d.leg("out")]
+    assert [s.converged for s in d.leg("out")] == [True] * 3
+    assert mus[0] > 0 and mus[1] > 0 and mus[2] < 0
+    assert not d.reached and d.stopped.startswith("no switch")

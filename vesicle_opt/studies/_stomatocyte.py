@@ -8,6 +8,10 @@ and oblate cases start from their sharp shapes. The sharp stomatocyte itself is 
 seed, by switching at the sharp oblate's branch point (``sharp.stomatocyte_switch``: v = 0.51044);
 the phase field has no such route here yet: at the eps this machine affords (>= 0.025) the meridian
 oblate's dimples meet (a torus) above v = 0.51 (at v = 0.58 for eps = 0.03, measured).
+``seedless`` tries another (``branch.detour``): the oblate walked out in c0 at fixed v to where its odd
+mode is unstable (the sharp branch point at v = 0.62 is at c0 = -0.985, the poles 0.27 R0 apart),
+pushed along that mode, the landing walked back to c0 = 0; it is opt-in (case key ``seedless``;
+docs/guide/bifurcation.md, "A detour in c0", for what it reached).
 From the seed two walks at fixed v (``_meridian.walk``: exact IPOPT solves, each warm from the
 previous point, second-order checked, axisymmetric perturbations only): ``up`` towards the fold on
 the v grid ``up`` (its steps shrinking towards the sharp fold, 0.6604), ending at the first point
@@ -132,26 +136,31 @@ def phase_case(case: dict, point_row) -> list[dict]:
 
 
 # --- the seedless start: a detour in c0 (``branch.detour``) ----------------------------------------
-DETOUR_C0 = (0.0, -1.0, -1.5, -2.0)  # the way out at V_SEED (literature c0): the sharp oblate's odd branch
+DETOUR_C0 = (0.0, -0.5, -1.0, -1.25, -1.5)  # the way out at V_SEED (literature c0): the sharp oblate's odd branch
 # point at v = 0.62 is at c0 = -0.985 (odd eigenvalue +0.088 at -0.75, -0.0055 at -1.0); the meridian oblate
 # at eps 0.03 is a saddle from c0 = -1.0 (least eigenvalue -0.0014 mu_ref; -0.0092 at -1.5; +0.0053 at -0.5)
-PUSH_BEYOND = -1.5  # no push before: at c0 = -1.0 (mu -0.0014) two pushes ran 150 IPOPT iterations and
-# moved f by 8e-4 only (measured, eps 0.03)
+PUSH_BEYOND = -1.0  # no push before (at -0.5 the oblate is stable); at c0 = -1.0 (mu -0.0014) pushes
+# capped at 150 IPOPT iterations moved f by 8e-4 only, at 800 they left the oblate (measured, eps 0.03)
 PUSH_AMPLITUDE = 0.5  # the push's largest change of phi (the critical mode scaled to this max |.|)
 PUSH_ITER = 800  # IPOPT iterations of a pushed solve: the oblate turns into the cup, a long way
+TALL = 0.7  # the box's half-height (before the walls' 12 eps) in units of the oblate's radius (module text)
 OBLATE_MODES = 16  # the sharp oblate of the detour's start (as phase_diagram's oblate rows)
 
 
 def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=DETOUR_C0,
-             name: str = "phase_diagram-stomatocyte-detour"):
+             name: str = "phase_diagram-stomatocyte-detour", push_beyond: float | None = None):
     """The phase-field stomatocyte at (v, c0 = c0s[0] = 0) reached WITHOUT a stomatocyte seed
     (``branch.detour``): the oblate from its sharp shape (as the oblate rows start), walked in c0
     at fixed v down ``c0s`` until its least eigenvalue (the odd mode) is negative, the solve from it
     pushed along that mode, the cup it lands on walked back to c0 = 0. Returns (the Detour, the
-    layout); ``detour.end.state`` is the certified stomatocyte (a Result) when ``detour.reached``."""
+    layout); ``detour.end.state`` is the certified stomatocyte (a Result) when ``detour.reached``.
+    ``push_beyond``: ``PUSH_BEYOND`` unless given."""
     ref = sharp_a.solve(v, "oblate", OBLATE_MODES, second_order=False)
     mer = ref.meridian(2048)
-    lay = layout([mer], eps, eps_over_h, refine)
+    # the box taller than the oblate: with the walls at the oblate's height + 12 eps a pushed solve
+    # spread into a tube from wall to wall (natural walls; f 1.33 at c0 = -1.0, measured), no cup
+    half = TALL * float(mer[0].max())
+    lay = layout([mer, (np.zeros(2), np.array([-half, half]))], eps, eps_over_h, refine)
 
     def solve(c0, start):
         pushed = isinstance(start, types.SimpleNamespace) and getattr(start, "pushed", False)
@@ -174,4 +183,5 @@ def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=D
     def is_oblate(res):
         return updown.describe(res.disc, res.phi).get("form") == "oblate"
 
-    return detour(solve, check, push, is_cup, c0s, PUSH_AMPLITUDE, PUSH_BEYOND, is_oblate), lay
+    return detour(solve, check, push, is_cup, c0s, PUSH_AMPLITUDE,
+                  PUSH_BEYOND if push_beyond is None else push_beyond, is_oblate), lay
