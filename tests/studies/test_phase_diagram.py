@@ -164,3 +164,58 @@ def test_layout_is_square_cells_about_the_shapes():
         assert r0 == 0 and lay["h"] == eps / 4
         assert (r1 - r0) / lay["n"][0] == pytest.approx(side) and (z1 - z0) / lay["n"][1] == pytest.approx(side)
         assert r1 >= r.max() + M.WALL * eps and z0 <= z.min() - M.WALL * eps and z1 >= z.max() + M.WALL * eps
+
+
+@pytest.mark.slow
+def test_seedless_detour_finds_the_oblates_odd_instability_where_the_sharp_one_is():
+    """The detour's way out (``_stomatocyte.seedless``, eps 0.03, v 0.62, no push): the meridian
+    oblate's least eigenvalue changes sign between c0 = -0.5 and -1.0 (measured +0.0053, -0.0014
+    mu_ref), the bracket of the sharp oblate's odd branch point (c0 = -0.985 at v = 0.62,
+    ``sharp.stomatocyte_switch``: +0.088 at -0.75, -0.0055 at -1.0), and every point is an oblate.
+    ~40 CPU-s."""
+    from vesicle_opt.sharp import stomatocyte as st
+    from vesicle_opt.sharp import stomatocyte_switch as sw
+    from vesicle_opt.studies import _stomatocyte as S
+
+    assert sw.odd_eigenvalue(st.KKTSystem(24, -0.5), st.oblate_point(0.62, -0.5, 24))[0] > 0  # the sharp bracket, at 24 modes
+    assert sw.odd_eigenvalue(st.KKTSystem(24, -1.0), st.oblate_point(0.62, -1.0, 24))[0] < 0
+    d, _ = S.seedless(0.62, 0.03, 4.0, True, c0s=(0.0, -0.5, -1.0), push_beyond=-9.0)
+    mus = [s.eigenvalue for s in d.leg("out")]
+    assert [s.converged for s in d.leg("out")] == [True] * 3
+    assert mus[0] > 0 and mus[1] > 0 and mus[2] < 0
+    assert not d.reached and d.stopped.startswith("no switch")
+
+
+def test_seedless_case_records_the_detour_and_falls_back_to_the_seed(monkeypatch):
+    """The plumbing of the case key ``seedless`` (``_stomatocyte.phase_case``), the solves replaced: a
+    detour that was not reached gives rows of kind "detour" at their own c0 (the last saying why),
+    then the walk starts from the seed and its first row says so; a reached one starts the walk from
+    its end state, on its layout, and the first row says "no seed"."""
+    from vesicle_opt.branch.detour import Detour, Step
+    from vesicle_opt.studies import _stomatocyte as S
+
+    seen = {}
+
+    def fake_walk(lay, eps, vs, first, name, stop=None, start=None):
+        seen["lay"], seen["start"] = lay, start
+        yield vs[0], "res", "previous point" if start is not None else "sharp shape"
+
+    def row(res, v, eps, lay, sharp_f, seed, side, walk):
+        return {"c0": 0.0, "kind": "point", "seed": seed, "status": "converged", "walk": walk}
+
+    case = {"epsilon": 0.03, "walk": "up", "vs": [0.62], "n_modes": 8, "eps_over_h": 4.0, "seedless": True}
+    monkeypatch.setattr(S, "walk", fake_walk)
+    monkeypatch.setattr(S, "layout", lambda *a: {"seeded": True})
+    steps = (Step("out", 0.0, "a", True, 0.01, False), Step("out", -1.0, "b", True, -0.001, False))
+    monkeypatch.setattr(S, "seedless", lambda *a, **k: (Detour(steps, False, None, "no switch"), {"detour": True}))
+    rows = S.phase_case(case, row)
+    assert [(r["kind"], r["c0"]) for r in rows] == [("detour", 0.0), ("detour", -1.0), ("point", 0.0)]
+    assert rows[1]["status"] == "detour not reached: no switch"
+    assert rows[2]["seed"].endswith("(a seed); the detour in c0 was not reached")
+    assert seen == {"lay": {"seeded": True}, "start": None}
+
+    back = steps + (Step("switch", -1.0, "c", True, 0.02, True, 1), Step("back", 0.0, "d", True, 0.02, True))
+    monkeypatch.setattr(S, "seedless", lambda *a, **k: (Detour(back, True, -1.0, None), {"detour": True}))
+    rows = S.phase_case(case, row)
+    assert rows[-1]["seed"] == "no seed: detour in c0 from the oblate (switched at c0 = -1)"
+    assert seen == {"lay": {"detour": True}, "start": "d"}

@@ -59,10 +59,12 @@ def layout(meridians, eps: float, eps_over_h: float, refine: bool = True) -> dic
             "mesh": {"kind": "axisymmetric", "n": n, "refine": "interface", "levels": levels, "band": BAND}}
 
 
-def scene(lay: dict, eps: float, v: float, name: str):
-    raw = {"domain": {"box": lay["box"], "boundary": "natural"}, "mesh": lay["mesh"], "model": {"epsilon": eps},
+def scene(lay: dict, eps: float, v: float, name: str, c0: float = 0.0, max_iter: int = MAX_ITER):
+    """The point's scene; ``c0`` in literature units (C0 R0 at R0 = 1: ``model.c0`` = c0 / 2)."""
+    model = {"epsilon": eps, "c0": c0 / 2} if c0 else {"epsilon": eps}
+    raw = {"domain": {"box": lay["box"], "boundary": "natural"}, "mesh": lay["mesh"], "model": model,
            "constraints": {"reduced_volume": v, "area": 4 * math.pi},
-           "initial": {"shape": "sphere", "radius": 1.0}, "solver": {"method": "exact", "max_iter": MAX_ITER}}
+           "initial": {"shape": "sphere", "radius": 1.0}, "solver": {"method": "exact", "max_iter": max_iter}}
     return from_dict(raw, name=name)
 
 
@@ -81,11 +83,12 @@ def solve_quiet(sc, start):
         return solve(sc, x0=start)
 
 
-def walk(lay: dict, eps: float, vs, first, name: str, stop=None):
+def walk(lay: dict, eps: float, vs, first, name: str, stop=None, start=None):
     """Yield (v, Result, seed label) along ``vs``: the first from ``first`` ((r, z) of a sharp shape
-    at vs[0]), then each warm from the last converged point; ``stop(result) -> bool`` ends the walk
-    after a point (e.g. one that left its branch's form)."""
-    start, label = None, "sharp shape"
+    at vs[0]) or from ``start`` (a converged Result at vs[0], label "previous point"), then each
+    warm from the last converged point; ``stop(result) -> bool`` ends the walk after a point (e.g. one
+    that left its branch's form)."""
+    label = "sharp shape" if start is None else "previous point"
     for v in vs:
         sc = scene(lay, eps, v, f"{name}-v{v:g}-eps{eps:g}")
         if start is None:

@@ -8,6 +8,10 @@ and oblate cases start from their sharp shapes. The sharp stomatocyte itself is 
 seed, by switching at the sharp oblate's branch point (``sharp.stomatocyte_switch``: v = 0.51044);
 the phase field has no such route here yet: at the eps this machine affords (>= 0.025) the meridian
 oblate's dimples meet (a torus) above v = 0.51 (at v = 0.58 for eps = 0.03, measured).
+``seedless`` tries another (``branch.detour``): the oblate walked out in c0 at fixed v to where its odd
+mode is unstable (the sharp branch point at v = 0.62 is at c0 = -0.985, the poles 0.27 R0 apart),
+pushed along that mode, the landing walked back to c0 = 0; it is opt-in (case key ``seedless``;
+docs/guide/bifurcation.md, "A detour in c0", for what it reached).
 From the seed two walks at fixed v (``_meridian.walk``: exact IPOPT solves, each warm from the
 previous point, second-order checked, axisymmetric perturbations only): ``up`` towards the fold on
 the v grid ``up`` (its steps shrinking towards the sharp fold, 0.6604), ending at the first point
@@ -29,11 +33,15 @@ in lambda of at most ``AHEAD`` times the last lambda step), f the parabola f(lam
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 
+from vesicle_opt.branch.detour import detour
+from vesicle_opt.sharp import axisymmetric as sharp_a
 from vesicle_opt.sharp import stomatocyte as sharp_s
-from vesicle_opt.studies._meridian import layout, walk
+from vesicle_opt.studies._meridian import MAX_ITER, layout, scene, seed, solve_quiet, walk
+from vesicle_opt.verify import updown
 
 V_SEED = 0.62  # the seed's reduced volume: the lower side, 0.04 below the sharp fold (0.6604)
 V_DOWN = 0.575  # the sharp reference's lower end: below the crossing with the oblate (0.5903)
@@ -89,19 +97,34 @@ def sharp_case(case: dict) -> list[dict]:
 
 def phase_case(case: dict, point_row) -> list[dict]:
     """The phase-field stomatocyte at ``case["epsilon"]``, the walk ``case["walk"]`` (up / down) over
-    ``case["vs"]`` from the seed at vs[0] = ``V_SEED`` (module docstring); ``point_row(res, v, eps,
-    lay, sharp_f, seed, side, walk)`` makes a study row (side "lower": fixed-v minimisers)."""
+    ``case["vs"]`` from the seed at vs[0] = ``V_SEED`` (module docstring), or with ``case["seedless"]``
+    from the detour in c0 (``seedless``: its solves are rows of kind "detour", their c0 their own; the
+    seed where it is not reached, the column ``seed`` saying so);
+    ``point_row(res, v, eps, lay, sharp_f, seed, side, walk)`` makes a study row (side "lower":
+    fixed-v minimisers)."""
     eps, name = case["epsilon"], f"phase_diagram-stomatocyte-{case['walk']}"
-    seed_pt = sharp_s.start_point(case["vs"][0], 0.0, case["n_modes"])
+    seed_pt = sharp_s.start_point(case["vs"][0], 0.0, case["n_modes"])  # the sharp reference (and the seed)
     r, z = seed_pt.meridian(2048)
-    lay = layout([(r, z)], eps, case["eps_over_h"], case.get("refine", True))
     sharp_pts = {case["vs"][0]: seed_pt}
-    rows = []
+    rows, start, first = [], None, f"sharp stomatocyte at v = {case['vs'][0]} (a seed)"
+    if case.get("seedless"):
+        d, lay = seedless(case["vs"][0], eps, case["eps_over_h"], case.get("refine", True), name=f"{name}-detour")
+        for st in d.steps:
+            rows.append({**point_row(st.state, case["vs"][0], eps, lay, math.nan, f"detour {st.leg}", "", "detour"),
+                         "c0": st.q, "kind": "detour"})
+        if d.reached:
+            start = d.end.state
+            first = f"no seed: detour in c0 from the oblate (switched at c0 = {d.switched_at:g})"
+        else:  # the seed after all, and the rows say why
+            rows[-1]["status"] = f"detour not reached: {d.stopped}"
+            first += "; the detour in c0 was not reached"
+    if start is None:
+        lay = layout([(r, z)], eps, case["eps_over_h"], case.get("refine", True))
 
     def stop(res) -> bool:  # past the fold (no minimiser), or no stomatocyte any more (a torus, an oblate)
         return not res.converged or point_row(res, math.nan, eps, lay, math.nan, "", "", "")["shape"] != "cup"
 
-    for v, res, label in walk(lay, eps, case["vs"], (r, z), name, stop):
+    for k, (v, res, label) in enumerate(walk(lay, eps, case["vs"], (r, z), name, stop, start)):
         q = sharp_pts.get(v)
         if q is None:
             try:
@@ -109,6 +132,59 @@ def phase_case(case: dict, point_row) -> list[dict]:
                 sharp_pts[v] = q
             except (sharp_s.NotConverged, np.linalg.LinAlgError):
                 q = None  # past the sharp fold: no lower-side point
-        seed = f"sharp stomatocyte at v = {case['vs'][0]} (a seed)" if label == "sharp shape" else label
+        seed = first if k == 0 else label
         rows.append(point_row(res, v, eps, lay, q.f if q is not None else math.nan, seed, "lower", case["walk"]))
     return rows
+
+
+# --- the seedless start: a detour in c0 (``branch.detour``) ----------------------------------------
+DETOUR_C0 = (0.0, -0.5, -1.0, -1.25, -1.5)  # the way out at V_SEED (literature c0): the sharp oblate's odd branch
+# point at v = 0.62 is at c0 = -0.985 (odd eigenvalue +0.088 at -0.75, -0.0055 at -1.0); the meridian oblate
+# at eps 0.03 is a saddle from c0 = -1.0 (least eigenvalue -0.0014 mu_ref; -0.0092 at -1.5; +0.0053 at -0.5)
+PUSH_BEYOND = -1.0  # no push before (at -0.5 the oblate is stable); at c0 = -1.0 (mu -0.0014) pushes
+# capped at 150 IPOPT iterations moved f by 8e-4 only, at 800 they left the oblate (measured, eps 0.03)
+PUSH_AMPLITUDE = 0.5  # the push's largest change of phi (the critical mode scaled to this max |.|)
+PUSH_ITER = 800  # IPOPT iterations of a pushed solve: the oblate turns into the cup, a long way
+TALL = 0.0  # the box's least half-height (before the walls' 12 eps) in units of the oblate's radius; 0: the box
+# about the oblate. On that box the pushes landed on tubes from wall to wall (f 1.33 / 1.49 / 1.13 at c0 = -1.0 /
+# -1.25 / -1.5, no cup); with 0.6 / 0.7 / 0.8 / 1.0 the oblate's cold start at c0 = 0 stops after one IPOPT
+# iteration, kkt_not_met (dual 2.8e-6 > 1e-6), measured at eps 0.03: the seedless route is not reached yet
+OBLATE_MODES = 16  # the sharp oblate of the detour's start (as phase_diagram's oblate rows)
+
+
+def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=DETOUR_C0,
+             name: str = "phase_diagram-stomatocyte-detour", push_beyond: float | None = None):
+    """The phase-field stomatocyte at (v, c0 = c0s[0] = 0) reached WITHOUT a stomatocyte seed
+    (``branch.detour``): the oblate from its sharp shape (as the oblate rows start), walked in c0
+    at fixed v down ``c0s`` until its least eigenvalue (the odd mode) is negative, the solve from it
+    pushed along that mode, the cup it lands on walked back to c0 = 0. Returns (the Detour, the
+    layout); ``detour.end.state`` is the certified stomatocyte (a Result) when ``detour.reached``.
+    ``push_beyond``: ``PUSH_BEYOND`` unless given."""
+    ref = sharp_a.solve(v, "oblate", OBLATE_MODES, second_order=False)
+    mer = ref.meridian(2048)
+    half = TALL * float(mer[0].max())  # TALL: see there
+    lay = layout([mer, (np.zeros(2), np.array([-half, half]))] if half > 0 else [mer], eps, eps_over_h, refine)
+
+    def solve(c0, start):
+        pushed = isinstance(start, types.SimpleNamespace) and getattr(start, "pushed", False)
+        sc = scene(lay, eps, v, f"{name}-c{c0:g}-eps{eps:g}", c0=c0, max_iter=PUSH_ITER if pushed else MAX_ITER)
+        return solve_quiet(sc, seed(sc, *mer, eps, lay["h"]) if start is None else start)
+
+    def check(res):
+        mu = res.extra.get("second_order_min_eigenvalue")
+        mode = res.history.get("second_order_mode")
+        return res.converged, (math.nan if mu is None else float(mu)), mode
+
+    def push(res, mode, a):
+        mode = np.asarray(mode, float)
+        phi = np.clip(res.phi + a * mode / np.abs(mode).max(), -1.0, 1.0)
+        return types.SimpleNamespace(disc=res.disc, phi=phi, pushed=True)
+
+    def is_cup(res):
+        return updown.describe(res.disc, res.phi).get("form") == "cup"
+
+    def is_oblate(res):
+        return updown.describe(res.disc, res.phi).get("form") == "oblate"
+
+    return detour(solve, check, push, is_cup, c0s, PUSH_AMPLITUDE,
+                  PUSH_BEYOND if push_beyond is None else push_beyond, is_oblate), lay
