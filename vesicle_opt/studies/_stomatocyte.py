@@ -101,7 +101,7 @@ def phase_case(case: dict, point_row) -> list[dict]:
     def stop(res) -> bool:  # past the fold (no minimiser), or no stomatocyte any more (a torus, an oblate)
         return not res.converged or point_row(res, math.nan, eps, lay, math.nan, "", "", "")["shape"] != "cup"
 
-    for v, res, label in walk(lay, eps, case["vs"], (r, z), name, stop):
+    for v, res, label in walk(lay, eps, case["vs"], (r, z), name, stop, case.get("states"), case["case"]):
         q = sharp_pts.get(v)
         if q is None:
             try:
