@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.branch.crossing import crossing
-from vesicle_opt.studies._meridian import scene, solve_quiet, state_path
+from vesicle_opt.studies._meridian import layout, scene, solve_quiet, state_path, walk
 from vesicle_opt.studies._stomatocyte import fold_of
 from vesicle_opt.verify.metrics import richardson, richardson_fixed
 
@@ -104,28 +104,61 @@ def level_layout(lay: dict, j: int) -> dict:
     return {**lay, "h": lay["h"] / 2**j, "mesh": {**lay["mesh"], "levels": lay["mesh"]["levels"] + j}}
 
 
+def _walked(case: dict):
+    """(Result, layout) of the eps/h = 4 state at ``case["v"]`` where no saved field is there: a walk
+    (``_meridian.walk``) over ``case["walk_vs"]`` from the sharp shape at its first v (the prolate and
+    oblate: the sharp shape at v itself; the stomatocyte: from ``_stomatocyte.V_SEED``), as the study's
+    own walks; the last point's result (None when the walk stopped short)."""
+    from vesicle_opt.sharp import axisymmetric as sharp
+    from vesicle_opt.sharp import stomatocyte as sharp_s
+
+    eps, vs, b = case["epsilon"], case["walk_vs"], case["branch"]
+    if b == "stomatocyte":
+        meridian = sharp_s.start_point(vs[0], 0.0, 24).meridian(2048)
+    else:
+        meridian = sharp.solve(vs[0], b, 16, second_order=False).meridian(2048)
+    lay = layout([meridian], eps, 4.0)
+    res = None
+    for v, res, _ in walk(lay, eps, vs, meridian, f"phase_diagram-h-{case['case']}", lambda r: not r.converged):
+        pass
+    return (res if res is not None and res.converged and v == vs[-1] else None), lay
+
+
 def run(case: dict, point_row) -> list[dict]:
     """The levels ``LEVELS`` of one state at ``case["v"]`` (module docstring): rows of kind
-    ``h_level`` (``point_row(res, v, eps, lay)``: the study's row), the eps/h = 4 solve warm from the
-    saved state interpolated onto a band about its interface, the others warm from that solve."""
+    ``h_level`` (``point_row(res, v, eps, lay)``: the study's row). The eps/h = 4 solve warm from the
+    saved state interpolated onto a band about its interface (or, with no saved state, the end of a
+    walk from the sharp shape: ``_walked``, its CPU time in the first row's), the others warm from it."""
     from vesicle_opt.mesh import discretize, refine  # scikit-fem: lazy
 
-    mesh, phi, h_fine, lay0 = _load(case["state"])
     eps, v = case["epsilon"], case["v"]
-    rows, base = [], None
+    rows, base, t0 = [], None, time.process_time()
+    saved = Path(case["state"]).is_file() if case.get("state") else False
+    if saved:
+        mesh, phi, h_fine, lay0 = _load(case["state"])
+    else:
+        base, lay0 = _walked(case)
+        if base is None:
+            return [{"branch": case["branch"], "epsilon": eps, "target_v": v, "converged": False, "kind": "h_level",
+                     "transition": case["transition"], "eps_over_h": 4.0, "point": case.get("point", ""),
+                     "state": case["source"], "status": "the walk to the state did not reach it"}]
     for j in LEVELS:
         lay = level_layout(lay0, j)
-        sc = scene(lay, eps, v, f"phase_diagram-h-{case['case']}-j{j}")
-        if base is None:
-            disc = discretize(sc, interface=refine.remesh_distance(mesh, phi, math.sqrt(2.0) * h_fine))
-            start = types.SimpleNamespace(disc=disc, phi=refine.transfer(mesh, phi, disc.nodes))
+        if j == 0 and base is not None:
+            res = base
         else:
-            start = base
-        t0 = time.process_time()
-        res = solve_quiet(sc, start)
+            sc = scene(lay, eps, v, f"phase_diagram-h-{case['case']}-j{j}")
+            if base is None:
+                disc = discretize(sc, interface=refine.remesh_distance(mesh, phi, math.sqrt(2.0) * h_fine))
+                start = types.SimpleNamespace(disc=disc, phi=refine.transfer(mesh, phi, disc.nodes))
+            else:
+                start = base
+            res = solve_quiet(sc, start)
         row = point_row(res, v, eps, lay)
-        row.update(kind="h_level", transition=case["transition"], eps_over_h=eps / lay["h"], state=case["source"],
-                   point=case.get("point", ""), cpu_time_s=time.process_time() - t0)
+        row.update(kind="h_level", transition=case["transition"], eps_over_h=round(eps / lay["h"], 9),
+                   state=case["source"] if saved else f"walked: {case['walk_vs']}", point=case.get("point", ""),
+                   cpu_time_s=time.process_time() - t0)
+        t0 = time.process_time()
         rows.append(row)
         if j == 0:
             if not res.converged:
@@ -136,23 +169,32 @@ def run(case: dict, point_row) -> list[dict]:
 
 # --- stage two: the cases from the located transitions --------------------------------------------
 
-def cases(rows: list[dict], summary: dict, states) -> list[dict]:
+def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
     """The h-level cases of the transitions in ``summary`` (the eps/h = 4 rows' ``crossings``,
-    ``oblate_stomatocyte_crossing``, ``stomatocyte_fold``): for a crossing, each branch's state
-    nearest it (its walk's saved field) solved at the crossing's v; for the fold, its three points."""
+    ``oblate_stomatocyte_crossing``, ``stomatocyte_fold``), in that order: for a crossing, each
+    branch's state nearest it (its walk's saved field) solved at the crossing's v; for the fold, its
+    three points. Each case also carries the walk that reaches its state where no field was saved
+    (``_walked``; ``grids``: the stomatocyte's ``up`` and ``down`` v grids from ``V_SEED``)."""
+    from vesicle_opt.studies._stomatocyte import V_SEED
+
     out = []
     pts = [r for r in rows if str(r.get("kind", "point")) in ("point", "") and str(r.get("converged")) == "True"]
 
     def nearest(sel, v):
-        sel = [r for r in sel if state_path(states, r["case"], _num(r["target_v"])).is_file()]
         return min(sel, key=lambda r: abs(_num(r["reduced_volume"]) - v)) if sel else None
+
+    def walk_vs(branch, v):
+        if branch != "stomatocyte":
+            return [float(v)]
+        grid = grids["up"] if v > V_SEED else grids["down"]
+        return [u for u in grid if (u < v if v > V_SEED else u > v)] + [float(v)]
 
     def add(transition, branch, eps, v, src, point=""):
         if src is None:
             return
         out.append({"case": f"h-{transition}-{branch}{point}-eps{eps:g}", "transition": transition, "branch": branch,
                     "epsilon": eps, "v": float(v), "point": point, "source": f"{src['case']} v {_num(src['target_v']):g}",
-                    "state": str(state_path(states, src["case"], _num(src["target_v"])))})
+                    "state": str(state_path(states, src["case"], _num(src["target_v"]))), "walk_vs": walk_vs(branch, v)})
 
     for e, x in summary.get("crossings", {}).items():
         eps = float(e)

@@ -24,11 +24,20 @@ form (``branch.crossing``; an oblate that turned torus is not used); a fold per 
 of v(lambda) (``_stomatocyte.fold_of``). The eps -> 0 limits (``extrapolate``): free-order Richardson
 through the three finest eps with its observed order, p = 2 through the two finest, and an error
 estimate (the change of the free-order limit from the three coarsest eps to the three finest).
+The oblate/stomatocyte crossing has a fifth eps, 0.02 (``low_extra``: the low oblate and the down walk
+only), since at eps >= 0.04 the oblate is a torus there.
+
+The mesh's share (``studies._hlevel``, stage two of the run): at fixed eps/h the P1 error of f does not
+vanish as eps -> 0, so each transition's states are solved again at eps/h = 2, 4, 8 (same box and
+coarse cells), warm from the walks' saved fields (``_meridian.save``), f and lambda extrapolated in h
+with their observed order, and the transitions moved by those shares before eps -> 0
+(``crossings_h_corrected``, ``extrapolated_h_corrected``, ``h_levels``; ``_p2``: with p = 2).
 
 Outputs: ``phase_diagram.csv`` (a row per point: f, c0_reduced, the sharp f, the verdicts, nodes, the
 case's CPU time on its first row), ``phase_diagram_summary.json`` (``crossings``, ``extrapolated``,
-``stomatocyte_fold``, ``oblate_stomatocyte_crossing``: per eps, eps -> 0, sharp, published),
-``phase_diagram.png`` (f against v per eps, the sharp branches, the transitions, meridian pictures).
+``stomatocyte_fold``, ``oblate_stomatocyte_crossing``: per eps, eps -> 0, sharp, published; the
+h-corrected ones beside them), rows of kind ``h_level`` (column ``eps_over_h``), ``states/`` (the
+walks' fields: npz), ``phase_diagram.png`` (f against v per eps, the sharp branches, the transitions, meridian pictures).
 Full: eps = 0.05, 0.04, 0.03, 0.025. Quick: eps = 0.1 at eps/h = 2 on the uniform mesh, v = 0.7,
 0.65, sharp references with 8 modes: the plumbing (at eps = 0.1 the oblate seeds' dimples meet,
 tori: no crossing). Extensions (other c0: ``EXTENSIONS``) add their own cases, rows and summary.
@@ -164,8 +173,8 @@ def _stomatocyte_row(res, v, eps, lay, sharp_f, seed, side, walk) -> dict:
 def run(case: dict) -> list[dict]:
     t0 = time.process_time()
     rows = _run(case)
-    if rows:  # the case's CPU time (this process's), on its first row
-        rows[0]["cpu_time_s"] = time.process_time() - t0
+    if rows and "cpu_time_s" not in rows[0]:  # the case's CPU time (this process's), on its first row
+        rows[0]["cpu_time_s"] = time.process_time() - t0  # (h-level rows carry their own, per level)
     return rows
 
 
@@ -340,7 +349,8 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     out, rows, good = run_into(NAME, cases(quick, states), run, out, executor=executor, workers=workers,
                                extra_columns=columns)
     # stage two: the states at the transitions located on those rows, on finer and coarser bands
-    second = hl.cases(good, summarise(good), states)
+    second = hl.cases(good, summarise(good), states, {w: QUICK.get(f"stomatocyte_{w}", FULL[f"stomatocyte_{w}"])
+                                                      for w in ("up", "down")})
     if second:
         out, rows, good = run_into(NAME, second, run, out, executor=executor, workers=workers, extra_columns=columns)
     summary = summarise(good)
@@ -353,6 +363,11 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     for key in ("stomatocyte_fold", "oblate_stomatocyte_crossing"):
         for e, x in summary.get(key, {}).get("per_eps", {}).items():
             log.info(f"eps {e}: {key} v = {x['v']:.5f}, f = {x['f']:.5f}")
+    for name, ext in (("crossing", summary.get("extrapolated_h_corrected")),
+                      *((k, summary.get(k, {}).get("extrapolated_h_corrected")) for k in ("stomatocyte_fold",
+                                                                                         "oblate_stomatocyte_crossing"))):
+        if ext:
+            log.info(f"eps -> 0, h-corrected {name} (p = 2): v = {ext['reduced_volume_p2']:.5f}, f = {ext['reduced_energy_p2']:.5f}")
     if good:
         figure(_c0_zero(good), summary, out / f"{NAME}.png", PUBLISHED)
     # the up walk's last point lies past the phase field's fold (no stomatocyte there): its expected end
@@ -373,4 +388,5 @@ def timings(rows: list[dict]) -> dict:
         c["solve_wall_s"] += wall if math.isfinite(wall) else 0.0
         c["points"] += 1
     return {"per_case": per, "cpu_s_total": sum(c["cpu_s"] for c in per.values()),
-            "solve_wall_s_total": sum(c["solve_wall_s"] for c in per.values())}
+            "solve_wall_s_total": sum(c["solve_wall_s"] for c in per.values()),
+            "h_level_cpu_s": sum(c["cpu_s"] for k, c in per.items() if str(k).startswith("h-"))}
