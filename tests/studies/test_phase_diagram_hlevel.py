@@ -84,6 +84,7 @@ def test_summary_corrects_each_eps_and_extrapolates():
         assert lv["prolate"]["order"] == pytest.approx(2.0, abs=1e-8)  # brentq on p
         assert lv["prolate"]["mesh_share"] == pytest.approx(-3 * (eps / 4) ** 2, abs=1e-12)
         assert lv["oblate"]["mesh_share_p2"] == pytest.approx(4 * (eps / 4) ** 2, abs=1e-12)
+        assert abs(lv["oblate"]["same_state"]) < 1e-12  # the spline is exact on the quadratic: round-off
     ext = s["extrapolated_h_corrected"]
     assert ext["reduced_volume_p2"] == pytest.approx(0.6, abs=1e-9)  # round-off / (1 - r^2)
     assert ext["reduced_volume_richardson"] == pytest.approx(0.6, abs=1e-8)  # free order: exact in eps^2
@@ -114,7 +115,7 @@ def test_corrected_fold_removes_the_shares():
     for x in (fold, fold_p2):
         assert x["reduced_volume"] == pytest.approx(0.66, abs=1e-12)  # polyfit round-off
         assert x["reduced_energy"] == pytest.approx(1.96, abs=1e-12)
-    assert levels["0"]["order"] == pytest.approx(2.0, abs=1e-8)
+    assert levels["0"]["order"] == pytest.approx(2.0, abs=1e-8) and levels["1"]["same_state"] == 0.0  # the same numbers
 
 
 def test_fold_points_are_fold_of_selection():

@@ -244,23 +244,26 @@ def shares(rows: list[dict]) -> dict:
     return out
 
 
-def _report(s: dict) -> dict:
-    """One state's levels in the summary: eps/h, f, the observed order of f and the mesh shares."""
+def _report(s: dict, f_walk: float) -> dict:
+    """One state's levels in the summary: eps/h, f, the observed order of f, the mesh shares, and
+    ``same_state``: its eps/h = 4 f minus the walks' f there (the spline's at a crossing, the walk's
+    row at a fold point): the h-levels' state is the walks' one when this is at the solver's tolerance."""
     fs = s["f_share"]
     return {"v": s["v"], "eps_over_h": s["eps_over_h"], "f": s["f"], "order": fs["order"], "f_limit": fs["limit"],
-            "mesh_share": fs["share"], "mesh_share_p2": fs["share_p2"], "lambda_order": s["lambda_share"]["order"]}
+            "mesh_share": fs["share"], "mesh_share_p2": fs["share_p2"], "lambda_order": s["lambda_share"]["order"],
+            "same_state": s["f"][1] - f_walk}
 
 
-def crossings(data: dict, sh: dict, transition: str, branches) -> tuple[dict, dict, dict]:
+def crossings(data: dict, sh: dict, transition: str, branches, located: dict) -> tuple[dict, dict, dict]:
     """The corrected crossings per eps from ``data`` {eps: (va, fa, vb, fb)} (the eps/h = 4 points of
-    the two branches) and the shares ``sh`` (``shares``): ({eps: crossing} with the observed orders'
-    shares, the same with p = 2, {eps: {branch: ``_report``}})."""
+    the two branches), the shares ``sh`` (``shares``) and the crossings ``located`` on those points:
+    ({eps: crossing} with the observed orders' shares, the same with p = 2, {eps: {branch: ``_report``}})."""
     per, per2, levels = {}, {}, {}
     for eps, (va, fa, vb, fb) in data.items():
         a, b = (sh.get((transition, br, eps)) for br in branches)
         if a is None or b is None:
             continue
-        levels[eps] = {br: _report(s) for br, s in zip(branches, (a, b))}
+        levels[eps] = {br: _report(s, located[eps]["reduced_energy"]) for br, s in zip(branches, (a, b))}
         for out, key in ((per, "share"), (per2, "share_p2")):
             da, db = a["f_share"][key], b["f_share"][key]
             x = corrected_crossing(va, fa, vb, fb, da, db) if math.isfinite(da) and math.isfinite(db) else None
@@ -282,18 +285,4 @@ def fold(up: list[dict], sh: dict, eps: float) -> tuple[dict | None, dict | None
         df, dl = (np.array([x[q][key] for x in s]) for q in ("f_share", "lambda_share"))
         fv = corrected_fold(v, f, lam, df, dl) if np.isfinite(df).all() and np.isfinite(dl).all() else None
         out.append({"reduced_volume": fv[0], "reduced_energy": fv[1]} if fv is not None else None)
-    return out[0], out[1], {str(i): _report(x) for i, x in enumerate(s)}
-
-
-def resolve_check(rows: list[dict]) -> float:
-    """max |f| difference between an eps/h = 4 h-level solve and the walk's row of the same state at the
-    same v (fold points: the same v; both on bands of the same spacing, built about other interfaces)."""
-    walk = {(r.get("case"), _num(r["target_v"])): _num(r["f"]) for r in rows if str(r.get("kind", "point")) == "point"}
-    d = [abs(_num(r["f"]) - walk[key]) for r in rows if r.get("kind") == "h_level" and r.get("transition") == "fold"
-         and _num(r.get("eps_over_h")) == 4.0 and (key := _source_key(r)) in walk]
-    return max(d) if d else math.nan
-
-
-def _source_key(r: dict):
-    case, _, v = str(r.get("state", "")).rpartition(" v ")
-    return case, _num(v)
+    return out[0], out[1], {str(i): _report(x, f[i]) for i, x in enumerate(s)}

@@ -253,7 +253,7 @@ def summarise(rows: list[dict]) -> dict:
     out = {"crossings": _vf(per_eps)}
     if len(per_eps) >= 2:
         out["extrapolated"] = extrapolate(per_eps)
-    out.update(_corrected(*hl.crossings({e: data[e] for e in per_eps}, sh, "crossing", BRANCHES)))
+    out.update(_corrected(*hl.crossings({e: data[e] for e in per_eps}, sh, "crossing", BRANCHES, per_eps)))
     out.update(stomatocyte_summary(rows, sh))
     one_eps = [r for r in rows if _num(r["epsilon"]) == max(_num(q["epsilon"]) for q in rows)]
     x = crossing(*[c for b in BRANCHES for c in _by_v([r for r in one_eps if r["branch"] == b], "target_v", "sharp_f")])
@@ -321,7 +321,8 @@ def stomatocyte_summary(rows: list[dict], sh: dict | None = None) -> dict:
     for eps in sorted({_num(r["epsilon"]) for r in rows if r["branch"] == "stomatocyte"} - {0.0}, reverse=True):
         for k, x in _stomatocyte_transitions(rows, eps).items():
             per[k][eps] = x
-    corr = {"crossing": hl.crossings(per["crossing_data"], sh or {}, "oblate_stomatocyte", ("oblate", "stomatocyte")),
+    corr = {"crossing": hl.crossings(per["crossing_data"], sh or {}, "oblate_stomatocyte", ("oblate", "stomatocyte"),
+                                     per["crossing"]),
             "fold": ({}, {}, {})}
     for e, up in per["fold_up"].items():
         for d, y in zip(corr["fold"], hl.fold(up, sh or {}, e)):
