@@ -137,3 +137,25 @@ def test_level_layout_keeps_box_and_coarse_cells():
         assert q["box"] == lay["box"] and q["mesh"]["n"] == lay["mesh"]["n"]
         assert q["h"] * 2 ** q["mesh"]["levels"] == pytest.approx(lay["h"] * 2 ** lay["mesh"]["levels"], rel=1e-15)
         assert q["h"] == pytest.approx(lay["h"] / 2**j, rel=1e-15)
+
+
+def test_stage_two_cases_from_located_transitions(tmp_path):
+    """The h-level cases of the located transitions: a crossing's states from each branch's point
+    nearest it (a saved field where there is one), walked to from its sharp shape otherwise; the fold
+    one case an eps with its three points and the up grid's walk to the highest."""
+    from vesicle_opt.studies._meridian import state_path
+    rows = [r for r in _rows((0.05,)) if r["kind"] == "point"]
+    for r in rows:
+        r["case"] = f"{r['branch']}-eps0.05"
+    up = [0.62, 0.64, 0.65, 0.655, 0.66]
+    rows += [{"branch": "stomatocyte", "epsilon": 0.05, "target_v": v, "reduced_volume": v, "f": 1.9, "lambda": i,
+              "converged": "True", "kind": "point", "walk": "up", "shape": "cup", "case": "stomatocyte-up-eps0.05"}
+             for i, v in enumerate(up)]
+    state_path(tmp_path, "oblate-eps0.05", 0.6).touch()
+    summary = {"crossings": {"0.05": {"v": 0.603, "f": 1.2}}, "stomatocyte_fold": {"per_eps": {"0.05": {}}}}
+    cs = {c["case"]: c for c in H.cases(rows, summary, tmp_path, {"up": up + [0.665], "down": [0.62, 0.6]})}
+    assert set(cs) == {"h-crossing-prolate-eps0.05", "h-crossing-oblate-eps0.05", "h-fold-stomatocyte-eps0.05"}
+    ob, pro, fold = cs["h-crossing-oblate-eps0.05"], cs["h-crossing-prolate-eps0.05"], cs["h-fold-stomatocyte-eps0.05"]
+    assert ob["v"] == pro["v"] == 0.603 and ob["source"] == "oblate-eps0.05 v 0.6" and pro["walk_vs"] == [0.603]
+    assert ob["state"] == str(state_path(tmp_path, "oblate-eps0.05", 0.6))
+    assert [q["v"] for q in fold["points"]] == [0.65, 0.655, 0.66] and fold["walk_vs"] == up

@@ -104,11 +104,11 @@ def level_layout(lay: dict, j: int) -> dict:
     return {**lay, "h": lay["h"] / 2**j, "mesh": {**lay["mesh"], "levels": lay["mesh"]["levels"] + j}}
 
 
-def _walked(case: dict):
-    """(Result, layout) of the eps/h = 4 state at ``case["v"]`` where no saved field is there: a walk
-    (``_meridian.walk``) over ``case["walk_vs"]`` from the sharp shape at its first v (the prolate and
-    oblate: the sharp shape at v itself; the stomatocyte: from ``_stomatocyte.V_SEED``), as the study's
-    own walks; the last point's result (None when the walk stopped short)."""
+def _walked(case: dict) -> tuple[dict, dict]:
+    """({v: Result}, layout): the eps/h = 4 states at the case's points where no saved field is there,
+    from ONE walk (``_meridian.walk``) over ``case["walk_vs"]`` from the sharp shape at its first v (the
+    prolate and oblate: the sharp shape at v itself; the stomatocyte: from ``_stomatocyte.V_SEED``, its
+    up or down grid as the study's own walks), stopped at the first point that fails."""
     from vesicle_opt.sharp import axisymmetric as sharp
     from vesicle_opt.sharp import stomatocyte as sharp_s
 
@@ -118,48 +118,67 @@ def _walked(case: dict):
     else:
         meridian = sharp.solve(vs[0], b, 16, second_order=False).meridian(2048)
     lay = layout([meridian], eps, 4.0)
-    res = None
+    want = {float(q["v"]) for q in _points(case)}
+    got = {}
     for v, res, _ in walk(lay, eps, vs, meridian, f"phase_diagram-h-{case['case']}", lambda r: not r.converged):
-        pass
-    return (res if res is not None and res.converged and v == vs[-1] else None), lay
+        if res.converged and float(v) in want:
+            got[float(v)] = res
+    return got, lay
+
+
+def _points(case: dict) -> list[dict]:
+    """The states of a case: its ``points`` (the fold's three) or the case itself (a crossing's state)."""
+    return case.get("points") or [case]
 
 
 def run(case: dict, point_row) -> list[dict]:
-    """The levels ``LEVELS`` of one state at ``case["v"]`` (module docstring): rows of kind
+    """The levels ``LEVELS`` of each state of the case (``_points``; module docstring): rows of kind
     ``h_level`` (``point_row(res, v, eps, lay)``: the study's row). The eps/h = 4 solve warm from the
-    saved state interpolated onto a band about its interface (or, with no saved state, the end of a
-    walk from the sharp shape: ``_walked``, its CPU time in the first row's), the others warm from it."""
+    saved state interpolated onto a band about its interface, or, where a field was not saved, the
+    state of one walk to the points (``_walked``: its CPU time in the first row's); the other levels
+    warm from that eps/h = 4 state."""
+    t0 = time.process_time()
+    pts = _points(case)
+    walked, lay_w = ({}, None) if all(q.get("state") and Path(q["state"]).is_file() for q in pts) else _walked(case)
+    t_walk, rows = time.process_time() - t0, []
+    for q in pts:
+        rows += _levels(case, q, walked.get(float(q["v"])), lay_w, point_row)
+    if rows:
+        rows[0]["cpu_time_s"] = rows[0].get("cpu_time_s", 0.0) + t_walk
+    return rows
+
+
+def _levels(case: dict, q: dict, base, lay_w, point_row) -> list[dict]:
+    """The levels of one state ``q`` (v, point, state, source) of ``case``: ``base`` its walked eps/h = 4
+    Result (with the walk's layout ``lay_w``) or None (its saved field)."""
     from vesicle_opt.mesh import discretize, refine  # scikit-fem: lazy
 
-    eps, v = case["epsilon"], case["v"]
-    rows, base, t0 = [], None, time.process_time()
-    saved = Path(case["state"]).is_file() if case.get("state") else False
-    if saved:
-        mesh, phi, h_fine, lay0 = _load(case["state"])
+    eps, v, t0 = case["epsilon"], float(q["v"]), time.process_time()
+    tag = {"kind": "h_level", "transition": case["transition"], "point": q.get("point", ""),
+           "state": q["source"] if base is None else f"walked: {case['walk_vs']}"}
+    if base is None and not (q.get("state") and Path(q["state"]).is_file()):
+        return [{"branch": case["branch"], "epsilon": eps, "target_v": v, "converged": False, "eps_over_h": 4.0,
+                 "status": "the walk to the state did not reach it", **tag}]
+    if base is None:
+        mesh, phi, h_fine, lay0 = _load(q["state"])
     else:
-        base, lay0 = _walked(case)
-        if base is None:
-            return [{"branch": case["branch"], "epsilon": eps, "target_v": v, "converged": False, "kind": "h_level",
-                     "transition": case["transition"], "eps_over_h": 4.0, "point": case.get("point", ""),
-                     "state": case["source"], "status": "the walk to the state did not reach it"}]
+        lay0 = lay_w
+    rows = []
     for j in LEVELS:
         lay = level_layout(lay0, j)
         if j == 0 and base is not None:
             res = base
         else:
-            sc = scene(lay, eps, v, f"phase_diagram-h-{case['case']}-j{j}")
+            sc = scene(lay, eps, v, f"phase_diagram-h-{case['case']}{q.get('point', '')}-j{j}")
             if base is None:
                 disc = discretize(sc, interface=refine.remesh_distance(mesh, phi, math.sqrt(2.0) * h_fine))
                 start = types.SimpleNamespace(disc=disc, phi=refine.transfer(mesh, phi, disc.nodes))
             else:
                 start = base
             res = solve_quiet(sc, start)
-        row = point_row(res, v, eps, lay)
-        row.update(kind="h_level", transition=case["transition"], eps_over_h=round(eps / lay["h"], 9),
-                   state=case["source"] if saved else f"walked: {case['walk_vs']}", point=case.get("point", ""),
-                   cpu_time_s=time.process_time() - t0)
+        rows.append({**point_row(res, v, eps, lay), **tag, "eps_over_h": round(eps / lay["h"], 9),
+                     "cpu_time_s": time.process_time() - t0})
         t0 = time.process_time()
-        rows.append(row)
         if j == 0:
             if not res.converged:
                 break  # no state to refine
@@ -209,11 +228,16 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
         add("oblate_stomatocyte", "stomatocyte", eps, x["v"],
             nearest([r for r in here if r["branch"] == "stomatocyte" and r.get("walk") == "down"
                      and r.get("shape") in ("cup", None, "")], x["v"]))
-    for e in summary.get("stomatocyte_fold", {}).get("per_eps", {}):
+    for e in summary.get("stomatocyte_fold", {}).get("per_eps", {}):  # one case an eps: one walk to its points
         eps = float(e)
         up = up_walk(pts, eps)
-        for i, k in enumerate(fold_points([_num(r["reduced_volume"]) for r in up])):
-            add("fold", "stomatocyte", eps, _num(up[k]["target_v"]), up[k], point=str(i))
+        idx = fold_points([_num(r["reduced_volume"]) for r in up])
+        if idx:
+            v_top = max(_num(up[k]["target_v"]) for k in idx)
+            add("fold", "stomatocyte", eps, v_top, up[idx[-1]])
+            out[-1]["points"] = [{"v": _num(up[k]["target_v"]), "point": str(i), "state": str(state_path(
+                states, up[k]["case"], _num(up[k]["target_v"]))), "source": f"{up[k]['case']} v {_num(up[k]['target_v']):g}"}
+                for i, k in enumerate(idx)]
     return out
 
 
