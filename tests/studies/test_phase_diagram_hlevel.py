@@ -22,7 +22,9 @@ def test_share_recovers_limit_and_order(p):
     s = H.share(h, [y0 + c * x**p for x in h])
     assert s["order"] == pytest.approx(p, abs=1e-8) and s["limit"] == pytest.approx(y0, abs=1e-12)
     assert s["share"] == pytest.approx(c * (eps / 4) ** p, abs=1e-12)
-    assert (abs(s["limit_p2"] - y0) < 1e-13) == (p == 2.0)
+    assert (abs(s["limit_p2"] - y0) < 1e-13) == (p == 2.0) and s["order_used"] == s["order"]
+    two = H.share(h[1:], [y0 + c * x**p for x in h[1:]])  # the coarsest level missing: p = 2 from the others
+    assert math.isnan(two["order"]) and two["order_used"] == 2.0 and two["share"] == two["share_p2"] == s["share_p2"]
 
 
 def _branches(eps, h):

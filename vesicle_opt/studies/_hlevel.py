@@ -55,7 +55,9 @@ def share(h, y) -> dict:
     """The h -> 0 limit of y(h) = y_0 + C h^p from three levels (h decreasing by halves): the observed
     order ``order`` and its limit ``limit`` (``metrics.richardson``; nan where no p in [0.25, 8]
     fits), the p = 2 limit from the two finest (``limit_p2``), and the mesh share of the middle level
-    (the study's eps/h = 4) against each: ``share`` = y(h_mid) - limit, ``share_p2``."""
+    (the study's eps/h = 4) against each: ``share`` = y(h_mid) - limit, ``share_p2``. Where no order
+    is observed (two levels: the coarsest not certified; or none fits) ``share`` is the p = 2 one,
+    and ``order_used`` says which order the share has."""
     h, y = np.asarray(h, float), np.asarray(y, float)
     order = np.argsort(-h)
     h, y = h[order], y[order]
@@ -63,7 +65,9 @@ def share(h, y) -> dict:
     lim, p = richardson(h, y) if len(h) >= 3 and np.isfinite(d).all() and (d != 0).all() else (math.nan, math.nan)
     lim2 = richardson_fixed(h, y, 2.0)
     mid = y[len(y) - 2]
-    return {"order": p, "limit": lim, "limit_p2": lim2, "share": mid - lim, "share_p2": mid - lim2}
+    observed = math.isfinite(lim)
+    return {"order": p, "limit": lim, "limit_p2": lim2, "share": mid - (lim if observed else lim2),
+            "share_p2": mid - lim2, "order_used": p if observed else 2.0}
 
 
 def corrected_crossing(va, fa, vb, fb, delta_a: float, delta_b: float) -> dict | None:
@@ -252,12 +256,13 @@ def up_walk(rows: list[dict], eps: float) -> list[dict]:
 
 def shares(rows: list[dict]) -> dict:
     """{(transition, branch+point, eps): share(...) of f and of lambda, with the levels' eps/h and f}
-    from the ``h_level`` rows; a state missing a certified level is left out."""
+    from the certified ``h_level`` rows; a state without certified eps/h = 4 and 8 levels is left
+    out (one without its eps/h = 2 level gets the p = 2 share: ``share``)."""
     out = {}
-    hl = [r for r in rows if r.get("kind") == "h_level"]
+    hl = [r for r in rows if r.get("kind") == "h_level" and str(r.get("converged")) == "True"]
     for key in sorted({(r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])) for r in hl}):
         sel = [r for r in hl if (r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])) == key]
-        if len(sel) < 3 or not all(str(r.get("converged")) == "True" for r in sel):
+        if not {4.0, 8.0} <= {_num(r["eps_over_h"]) for r in sel}:
             continue
         sel.sort(key=lambda r: _num(r["eps_over_h"]))
         h = [key[2] / _num(r["eps_over_h"]) for r in sel]
@@ -273,9 +278,9 @@ def _report(s: dict, f_walk: float) -> dict:
     ``same_state``: its eps/h = 4 f minus the walks' f there (the spline's at a crossing, the walk's
     row at a fold point): the h-levels' state is the walks' one when this is at the solver's tolerance."""
     fs = s["f_share"]
-    return {"v": s["v"], "eps_over_h": s["eps_over_h"], "f": s["f"], "order": fs["order"], "f_limit": fs["limit"],
-            "mesh_share": fs["share"], "mesh_share_p2": fs["share_p2"], "lambda_order": s["lambda_share"]["order"],
-            "same_state": s["f"][1] - f_walk}
+    return {"v": s["v"], "eps_over_h": s["eps_over_h"], "f": s["f"], "order": fs["order"], "order_used": fs["order_used"],
+            "f_limit": fs["limit"], "mesh_share": fs["share"], "mesh_share_p2": fs["share_p2"],
+            "lambda_order": s["lambda_share"]["order"], "same_state": s["f"][s["eps_over_h"].index(4.0)] - f_walk}
 
 
 def crossings(data: dict, sh: dict, transition: str, branches, located: dict) -> tuple[dict, dict, dict]:
