@@ -232,7 +232,8 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
         add("oblate_stomatocyte", "stomatocyte", eps, x["v"],
             nearest([r for r in here if r["branch"] == "stomatocyte" and r.get("walk") == "down"
                      and r.get("shape") in ("cup", None, "")], x["v"]))
-    for e in summary.get("stomatocyte_fold", {}).get("per_eps", {}):  # one case an eps: one walk to its points
+    for e in sorted(summary.get("stomatocyte_fold", {}).get("per_eps", {}), key=float):  # one case an eps (one walk
+        # to its points), the finest first: the longest, and the two the p = 2 limit is taken through
         eps = float(e)
         up = up_walk(pts, eps)
         idx = fold_points([_num(r["reduced_volume"]) for r in up])
@@ -262,6 +263,7 @@ def shares(rows: list[dict]) -> dict:
     hl = [r for r in rows if r.get("kind") == "h_level" and str(r.get("converged")) == "True"]
     for key in sorted({(r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])) for r in hl}):
         sel = [r for r in hl if (r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])) == key]
+        sel = list({_num(r["eps_over_h"]): r for r in reversed(sel)}.values())  # one a level: the first row's
         if not {4.0, 8.0} <= {_num(r["eps_over_h"]) for r in sel}:
             continue
         sel.sort(key=lambda r: _num(r["eps_over_h"]))
