@@ -197,7 +197,8 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
     ``oblate_stomatocyte_crossing``, ``stomatocyte_fold``), in that order: for a crossing, each
     branch's state nearest it (its walk's saved field) solved at the crossing's v; for the fold, its
     three points. Each case also carries the walk that reaches its state where no field was saved
-    (``_walked``; ``grids``: the stomatocyte's ``up`` and ``down`` v grids from ``V_SEED``)."""
+    (``_walked``; ``grids``: the stomatocyte's ``up`` and ``down`` v grids from ``V_SEED``, the oblate's
+    ``low`` grid)."""
     from vesicle_opt.studies._stomatocyte import V_SEED
 
     out = []
@@ -206,7 +207,9 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
     def nearest(sel, v):
         return min(sel, key=lambda r: abs(_num(r["reduced_volume"]) - v)) if sel else None
 
-    def walk_vs(branch, v):
+    def walk_vs(branch, v, transition):
+        if branch == "oblate" and transition == "oblate_stomatocyte":  # cold from the sharp oblate there: no
+            return [u for u in grids["low"] if u > v] + [float(v)]  # oblate at eps 0.025 (measured): the low walk
         if branch != "stomatocyte":
             return [float(v)]
         grid = grids["up"] if v > V_SEED else grids["down"]
@@ -217,7 +220,7 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
             return
         out.append({"case": f"h-{transition}-{branch}{point}-eps{eps:g}", "transition": transition, "branch": branch,
                     "epsilon": eps, "v": float(v), "point": point, "source": f"{src['case']} v {_num(src['target_v']):g}",
-                    "state": str(state_path(states, src["case"], _num(src["target_v"]))), "walk_vs": walk_vs(branch, v)})
+                    "state": str(state_path(states, src["case"], _num(src["target_v"]))), "walk_vs": walk_vs(branch, v, transition)})
 
     for e, x in summary.get("crossings", {}).items():
         eps = float(e)

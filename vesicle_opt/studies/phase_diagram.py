@@ -351,8 +351,8 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     out, rows, good = run_into(NAME, cases(quick, states), run, out, executor=executor, workers=workers,
                                extra_columns=columns)
     # stage two: the states at the transitions located on those rows, on finer and coarser bands
-    second = hl.cases(good, summarise(good), states, {w: QUICK.get(f"stomatocyte_{w}", FULL[f"stomatocyte_{w}"])
-                                                      for w in ("up", "down")})
+    second = hl.cases(good, summarise(good), states, {"up": FULL["stomatocyte_up"], "down": FULL["stomatocyte_down"],
+                                                      "low": FULL["oblate_low"]})
     if second:
         out, rows, good = run_into(NAME, second, run, out, executor=executor, workers=workers, extra_columns=columns)
     summary = summarise(good)
