@@ -155,9 +155,9 @@ def test_stage_two_cases_from_located_transitions(tmp_path):
              for i, v in enumerate(up)]
     state_path(tmp_path, "oblate-eps0.05", 0.6).touch()
     summary = {"crossings": {"0.05": {"v": 0.603, "f": 1.2}}, "stomatocyte_fold": {"per_eps": {"0.05": {}}}}
-    cs = {c["case"]: c for c in H.cases(rows, summary, tmp_path, {"up": up + [0.665], "down": [0.62, 0.6], "low": []})}
+    cs = {c["case"]: c for c in H.cases(rows, summary, tmp_path, {"up": up + [0.665], "down": [0.62, 0.6], "low": [], "near": [0.6]})}
     assert set(cs) == {"h-crossing-prolate-eps0.05", "h-crossing-oblate-eps0.05", "h-fold-stomatocyte-eps0.05"}
     ob, pro, fold = cs["h-crossing-oblate-eps0.05"], cs["h-crossing-prolate-eps0.05"], cs["h-fold-stomatocyte-eps0.05"]
     assert ob["v"] == pro["v"] == 0.603 and ob["source"] == "oblate-eps0.05 v 0.6" and pro["walk_vs"] == [0.603]
-    assert ob["state"] == str(state_path(tmp_path, "oblate-eps0.05", 0.6))
+    assert ob["state"] == str(state_path(tmp_path, "oblate-eps0.05", 0.6)) and ob["layout_vs"] == [0.6]
     assert [q["v"] for q in fold["points"]] == [0.65, 0.655, 0.66] and fold["walk_vs"] == up

@@ -118,10 +118,14 @@ def _walked(case: dict) -> tuple[dict, dict]:
 
     eps, vs, b = case["epsilon"], case["walk_vs"], case["branch"]
     if b == "stomatocyte":
-        meridian = sharp_s.start_point(vs[0], 0.0, 24).meridian(2048)
-    else:
-        meridian = sharp.solve(vs[0], b, 16, second_order=False).meridian(2048)
-    lay = layout([meridian], eps, 4.0)
+        meridians = [sharp_s.start_point(vs[0], 0.0, 24).meridian(2048)]
+    else:  # the box of the walks' own: about the sharp shapes of their whole grid (``layout_vs``)
+        grid = case.get("layout_vs") or vs
+        meridians = [ref.meridian(2048) for ref in sharp.branch(grid, b, 16, second_order=False)]
+        meridians.insert(0, meridians[grid.index(vs[0])] if vs[0] in grid else
+                         sharp.solve(vs[0], b, 16, second_order=False).meridian(2048))
+    meridian = meridians[0]
+    lay = layout(meridians, eps, 4.0)
     want = {float(q["v"]) for q in _points(case)}
     got = {}
     for v, res, _ in walk(lay, eps, vs, meridian, f"phase_diagram-h-{case['case']}", lambda r: not r.converged):
@@ -198,7 +202,7 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
     branch's state nearest it (its walk's saved field) solved at the crossing's v; for the fold, its
     three points. Each case also carries the walk that reaches its state where no field was saved
     (``_walked``; ``grids``: the stomatocyte's ``up`` and ``down`` v grids from ``V_SEED``, the oblate's
-    ``low`` grid)."""
+    ``low`` grid; the box about the sharp shapes of the ``near`` or ``low`` grid, as the walks')."""
     from vesicle_opt.studies._stomatocyte import V_SEED
 
     out = []
@@ -206,6 +210,9 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
 
     def nearest(sel, v):
         return min(sel, key=lambda r: abs(_num(r["reduced_volume"]) - v)) if sel else None
+
+    def layout_vs(branch, transition):
+        return list(grids["low"] if transition == "oblate_stomatocyte" else grids["near"]) if branch != "stomatocyte" else []
 
     def walk_vs(branch, v, transition):
         if branch == "oblate" and transition == "oblate_stomatocyte":  # cold from the sharp oblate there: no
@@ -220,7 +227,8 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
             return
         out.append({"case": f"h-{transition}-{branch}{point}-eps{eps:g}", "transition": transition, "branch": branch,
                     "epsilon": eps, "v": float(v), "point": point, "source": f"{src['case']} v {_num(src['target_v']):g}",
-                    "state": str(state_path(states, src["case"], _num(src["target_v"]))), "walk_vs": walk_vs(branch, v, transition)})
+                    "state": str(state_path(states, src["case"], _num(src["target_v"]))), "walk_vs": walk_vs(branch, v, transition),
+                    "layout_vs": layout_vs(branch, transition)})
 
     for e, x in summary.get("crossings", {}).items():
         eps = float(e)

@@ -352,7 +352,7 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
                                extra_columns=columns)
     # stage two: the states at the transitions located on those rows, on finer and coarser bands
     second = hl.cases(good, summarise(good), states, {"up": FULL["stomatocyte_up"], "down": FULL["stomatocyte_down"],
-                                                      "low": FULL["oblate_low"]})
+                                                      "low": FULL["oblate_low"], "near": FULL["near"]})
     if second:
         out, rows, good = run_into(NAME, second, run, out, executor=executor, workers=workers, extra_columns=columns)
     summary = summarise(good)
