@@ -40,8 +40,6 @@ from vesicle_opt.verify.metrics import richardson, richardson_fixed
 STATES = "states"  # the walks' saved fields (``_meridian.save``), under the study's output directory
 LEVELS = (0, 1, -1)  # eps/h = 4 * 2^j: the eps/h = 4 state first, the others warm from it
 TRANSITIONS = ("crossing", "oblate_stomatocyte", "fold")
-MIN_STEP = 0.005  # a walk's last step to a crossing's v at least this long: a step of 0.004 (eps 0.025, oblate, v 0.6 ->
-# 0.5959) took one IPOPT iteration to a point whose recomputed kkt_dual, 1.18e-6, missed the certificate's 1e-6
 
 
 def _num(v) -> float:
@@ -217,13 +215,12 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
         return list(grids["low"] if transition == "oblate_stomatocyte" else grids["near"]) if branch != "stomatocyte" else []
 
     def walk_vs(branch, v, transition):
-        gap = MIN_STEP if transition != "fold" else 0.0  # the fold's points are the grid's own
         if branch == "oblate" and transition == "oblate_stomatocyte":  # cold from the sharp oblate there: no
-            return [u for u in grids["low"] if u > v + gap] + [float(v)]  # oblate at eps 0.025 (measured)
+            return [u for u in grids["low"] if u > v] + [float(v)]  # oblate at eps 0.025 (measured): the low walk
         if branch != "stomatocyte":
             return [float(v)]
         grid = grids["up"] if v > V_SEED else grids["down"]
-        return [u for u in grid if (u < v - gap if v > V_SEED else u > v + gap)] + [float(v)]
+        return [u for u in grid if (u < v if v > V_SEED else u > v)] + [float(v)]
 
     def add(transition, branch, eps, v, src, point=""):
         if src is None:
