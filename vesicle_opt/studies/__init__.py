@@ -7,7 +7,7 @@
 ``DESCRIPTIONS``); ``study(name)`` imports
 one (``-`` or ``_`` in the name), ``run_study`` runs it. The other modules here serve the studies
 and are not studies: ``runner`` (one resumable CSV writer over any executor), ``_common`` and
-``_flowkit`` (shared helpers), ``_meridian`` and ``_stomatocyte`` (the cases of ``phase_diagram``), ``bare_casadi`` (the hand-written CasADi baseline of the benchmarks).
+``_flowkit`` (shared helpers), ``_meridian``, ``_stomatocyte``, ``_hlevel`` and ``_pd_figure`` (the cases, h-levels and figure of ``phase_diagram``), ``bare_casadi`` (the hand-written CasADi baseline of the benchmarks).
 Studies are imported by name on demand, so importing ``vesicle_opt`` loads none of them.
 """
 
@@ -48,7 +48,8 @@ DESCRIPTIONS = {
     "torus_section5": "Section 5 by the gradient flow: a flat disk pinches into a torus (Figures 1-2)",
 }
 STUDIES = tuple(sorted(DESCRIPTIONS))  # the registry: a study is registered by its description
-NOT_STUDIES = ("_common", "_escape", "_flowkit", "_meridian", "_pear", "_stomatocyte", "runner", "bare_casadi")
+NOT_STUDIES = ("_common", "_escape", "_flowkit", "_hlevel", "_meridian", "_pd_figure", "_pear", "_stomatocyte", "runner",
+               "bare_casadi")
 
 
 def study(name: str) -> ModuleType:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import types
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -83,19 +84,38 @@ def solve_quiet(sc, start):
         return solve(sc, x0=start)
 
 
-def walk(lay: dict, eps: float, vs, first, name: str, stop=None, start=None):
+def walk(lay: dict, eps: float, vs, first, name: str, stop=None, start=None, states=None, case: str = ""):
     """Yield (v, Result, seed label) along ``vs``: the first from ``first`` ((r, z) of a sharp shape
     at vs[0]) or from ``start`` (a converged Result at vs[0], label "previous point"), then each
     warm from the last converged point; ``stop(result) -> bool`` ends the walk after a point (e.g. one
-    that left its branch's form)."""
+    that left its branch's form); ``states``: a directory where each converged point's field is saved
+    (``save``, as ``case``: what the h-levels, ``_hlevel``, restart from)."""
     label = "sharp shape" if start is None else "previous point"
     for v in vs:
         sc = scene(lay, eps, v, f"{name}-v{v:g}-eps{eps:g}")
         if start is None:
             start = seed(sc, *first, eps, lay["h"])
         res = solve_quiet(sc, start)
+        if lay["mesh"].get("refine") == "interface":
+            save(states, case, v, res, lay)
         yield v, res, label
         if stop is not None and stop(res):
             return
         if res.converged:
             start, label = res, "previous point"
+
+
+def state_path(states, case: str, v: float) -> Path:
+    return Path(states) / f"{case}-v{float(v):g}.npz"
+
+
+def save(states, case: str, v: float, res, lay: dict) -> None:
+    """A converged point's field, mesh and layout in ``states`` (npz; what ``_hlevel.run`` restarts
+    from); nothing where ``states`` is None or the point did not converge."""
+    if states is None or not res.converged:
+        return
+    Path(states).mkdir(parents=True, exist_ok=True)
+    m = res.disc.mesh
+    np.savez_compressed(state_path(states, case, v), p=m.p, t=m.t, phi=np.asarray(res.phi, float),
+                        h_fine=res.disc.h_fine, box=np.asarray(lay["box"], float), n=np.asarray(lay["n"]),
+                        levels=lay["mesh"]["levels"], band=lay["mesh"]["band"], h=lay["h"])

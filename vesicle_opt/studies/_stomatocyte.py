@@ -124,7 +124,8 @@ def phase_case(case: dict, point_row) -> list[dict]:
     def stop(res) -> bool:  # past the fold (no minimiser), or no stomatocyte any more (a torus, an oblate)
         return not res.converged or point_row(res, math.nan, eps, lay, math.nan, "", "", "")["shape"] != "cup"
 
-    for k, (v, res, label) in enumerate(walk(lay, eps, case["vs"], (r, z), name, stop, start)):
+    for k, (v, res, label) in enumerate(walk(lay, eps, case["vs"], (r, z), name, stop, start,
+                                             case.get("states"), case["case"])):
         q = sharp_pts.get(v)
         if q is None:
             try:

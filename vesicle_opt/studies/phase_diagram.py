@@ -24,11 +24,20 @@ form (``branch.crossing``; an oblate that turned torus is not used); a fold per 
 of v(lambda) (``_stomatocyte.fold_of``). The eps -> 0 limits (``extrapolate``): free-order Richardson
 through the three finest eps with its observed order, p = 2 through the two finest, and an error
 estimate (the change of the free-order limit from the three coarsest eps to the three finest).
+``low_extra`` adds finer eps for the oblate/stomatocyte crossing alone (the low oblate and the down
+walk; at eps >= 0.04 the oblate is a torus there): none now (at eps = 0.02 the stomatocyte seed fails).
+
+The mesh's share (``studies._hlevel``, stage two of the run): at fixed eps/h the P1 error of f does not
+vanish as eps -> 0, so each transition's states are solved again at eps/h = 2, 4, 8 (same box and
+coarse cells), warm from the walks' saved fields (``_meridian.save``), f and lambda extrapolated in h
+with their observed order, and the transitions moved by those shares before eps -> 0
+(``crossings_h_corrected``, ``extrapolated_h_corrected``, ``h_levels``; ``_p2``: with p = 2).
 
 Outputs: ``phase_diagram.csv`` (a row per point: f, c0_reduced, the sharp f, the verdicts, nodes, the
 case's CPU time on its first row), ``phase_diagram_summary.json`` (``crossings``, ``extrapolated``,
-``stomatocyte_fold``, ``oblate_stomatocyte_crossing``: per eps, eps -> 0, sharp, published),
-``phase_diagram.png`` (f against v per eps, the sharp branches, the transitions, meridian pictures).
+``stomatocyte_fold``, ``oblate_stomatocyte_crossing``: per eps, eps -> 0, sharp, published; the
+h-corrected ones beside them), rows of kind ``h_level`` (column ``eps_over_h``), ``states/`` (the
+walks' fields: npz), ``phase_diagram.png`` (f against v per eps, the sharp branches, the transitions, meridian pictures).
 Full: eps = 0.05, 0.04, 0.03, 0.025. Quick: eps = 0.1 at eps/h = 2 on the uniform mesh, v = 0.7,
 0.65, sharp references with 8 modes: the plumbing (at eps = 0.1 the oblate seeds' dimples meet,
 tori: no crossing). Extensions (other c0: ``EXTENSIONS``) add their own cases, rows and summary.
@@ -41,7 +50,6 @@ import json
 import logging
 import math
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -49,10 +57,10 @@ import numpy as np
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
 from vesicle_opt.io.meridian import meridian_curves
 from vesicle_opt.sharp import axisymmetric as sharp
-from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies._meridian import layout, walk
+from vesicle_opt.studies import _hlevel as hl
 from vesicle_opt.studies import _stomatocyte as stoma
-from vesicle_opt.studies._common import plt, savefig
+from vesicle_opt.studies._pd_figure import figure
 from vesicle_opt.studies.runner import run_into
 
 log = logging.getLogger(__name__)
@@ -72,7 +80,11 @@ FULL = {"epsilons": (0.05, 0.04, 0.03, 0.025), "eps_over_h": 4.0, "refine": True
         "stomatocyte_up": (0.62, 0.63, 0.64, 0.645, 0.65, 0.653, 0.656, 0.658, 0.66, 0.662, 0.664, 0.666, 0.668,
                            0.67, 0.672, 0.675, 0.678, 0.682, 0.686, 0.69),
         "stomatocyte_down": (0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58, 0.57, 0.55, 0.5),
-        "stomatocyte_modes": 32}
+        "stomatocyte_modes": 32,
+        # finer eps for the oblate/stomatocyte crossing alone (a third level: an observed order in eps), its
+        # down walk ending below that crossing. Empty: at eps = 0.02 the stomatocyte seed (v = 0.62) ended at
+        # IPOPT's 150 iterations (kkt 0.36, 76 CPU s; the oblate walk was certified to 0.58), measured
+        "low_extra": (), "down_extra_min": 0.57}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "refine": False, "n_modes": 8, "near": (0.7, 0.65)}
 EXTENSIONS: tuple[str, ...] = ("_pear",)  # c0 = 2.4 (full run only); the hook: private modules of this package (e.g. "_pear") with
 # cases(quick) -> [case], run(case) -> [row] and summary(rows) -> dict; their cases carry "extension"
@@ -80,35 +92,38 @@ CUP = 0.1  # a pole dimple deeper than the other by this fraction of the height:
 COLUMNS = ["branch", "shape", "c0", "target_v", "epsilon", "n", "h", "f", "c0_reduced", "reduced_volume", "sharp_f",
            "f_minus_sharp", "converged", "second_order", "second_order_min_eigenvalue", "topology",
            "kkt_residual", "iterations", "wall_time_s", "seed", "status", "kind", "side", "lambda", "walk",
-           "part", "nodes", "cpu_time_s"]
+           "part", "nodes", "cpu_time_s", "transition", "eps_over_h", "state", "point"]
 
 
 def _extension(name: str):
     return importlib.import_module(f"vesicle_opt.studies.{name}")
 
 
-def cases(quick: bool) -> list[dict]:
+def cases(quick: bool, states=None) -> list[dict]:
     """One case per (branch, eps, part): the parts and eps values run in parallel (the runner), in
     the order of what the transitions need (the pool takes them in order; a run stopped early, and
     resumed, has the transitions first): the sharp stomatocyte; the prolate/oblate ``near`` walks;
     the stomatocyte's ``up`` walks (its fold); the ``low`` oblate and the stomatocyte's ``down`` walks
-    (their crossing); the ``far`` points; within each the finest (longest) eps first."""
+    (their crossing; with ``low_extra``'s finer eps); the ``far`` points; within each the finest
+    (longest) eps first. ``states``: where the walks save their points' fields (``_hlevel``)."""
     cfg = QUICK if quick else FULL
-    common = {"eps_over_h": cfg["eps_over_h"], "refine": cfg["refine"], "n_modes": cfg["n_modes"]}
+    common = {"eps_over_h": cfg["eps_over_h"], "refine": cfg["refine"], "n_modes": cfg["n_modes"],
+              "states": None if states is None else str(states)}
     order = sorted(cfg["epsilons"])
     out = [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "part": "near", "vs": list(cfg["near"]), **common}
            for eps in order for b in BRANCHES]
     if not quick:
-        st = {"eps_over_h": cfg["eps_over_h"], "refine": cfg["refine"], "n_modes": 24}
+        st = {**common, "n_modes": 24}
 
-        def walk_case(w, eps):
+        def walk_case(w, eps, v_min=0.0):
             return {"case": f"stomatocyte-{w}-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps, "walk": w,
-                    "vs": list(cfg[f"stomatocyte_{w}"]), **st}
+                    "vs": [v for v in cfg[f"stomatocyte_{w}"] if v >= v_min], **st}
         out = [{"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]}] \
             + out + [walk_case("up", eps) for eps in order]
-        for eps in order:
+        for eps in sorted(cfg["low_extra"]) + order:
             out += [{"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps, "part": "low",
-                     "vs": list(cfg["oblate_low"]), **common}, walk_case("down", eps)]
+                     "vs": list(cfg["oblate_low"]), **common},
+                    walk_case("down", eps, cfg["down_extra_min"] if eps in cfg["low_extra"] else 0.0)]
         out += [{"case": f"{b}-far-eps{eps:g}", "branch": b, "epsilon": eps, "part": "far", "vs": list(vs), **common}
                 for eps in order for b, vs in cfg["far"].items()]
     for name in EXTENSIONS:
@@ -159,14 +174,17 @@ def _stomatocyte_row(res, v, eps, lay, sharp_f, seed, side, walk) -> dict:
 def run(case: dict) -> list[dict]:
     t0 = time.process_time()
     rows = _run(case)
-    if rows:  # the case's CPU time (this process's), on its first row
-        rows[0]["cpu_time_s"] = time.process_time() - t0
+    if rows and "cpu_time_s" not in rows[0]:  # the case's CPU time (this process's), on its first row
+        rows[0]["cpu_time_s"] = time.process_time() - t0  # (h-level rows carry their own, per level)
     return rows
 
 
 def _run(case: dict) -> list[dict]:
     if "extension" in case:
         return _extension(case["extension"]).run(case)
+    if "transition" in case:  # stage two: a state at a transition on finer and coarser bands (``_hlevel``)
+        return hl.run(case, lambda res, v, eps, lay: _row(case["branch"], res, v, eps, lay, math.nan,
+                                                          f"eps/h = 4 state ({case['source']})", part="h_level"))
     if case["branch"] == "stomatocyte":
         if case["epsilon"] == 0:
             return stoma.sharp_case(case)
@@ -180,7 +198,7 @@ def _run(case: dict) -> list[dict]:
     if case["part"] == "far":  # each point from its own sharp shape
         points = [next(walk(lay, eps, [v], m, name)) for v, m in zip(vs, meridians)]
     else:
-        points = list(walk(lay, eps, vs, meridians[0], name))
+        points = list(walk(lay, eps, vs, meridians[0], name, states=case.get("states"), case=case["case"]))
     return [_row(which, res, v, eps, lay, ref.reduced_energy, seed, part=case["part"])
             for (v, res, seed), ref in zip(points, refs)]
 
@@ -224,23 +242,43 @@ def summarise(rows: list[dict]) -> dict:
     walk that left its form, e.g. an oblate turned torus, is not used), and its eps -> 0 limit
     (``extrapolate``); the stomatocyte's transitions (``stomatocyte_summary``); the extensions'."""
     every, rows = rows, _c0_zero(rows)  # the extensions' rows (other c0) go to their own summary
+    sh = hl.shares(rows)  # the h-levels of the transitions' states (stage two)
+    rows = [r for r in rows if r.get("kind") != "h_level"]
     ok = [r for r in rows if str(r.get("converged")) == "True" and r.get("shape", r["branch"]) == r["branch"]]
-    per_eps = {}
+    per_eps, data = {}, {}
     for eps in sorted({_num(r["epsilon"]) for r in ok}, reverse=True):
-        x = crossing(*[c for b in BRANCHES for c in _by_v([r for r in ok if _num(r["epsilon"]) == eps
-                                                           and r["branch"] == b])])
+        data[eps] = [c for b in BRANCHES for c in _by_v([r for r in ok if _num(r["epsilon"]) == eps and r["branch"] == b])]
+        x = crossing(*data[eps])
         if x is not None:
             per_eps[eps] = x
-    out = {"crossings": {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()}}
+    out = {"crossings": _vf(per_eps)}
     if len(per_eps) >= 2:
         out["extrapolated"] = extrapolate(per_eps)
-    out.update(stomatocyte_summary(rows))
+    out.update(_corrected(*hl.crossings({e: data[e] for e in per_eps}, sh, "crossing", BRANCHES, per_eps)))
+    out.update(stomatocyte_summary(rows, sh))
     one_eps = [r for r in rows if _num(r["epsilon"]) == max(_num(q["epsilon"]) for q in rows)]
     x = crossing(*[c for b in BRANCHES for c in _by_v([r for r in one_eps if r["branch"] == b], "target_v", "sharp_f")])
     if x is not None:  # the sharp branches' crossing through the same points (a spline, as the phase field's)
         out["sharp_crossing_at_these_points"] = {"v": x["reduced_volume"], "f": x["reduced_energy"]}
     for name in EXTENSIONS:
         out.update(_extension(name).summary(every))
+    return out
+
+
+def _vf(per_eps: dict) -> dict:
+    return {f"{e:g}": {"v": x["reduced_volume"], "f": x["reduced_energy"]} for e, x in per_eps.items()}
+
+
+def _corrected(per: dict, per2: dict, levels: dict, prefix: str = "") -> dict:
+    """The h-corrected transitions per eps (``crossings_h_corrected``: the observed orders' mesh shares;
+    ``..._p2``: p = 2), their eps -> 0 limits (``extrapolated_h_corrected``, ``..._p2``) and the states'
+    levels (``h_levels``: per eps, per state: eps/h, f, observed order, mesh share of eps/h = 4)."""
+    names = ("per_eps_h_corrected", "extrapolated_h_corrected") if prefix else ("crossings_h_corrected",
+                                                                                "extrapolated_h_corrected")
+    out = {names[0]: _vf(per), names[0] + "_p2": _vf(per2), "h_levels": {f"{e:g}": x for e, x in levels.items()}}
+    for d, suffix in ((per, ""), (per2, "_p2")):
+        if len(d) >= 2:
+            out[names[1] + suffix] = extrapolate(d)
     return out
 
 
@@ -260,28 +298,37 @@ def _stomatocyte_transitions(rows: list[dict], eps: float) -> dict:
     st = [r for r in rows if r["branch"] == "stomatocyte" and _num(r["epsilon"]) == eps
           and str(r.get("kind", "point")) == "point" and str(r.get("converged")) == "True"]
     out = {}
-    up = [r for r in st if r.get("walk") == "up" and r.get("shape", "cup") in ("cup", None, "")]  # in walk order (the CSV keeps a case's rows in order)
+    up = hl.up_walk(st, eps)  # in walk order (the CSV keeps a case's rows in order)
     fv = stoma.fold_of(*[[_num(r[k]) for r in up] for k in ("reduced_volume", "f", "lambda")]) if len(up) >= 3 else None
     if fv is not None:
         out["fold"] = {"reduced_volume": fv[0], "reduced_energy": fv[1]}
+        out["fold_up"] = up
     lower = _by_v([r for r in st if r.get("side") == "lower" and r.get("shape", "cup") in ("cup", None, "")])
     obl = _by_v([r for r in rows if r["branch"] == "oblate" and _num(r["epsilon"]) == eps
                  and str(r.get("converged")) == "True" and r.get("shape") == "oblate"])
     if len(lower[0]) >= 2 and len(obl[0]) >= 2:
         x = crossing(*lower, *obl)
         if x is not None:
-            out["crossing"] = x
+            out["crossing"], out["crossing_data"] = x, (*obl, *lower)
     return out
 
 
-def stomatocyte_summary(rows: list[dict]) -> dict:
+def stomatocyte_summary(rows: list[dict], sh: dict | None = None) -> dict:
     """The stomatocyte's fold and oblate/stomatocyte crossing per eps > 0, their eps -> 0 limits
     (``extrapolate_crossing``: free-order Richardson through three eps and its order, p = 2 through the
-    two finest), the sharp ones (eps = 0 rows of kind fold / crossing) and the published values."""
-    per = {"fold": {}, "crossing": {}}
+    two finest), the sharp ones (eps = 0 rows of kind fold / crossing) and the published values; with
+    the h-levels' shares ``sh`` (``_hlevel.shares``) their h-corrected values (``_corrected``)."""
+    per = {"fold": {}, "crossing": {}, "fold_up": {}, "crossing_data": {}}
     for eps in sorted({_num(r["epsilon"]) for r in rows if r["branch"] == "stomatocyte"} - {0.0}, reverse=True):
         for k, x in _stomatocyte_transitions(rows, eps).items():
             per[k][eps] = x
+    corr = {"crossing": hl.crossings(per["crossing_data"], sh or {}, "oblate_stomatocyte", ("oblate", "stomatocyte"),
+                                     per["crossing"]),
+            "fold": ({}, {}, {})}
+    for e, up in per["fold_up"].items():
+        for d, y in zip(corr["fold"], hl.fold(up, sh or {}, e)):
+            if y:
+                d[e] = y
     out = {}
     for k, name in (("fold", "stomatocyte fold"), ("crossing", "oblate/stomatocyte")):
         key = "stomatocyte_fold" if k == "fold" else "oblate_stomatocyte_crossing"
@@ -292,88 +339,22 @@ def stomatocyte_summary(rows: list[dict]) -> dict:
             entry["sharp"] = {"v": _num(sharp_rows[0]["reduced_volume"]), "f": _num(sharp_rows[0]["f"])}
         if len(per[k]) >= 2:
             entry["extrapolated"] = extrapolate(per[k])
+        if sh:
+            entry.update(_corrected(*corr[k], prefix=key))
         out[key] = entry
     return out
 
 
-def figure(rows: list[dict], summary: dict, path: Path) -> None:
-    pyplot = plt()
-    fig = pyplot.figure(figsize=(6.5, 6))
-    ax = fig.add_axes([0.12, 0.3, 0.84, 0.64])
-    for b, colour in zip(BRANCHES, ("C0", "C3")):
-        sel = sorted([r for r in rows if r["branch"] == b and math.isfinite(_num(r.get("sharp_f")))],
-                     key=lambda r: _num(r["target_v"]))
-        ax.plot([_num(r["target_v"]) for r in sel], [_num(r["sharp_f"]) for r in sel], "-", color=colour,
-                label=f"{b}, sharp")
-        for eps in sorted({_num(r["epsilon"]) for r in sel}):
-            pts = [r for r in sel if _num(r["epsilon"]) == eps and str(r["converged"]) == "True"
-                   and r.get("shape") in (b, None, "")]  # a torus or a cup is not this branch's point
-            ax.plot([_num(r["reduced_volume"]) for r in pts], [_num(r["f"]) for r in pts], "o--", color=colour,
-                    ms=4, alpha=0.5 + 0.5 * (eps == min(_num(q["epsilon"]) for q in sel)), label=f"{b}, eps {eps:g}")
-    for e, x in summary.get("crossings", {}).items():
-        ax.plot(x["v"], x["f"], "kx")
-    _stomatocyte_panel(ax, rows, summary)
-    for name, (v, f) in PUBLISHED.items():
-        if "c0=2.4" not in name:
-            ax.plot(v, f, "s", mfc="none", mec="k", ms=8)
-    ax.plot([], [], "s", mfc="none", mec="k", label="published (SBL 1991)")
-    ax.set_xlabel("reduced volume v")
-    ax.set_ylabel("f = F / 8 pi kappa")
-    ax.set_title("c0 = 0: prolate, oblate, stomatocyte (meridian half-plane)")
-    ax.legend(fontsize=6, loc="upper right")
-    _meridian_insets(fig, rows)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # tight_layout skips the placed axes: they are placed by hand
-        savefig(fig, path)
-
-
-def _stomatocyte_panel(ax, rows: list[dict], summary: dict) -> None:
-    """The stomatocyte: sharp lower/upper sides (eps = 0 rows), phase-field points per eps, and the
-    fold / oblate crossing (sharp: stars, per eps: plus signs, eps -> 0: a diamond)."""
-    st = [r for r in rows if r["branch"] == "stomatocyte" and str(r.get("converged")) == "True"]
-    for side, style in (("lower", "-"), ("upper", ":")):
-        pts = sorted([(_num(r["reduced_volume"]), _num(r["f"])) for r in st if _num(r["epsilon"]) == 0
-                      and r.get("kind") == "point" and r.get("side") == side])
-        if pts:
-            ax.plot(*zip(*pts), style, color="C2", label=f"stomatocyte, sharp ({side})")
-    for eps in sorted({_num(r["epsilon"]) for r in st} - {0.0}):
-        pts = [(_num(r["reduced_volume"]), _num(r["f"])) for r in st if _num(r["epsilon"]) == eps and r.get("kind") == "point"]
-        ax.plot(*zip(*pts), "^", color="C2", ms=3, alpha=0.7, label=f"stomatocyte, eps {eps:g}")
-    for key in ("stomatocyte_fold", "oblate_stomatocyte_crossing"):
-        entry = summary.get(key, {})
-        if "sharp" in entry:
-            ax.plot(entry["sharp"]["v"], entry["sharp"]["f"], "*", color="k", ms=8)
-        for x in entry.get("per_eps", {}).values():
-            ax.plot(x["v"], x["f"], "+", color="C2")
-        ext = entry.get("extrapolated", {})
-        if math.isfinite(_num(ext.get("reduced_volume_p2"))):
-            ax.plot(ext["reduced_volume_p2"], ext["reduced_energy_p2"], "D", mfc="none", mec="C2")
-
-
-def _meridian_insets(fig, rows: list[dict]) -> None:
-    """Small meridian pictures (below the axes) of the sharp prolate (v 0.65), oblate (0.65) and
-    stomatocyte (0.62)."""
-    shapes = []
-    try:
-        for which in BRANCHES:
-            shapes.append((which, sharp.solve(0.65, which, 8, second_order=False).meridian(256)))
-        if any(r["branch"] == "stomatocyte" for r in rows):
-            shapes.append(("stomatocyte", sharp_s.start_point(stoma.V_SEED, 0.0, 16).meridian(256)))
-    except Exception as exc:  # noqa: BLE001 - a picture is decoration: say so, draw the rest
-        log.warning(f"phase_diagram: meridian insets skipped ({type(exc).__name__}: {exc})")
-    for i, (name, (r, z)) in enumerate(shapes):
-        ins = fig.add_axes([0.12 + 0.22 * i, 0.02, 0.18, 0.17])
-        ins.plot(r, z, "k-", lw=0.8)
-        ins.plot(-r, z, "k-", lw=0.8)
-        ins.set_aspect("equal")
-        ins.axis("off")
-        ins.set_title(name, fontsize=7)
-
-
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
-    out, rows, good = run_into(NAME, cases(quick), run, out, executor=executor, workers=workers,
-                               extra_columns=COLUMNS + [c for n in EXTENSIONS for c in _extension(n).COLUMNS
-                                                        if c not in COLUMNS])
+    columns = COLUMNS + [c for n in EXTENSIONS for c in _extension(n).COLUMNS if c not in COLUMNS]
+    states = Path(out) / hl.STATES
+    out, rows, good = run_into(NAME, cases(quick, states), run, out, executor=executor, workers=workers,
+                               extra_columns=columns)
+    # stage two: the states at the transitions located on those rows, on finer and coarser bands
+    second = hl.cases(good, summarise(good), states, {"up": FULL["stomatocyte_up"], "down": FULL["stomatocyte_down"],
+                                                      "low": FULL["oblate_low"], "near": FULL["near"]})
+    if second:
+        out, rows, good = run_into(NAME, second, run, out, executor=executor, workers=workers, extra_columns=columns)
     summary = summarise(good)
     v_s, f_s = sharp.crossing() if not quick else (math.nan, math.nan)  # ~20 s: the full run's reference
     summary["sharp_crossing"] = {"v": v_s, "f": f_s}
@@ -384,8 +365,13 @@ def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     for key in ("stomatocyte_fold", "oblate_stomatocyte_crossing"):
         for e, x in summary.get(key, {}).get("per_eps", {}).items():
             log.info(f"eps {e}: {key} v = {x['v']:.5f}, f = {x['f']:.5f}")
+    for name, ext in (("crossing", summary.get("extrapolated_h_corrected")),
+                      *((k, summary.get(k, {}).get("extrapolated_h_corrected")) for k in ("stomatocyte_fold",
+                                                                                         "oblate_stomatocyte_crossing"))):
+        if ext:
+            log.info(f"eps -> 0, h-corrected {name} (p = 2): v = {ext['reduced_volume_p2']:.5f}, f = {ext['reduced_energy_p2']:.5f}")
     if good:
-        figure(_c0_zero(good), summary, out / f"{NAME}.png")
+        figure(_c0_zero(good), summary, out / f"{NAME}.png", PUBLISHED)
     # the up walk's last point lies past the phase field's fold (no stomatocyte there): its expected end
     certified = all(str(r.get("converged")) == "True" for r in good
                     if not (r["branch"] == "stomatocyte" and r.get("walk") == "up"))
@@ -404,4 +390,5 @@ def timings(rows: list[dict]) -> dict:
         c["solve_wall_s"] += wall if math.isfinite(wall) else 0.0
         c["points"] += 1
     return {"per_case": per, "cpu_s_total": sum(c["cpu_s"] for c in per.values()),
-            "solve_wall_s_total": sum(c["solve_wall_s"] for c in per.values())}
+            "solve_wall_s_total": sum(c["solve_wall_s"] for c in per.values()),
+            "h_level_cpu_s": sum(c["cpu_s"] for k, c in per.items() if str(k).startswith("h-"))}
