@@ -196,7 +196,7 @@ def test_seedless_case_records_the_detour_and_falls_back_to_the_seed(monkeypatch
 
     seen = {}
 
-    def fake_walk(lay, eps, vs, first, name, stop=None, start=None):
+    def fake_walk(lay, eps, vs, first, name, stop=None, start=None, states=None, case=""):
         seen["lay"], seen["start"] = lay, start
         yield vs[0], "res", "previous point" if start is not None else "sharp shape"
 

@@ -33,8 +33,11 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_opt.branch.crossing import crossing
+from vesicle_opt.mesh import discretize, refine
+from vesicle_opt.sharp import axisymmetric as sharp
+from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies._meridian import layout, scene, solve_quiet, state_path, walk
-from vesicle_opt.studies._stomatocyte import fold_of
+from vesicle_opt.studies._stomatocyte import V_SEED, fold_of
 from vesicle_opt.verify.metrics import richardson, richardson_fixed
 
 STATES = "states"  # the walks' saved fields (``_meridian.save``), under the study's output directory
@@ -113,8 +116,6 @@ def _walked(case: dict) -> tuple[dict, dict]:
     from ONE walk (``_meridian.walk``) over ``case["walk_vs"]`` from the sharp shape at its first v (the
     prolate and oblate: the sharp shape at v itself; the stomatocyte: from ``_stomatocyte.V_SEED``, its
     up or down grid as the study's own walks), stopped at the first point that fails."""
-    from vesicle_opt.sharp import axisymmetric as sharp
-    from vesicle_opt.sharp import stomatocyte as sharp_s
 
     eps, vs, b = case["epsilon"], case["walk_vs"], case["branch"]
     if b == "stomatocyte":
@@ -159,7 +160,6 @@ def run(case: dict, point_row) -> list[dict]:
 def _levels(case: dict, q: dict, base, lay_w, point_row) -> list[dict]:
     """The levels of one state ``q`` (v, point, state, source) of ``case``: ``base`` its walked eps/h = 4
     Result (with the walk's layout ``lay_w``) or None (its saved field)."""
-    from vesicle_opt.mesh import discretize, refine  # scikit-fem: lazy
 
     eps, v, t0 = case["epsilon"], float(q["v"]), time.process_time()
     tag = {"kind": "h_level", "transition": case["transition"], "point": q.get("point", ""),
@@ -203,7 +203,6 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
     three points. Each case also carries the walk that reaches its state where no field was saved
     (``_walked``; ``grids``: the stomatocyte's ``up`` and ``down`` v grids from ``V_SEED``, the oblate's
     ``low`` grid; the box about the sharp shapes of the ``near`` or ``low`` grid, as the walks')."""
-    from vesicle_opt.studies._stomatocyte import V_SEED
 
     out = []
     pts = [r for r in rows if str(r.get("kind", "point")) in ("point", "") and str(r.get("converged")) == "True"]

@@ -125,7 +125,7 @@ def phase_case(case: dict, point_row) -> list[dict]:
         return not res.converged or point_row(res, math.nan, eps, lay, math.nan, "", "", "")["shape"] != "cup"
 
     for k, (v, res, label) in enumerate(walk(lay, eps, case["vs"], (r, z), name, stop, start,
-                                             case.get("states"), case["case"])):
+                                             case.get("states"), case.get("case", name))):
         q = sharp_pts.get(v)
         if q is None:
             try:
