@@ -17,9 +17,9 @@ mesh about a sharp shape, the tanh seed of that shape on it, and a walk along th
   on the interface (the front door keeps a start's own refined mesh while its interface is deep in
   the band: ``mesh.band_start``).
 * ``walk``: fixed-v exact solves (IPOPT, second-order checked) at the reduced volumes in order,
-  each warm from the previous converged point (its mesh and multipliers; the front door re-meshes
-  when the interface leaves the band); a point that fails is a row, the next starts from the last
-  converged one.
+  the first from the seed (at most ``SEED_MAX_ITER`` IPOPT iterations), each other warm from the
+  previous converged point (its mesh and multipliers; the front door re-meshes when the interface
+  leaves the band); a point that fails is a row, the next starts from the last converged one.
 """
 
 from __future__ import annotations
@@ -40,8 +40,10 @@ from vesicle_opt.scene import from_dict
 WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
 LEVELS = 4  # the coarse cells are 2^LEVELS band cells: 4 eps at eps/h = 4 (fewer where the box is small)
 BAND = 8.0  # the band's half-width in eps (mesh.band's default: narrower bands perturb the axial slide)
-MAX_ITER = 150  # IPOPT iterations a point: the full run's converged points took <= 67 (warm prolate at eps
-# 0.025, dv = 0.01) and 49 (a cold stomatocyte seed); a point past the fold ran into the default 500
+MAX_ITER = 150  # IPOPT iterations a warm point: the full run's took <= 67 (prolate at eps 0.025, dv = 0.01) and
+# 48 (the stomatocyte at eps 0.02, v 0.662, next to its fold); a point past the fold ran into the default 500
+SEED_MAX_ITER = 300  # a walk's first, cold point from a sharp shape: the stomatocyte seed (v 0.62) took 62, 127
+# iterations at eps 0.03, 0.02 on the centred box (measured), too near MAX_ITER
 
 
 def centroid(r, z) -> float:
@@ -125,7 +127,7 @@ def walk(lay: dict, eps: float, vs, first, name: str, stop=None, start=None, sta
     (``save``, as ``case``: what the h-levels, ``_hlevel``, restart from)."""
     label = "sharp shape" if start is None else "previous point"
     for v in vs:
-        sc = scene(lay, eps, v, f"{name}-v{v:g}-eps{eps:g}")
+        sc = scene(lay, eps, v, f"{name}-v{v:g}-eps{eps:g}", max_iter=SEED_MAX_ITER if start is None else MAX_ITER)
         if start is None:
             start = seed(sc, *first, eps, lay["h"])
         res = solve_quiet(sc, start)
