@@ -10,7 +10,10 @@ mesh about a sharp shape, the tanh seed of that shape on it, and a walk along th
   centre of mass of the inside at the box's mid-height (``nlp.reuse.pin_row``), so that is where
   every shape sits. Centred on the extent's middle instead, the sharp stomatocyte at v = 0.62 sat
   2.2-3.3 eps off-centre, 10.1-10.5 eps from the lower wall (a translation saddle at 10 eps);
-  up-down symmetric shapes get the box they had (their centroid is their middle).
+  up-down symmetric shapes get the box they had (their centroid is their middle), one coarse cell
+  taller where its n_z was odd: the refined mesh mirrors about the mid-height only with n_z even
+  (``mesh.refine.mirrored_tensor``), and on the odd one an up-down symmetric oblate turned
+  asymmetric and the pin held a force (the low oblate at eps 0.025, n_z 13: kkt_not_met from v 0.595).
 * ``seed``: the mesh refined about the sharp meridian, moved along the axis to put its volume
   centroid at the box's mid-height where the pin holds it (``mesh.refine.curve_distance``), and on it
   phi = tanh(d / (sqrt2 eps)) (``io.meridian.phase_field_of``): a cold start whose band already sits
@@ -86,7 +89,7 @@ def layout(meridians, eps: float, eps_over_h: float, refine: bool = True) -> dic
     while levels > 1 and r_hi / (h * 2**levels) < 4:  # mesh.n >= 4 cells a side (small boxes, large eps)
         levels -= 1
     h0 = h * 2**levels
-    n = [max(4, math.ceil(r_hi / h0)), max(4, math.ceil(2 * half / h0))]
+    n = [max(4, math.ceil(r_hi / h0)), 2 * max(2, math.ceil(half / h0))]  # n_z even: ``refine.mirrored_tensor``
     box = [[0.0, n[0] * h0], [zc - n[1] * h0 / 2, zc + n[1] * h0 / 2]]
     return {"box": box, "n": n, "h": h,
             "mesh": {"kind": "axisymmetric", "n": n, "refine": "interface", "levels": levels, "band": BAND}}
