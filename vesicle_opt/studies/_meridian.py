@@ -45,8 +45,8 @@ LEVELS = 4  # the coarse cells are 2^LEVELS band cells: 4 eps at eps/h = 4 (fewe
 BAND = 8.0  # the band's half-width in eps (mesh.band's default: narrower bands perturb the axial slide)
 MAX_ITER = 150  # IPOPT iterations a warm point: the full run's took <= 67 (prolate at eps 0.025, dv = 0.01) and
 # 48 (the stomatocyte at eps 0.02, v 0.662, next to its fold); a point past the fold ran into the default 500
-SEED_MAX_ITER = 300  # a walk's first, cold point from a sharp shape: the stomatocyte seed (v 0.62) took 62, 84, 127
-# iterations at eps 0.03, 0.025, 0.02 on the centred box, 178 at 0.02 on the former one (measured)
+SEED_MAX_ITER = 300  # a walk's first, cold point from a sharp shape: the stomatocyte seed (v 0.62) took 62, 86, 129
+# iterations at eps 0.03, 0.025, 0.02 on this layout's box, 178 at 0.02 on the former one (measured)
 
 
 def centroid(r, z) -> float:

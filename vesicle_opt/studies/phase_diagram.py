@@ -83,8 +83,8 @@ FULL = {"epsilons": (0.05, 0.04, 0.03, 0.025), "eps_over_h": 4.0, "refine": True
         "stomatocyte_modes": 32,
         # finer eps for the stomatocyte's transitions alone (the oblate/stomatocyte crossing and the fold: a
         # third level, an observed order in eps): the low oblate and both stomatocyte walks, the down walk
-        # ending below that crossing. eps = 0.02: its stomatocyte seed (v = 0.62) converged in 127 IPOPT
-        # iterations, 74 CPU s, on the box centred where the pin holds it (``_meridian.layout``), in 178 on the
+        # ending below that crossing. eps = 0.02: its stomatocyte seed (v = 0.62) converged in 129 IPOPT
+        # iterations, 65 CPU s, on the box centred where the pin holds it (``_meridian.layout``), in 178 on the
         # former box (past the former 150-iteration cap, where it had ended, kkt 0.36): ``SEED_MAX_ITER``, measured
         "low_extra": (0.02,), "down_extra_min": 0.57}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "refine": False, "n_modes": 8, "near": (0.7, 0.65)}
