@@ -166,6 +166,58 @@ def test_layout_is_square_cells_about_the_shapes():
         assert r1 >= r.max() + M.WALL * eps and z0 <= z.min() - M.WALL * eps and z1 >= z.max() + M.WALL * eps
 
 
+def test_layout_centres_the_box_where_the_pin_holds_the_shape():
+    """The axial pin holds the centre of mass of the inside at the box's mid-height
+    (``nlp.reuse.pin_row``): an up-down asymmetric meridian (an egg) gets a box centred on its volume
+    centroid (a closed-form quadrature, not the frusta) with WALL eps from both ends there; up-down
+    symmetric meridians the box of the extent's middle (the layout before the centroid: written out
+    here), one coarse cell taller where its n_z was odd (the refined mesh mirrors only with n_z even:
+    ``mesh.refine.mirrored_tensor``); the seed moves the meridian to the mid-height (its phase field's centre of mass there to
+    O(eps^2): the tanh profile's offset)."""
+    import math
+    from scipy.integrate import quad
+    from vesicle_opt.studies import _meridian as M
+
+    def by_extent(meridians, eps, even=True):  # the box centred on the middle of the extent (the former layout)
+        h, pad = eps / 4, M.WALL * eps
+        r_hi = max(float(r.max()) for r, _ in meridians) + pad
+        z_lo, z_hi = min(float(z.min()) for _, z in meridians) - pad, max(float(z.max()) for _, z in meridians) + pad
+        h0 = h * 2 ** M.LEVELS
+        n = [max(4, math.ceil(r_hi / h0)), max(4, math.ceil((z_hi - z_lo) / h0))]
+        n[1] += n[1] % 2 if even else 0  # even: the mirror
+        mid = (z_lo + z_hi) / 2
+        return [[0.0, n[0] * h0], [mid - n[1] * h0 / 2, mid + n[1] * h0 / 2]], n
+
+    t = np.linspace(0, np.pi, 4001)
+    sym = [(0.8 * np.sin(t), 1.3 * np.cos(t)), (1.1 * np.sin(t), 0.6 * np.cos(t))]
+    for eps in (0.05, 0.025):
+        for ms in (sym, sym[1:]):
+            box, n = by_extent(ms, eps)
+            lay = M.layout(ms, eps, 4.0)
+            assert lay["n"] == n and n[1] % 2 == 0
+            assert np.allclose(lay["box"], box, rtol=0, atol=1e-13)  # round-off: the centroid is 0 to ~1e-17
+    R, Z, dZ = (lambda t: 0.8 * np.sin(t) * (1 + 0.4 * np.cos(t))), (lambda t: 1.1 * np.cos(t)), (lambda t: -1.1 * np.sin(t))
+    zc = quad(lambda t: Z(t) * R(t) ** 2 * dZ(t), 0, np.pi)[0] / quad(lambda t: R(t) ** 2 * dZ(t), 0, np.pi)[0]
+    r, z = R(t), Z(t)
+    assert M.centroid(r, z) == pytest.approx(zc, abs=1e-7)  # frusta on 4001 points: second order, 5.1e-8 measured
+    assert abs(zc - (z.max() + z.min()) / 2) > 0.1  # the egg's centroid is well off its middle (0.17)
+    offsets = []
+    for eps in (0.05, 0.025):
+        lay = M.layout([(r, z)], eps, 4.0)
+        (lo, hi) = lay["box"][1]
+        assert (lo + hi) / 2 == pytest.approx(zc, abs=1e-7)  # as the centroid above
+        zs = z - zc + (lo + hi) / 2  # where the pin puts it
+        assert zs.min() - lo >= M.WALL * eps - 1e-7 and hi - zs.max() >= M.WALL * eps - 1e-7
+        assert by_extent([(r, z)], eps, even=False)[0][1][0] + M.WALL * eps > zs.min()  # the former box: too near
+    for eps in (0.1, 0.05):  # the seed, given 0.3 off: its centre of mass at the mid-height
+        lay = M.layout([(r, z)], eps, 2.0, refine=False)
+        s = M.seed(M.scene(lay, eps, 0.9, "egg"), r, z + 0.3, eps, lay["h"])
+        w = s.disc.weights * (1 + s.phi)
+        offsets.append(float(w @ s.disc.nodes[:, 1] / w.sum()) - sum(lay["box"][1]) / 2)
+    assert abs(offsets[0]) < 3e-3  # the tanh profile's centroid: 1.9e-3 off at eps 0.1 (measured), not 0.3
+    assert math.log2(offsets[0] / offsets[1]) == pytest.approx(2.0, abs=0.2)  # O(eps^2): 1.93 measured
+
+
 @pytest.mark.slow
 def test_seedless_detour_finds_the_oblates_odd_instability_where_the_sharp_one_is():
     """The detour's way out (``_stomatocyte.seedless``, eps 0.03, v 0.62, no push): the meridian

@@ -52,6 +52,7 @@ from vesicle_opt.mesh import discretize, refine
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp_sym
 from vesicle_opt.sharp import spontaneous as S
+from vesicle_opt.studies._meridian import axial_extent, centroid
 from vesicle_opt.verify.metrics import richardson
 
 C0 = 2.4  # literature c0 = C0 R0 (scene model.c0 = C0 / 2 at R0 = 1)
@@ -135,7 +136,7 @@ def measure(r, z) -> tuple[float, float]:
     the middle of [z_min, z_max] over the height (0 for an up-down symmetric shape)."""
     r, z = np.asarray(r, float), np.asarray(z, float)
     height = float(z.max() - z.min())
-    return _neck(r), (_centroid(r, z) - (z.max() + z.min()) / 2) / height
+    return _neck(r), (centroid(r, z) - (z.max() + z.min()) / 2) / height
 
 
 def _neck(r: np.ndarray) -> float:
@@ -143,12 +144,6 @@ def _neck(r: np.ndarray) -> float:
     depth = np.minimum(left, right) - r
     k = int(np.argmax(depth))
     return float(r[k]) if depth[k] > 1e-3 * r.max() else math.nan
-
-
-def _centroid(r: np.ndarray, z: np.ndarray) -> float:
-    """The height of the volume centroid of the solid of revolution of a meridian (r, z)."""
-    dv = np.diff(z) * (r[1:] ** 2 + r[1:] * r[:-1] + r[:-1] ** 2) / 3  # frusta: pi dropped in the ratio
-    return float(np.sum((z[1:] + z[:-1]) / 2 * dv) / np.sum(dv))
 
 
 def form(curves, eps: float) -> tuple[str, float, float]:
@@ -177,8 +172,8 @@ def box_of(r, z, eps: float):
     h0 = h_fine * 2**levels
     pad = WALL * eps + MARGIN
     nr = math.ceil((float(np.max(r)) + pad) / h0)
-    zc = _centroid(np.asarray(r, float), np.asarray(z, float))
-    half = math.ceil((max(float(np.max(z)) - zc, zc - float(np.min(z))) + pad) / h0)
+    zc, ext = axial_extent([(np.asarray(r, float), np.asarray(z, float))])  # as ``_meridian.layout``
+    half = math.ceil((ext + pad) / h0)
     return [[0.0, nr * h0], [zc - half * h0, zc + half * h0]], [nr, 2 * half], levels
 
 

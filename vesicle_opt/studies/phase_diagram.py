@@ -24,8 +24,8 @@ form (``branch.crossing``; an oblate that turned torus is not used); a fold per 
 of v(lambda) (``_stomatocyte.fold_of``). The eps -> 0 limits (``extrapolate``): free-order Richardson
 through the three finest eps with its observed order, p = 2 through the two finest, and an error
 estimate (the change of the free-order limit from the three coarsest eps to the three finest).
-``low_extra`` adds finer eps for the oblate/stomatocyte crossing alone (the low oblate and the down
-walk; at eps >= 0.04 the oblate is a torus there): none now (at eps = 0.02 the stomatocyte seed fails).
+``low_extra`` adds finer eps for the stomatocyte's transitions alone (the low oblate and both
+stomatocyte walks; at eps >= 0.04 the oblate is a torus at its crossing with the stomatocyte): 0.02.
 
 The mesh's share (``studies._hlevel``, stage two of the run): at fixed eps/h the P1 error of f does not
 vanish as eps -> 0, so each transition's states are solved again at eps/h = 2, 4, 8 (same box and
@@ -38,7 +38,7 @@ case's CPU time on its first row), ``phase_diagram_summary.json`` (``crossings``
 ``stomatocyte_fold``, ``oblate_stomatocyte_crossing``: per eps, eps -> 0, sharp, published; the
 h-corrected ones beside them), rows of kind ``h_level`` (column ``eps_over_h``), ``states/`` (the
 walks' fields: npz), ``phase_diagram.png`` (f against v per eps, the sharp branches, the transitions, meridian pictures).
-Full: eps = 0.05, 0.04, 0.03, 0.025. Quick: eps = 0.1 at eps/h = 2 on the uniform mesh, v = 0.7,
+Full: eps = 0.05, 0.04, 0.03, 0.025 (and 0.02 for the stomatocyte's transitions: ``low_extra``). Quick: eps = 0.1 at eps/h = 2 on the uniform mesh, v = 0.7,
 0.65, sharp references with 8 modes: the plumbing (at eps = 0.1 the oblate seeds' dimples meet,
 tori: no crossing). Extensions (other c0: ``EXTENSIONS``) add their own cases, rows and summary.
 """
@@ -81,10 +81,12 @@ FULL = {"epsilons": (0.05, 0.04, 0.03, 0.025), "eps_over_h": 4.0, "refine": True
                            0.67, 0.672, 0.675, 0.678, 0.682, 0.686, 0.69),
         "stomatocyte_down": (0.62, 0.61, 0.6, 0.595, 0.59, 0.585, 0.58, 0.57, 0.55, 0.5),
         "stomatocyte_modes": 32,
-        # finer eps for the oblate/stomatocyte crossing alone (a third level: an observed order in eps), its
-        # down walk ending below that crossing. Empty: at eps = 0.02 the stomatocyte seed (v = 0.62) ended at
-        # IPOPT's 150 iterations (kkt 0.36, 76 CPU s; the oblate walk was certified to 0.58), measured
-        "low_extra": (), "down_extra_min": 0.57}
+        # finer eps for the stomatocyte's transitions alone (the oblate/stomatocyte crossing and the fold: a
+        # third level, an observed order in eps): the low oblate and both stomatocyte walks, the down walk
+        # ending below that crossing. eps = 0.02: its stomatocyte seed (v = 0.62) converged in 129 IPOPT
+        # iterations, 65 CPU s, on the box centred where the pin holds it (``_meridian.layout``), in 178 on the
+        # former box (past the former 150-iteration cap, where it had ended, kkt 0.36): ``SEED_MAX_ITER``, measured
+        "low_extra": (0.02,), "down_extra_min": 0.57}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "refine": False, "n_modes": 8, "near": (0.7, 0.65)}
 EXTENSIONS: tuple[str, ...] = ("_pear",)  # c0 = 2.4 (full run only); the hook: private modules of this package (e.g. "_pear") with
 # cases(quick) -> [case], run(case) -> [row] and summary(rows) -> dict; their cases carry "extension"
@@ -103,9 +105,9 @@ def cases(quick: bool, states=None) -> list[dict]:
     """One case per (branch, eps, part): the parts and eps values run in parallel (the runner), in
     the order of what the transitions need (the pool takes them in order; a run stopped early, and
     resumed, has the transitions first): the sharp stomatocyte; the prolate/oblate ``near`` walks;
-    the stomatocyte's ``up`` walks (its fold); the ``low`` oblate and the stomatocyte's ``down`` walks
-    (their crossing; with ``low_extra``'s finer eps); the ``far`` points; within each the finest
-    (longest) eps first. ``states``: where the walks save their points' fields (``_hlevel``)."""
+    the stomatocyte's ``up`` walks (its fold; with ``low_extra``'s finer eps); the ``low`` oblate and
+    the stomatocyte's ``down`` walks (their crossing; with ``low_extra``'s); the ``far`` points; within
+    each the finest (longest) eps first. ``states``: where the walks save their points' fields (``_hlevel``)."""
     cfg = QUICK if quick else FULL
     common = {"eps_over_h": cfg["eps_over_h"], "refine": cfg["refine"], "n_modes": cfg["n_modes"],
               "states": None if states is None else str(states)}
@@ -119,7 +121,7 @@ def cases(quick: bool, states=None) -> list[dict]:
             return {"case": f"stomatocyte-{w}-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps, "walk": w,
                     "vs": [v for v in cfg[f"stomatocyte_{w}"] if v >= v_min], **st}
         out = [{"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]}] \
-            + out + [walk_case("up", eps) for eps in order]
+            + out + [walk_case("up", eps) for eps in sorted(cfg["low_extra"]) + order]
         for eps in sorted(cfg["low_extra"]) + order:
             out += [{"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps, "part": "low",
                      "vs": list(cfg["oblate_low"]), **common},
