@@ -39,17 +39,11 @@ from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies._meridian import layout, scene, solve_quiet, state_path, walk
 from vesicle_opt.studies._stomatocyte import V_SEED, fold_of
 from vesicle_opt.verify.metrics import richardson, richardson_fixed
+from vesicle_opt.studies._common import num as _num
 
 STATES = "states"  # the walks' saved fields (``_meridian.save``), under the study's output directory
 LEVELS = (0, 1, -1)  # eps/h = 4 * 2^j: the eps/h = 4 state first, the others warm from it
 TRANSITIONS = ("crossing", "oblate_stomatocyte", "fold")
-
-
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 # --- the arithmetic -------------------------------------------------------------------------------

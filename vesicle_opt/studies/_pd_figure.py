@@ -12,16 +12,10 @@ from vesicle_opt.sharp import axisymmetric as sharp
 from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._common import plt, savefig
+from vesicle_opt.studies._common import num as _num
 
 log = logging.getLogger(__name__)
 BRANCHES = ("prolate", "oblate")
-
-
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def figure(rows: list[dict], summary: dict, path: Path, published: dict) -> None:

@@ -40,11 +40,9 @@ from __future__ import annotations
 import math
 import time
 import types
-import warnings
 
 import numpy as np
 
-from vesicle_opt.api import solve
 from vesicle_opt.branch.crossing import crossing, extrapolate_crossing
 from vesicle_opt.errors import SolverError
 from vesicle_opt.io.meridian import meridian_curves, phase_field_of
@@ -52,8 +50,9 @@ from vesicle_opt.mesh import discretize, refine
 from vesicle_opt.scene import from_dict
 from vesicle_opt.sharp import axisymmetric as sharp_sym
 from vesicle_opt.sharp import spontaneous as S
-from vesicle_opt.studies._meridian import axial_extent, centroid
+from vesicle_opt.studies._meridian import axial_extent, centroid, solve_quiet as _solve_quiet
 from vesicle_opt.verify.metrics import richardson
+from vesicle_opt.studies._common import num as _num
 
 C0 = 2.4  # literature c0 = C0 R0 (scene model.c0 = C0 / 2 at R0 = 1)
 PUBLISHED = (0.746, 0.107)  # SBL 1991, read off their figure (+-0.005 in v, +-0.01 in f)
@@ -74,13 +73,6 @@ MARGIN = 0.1  # and this much more room (R0 units) for the walk's shapes
 EPS_OVER_H = 4.0  # the band's spacing: the sphere's f is off 0.39 % at eps / h = 4 (docs/guide/axisymmetric.md)
 H0 = 0.12  # about this coarse cell side (levels = log2(H0 / h_fine), rounded)
 COLUMNS = ["neck_over_eps", "neck_radius", "asymmetry", "nodes", "cpu_s", "chain"]
-
-
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def _symmetric_start(n: int) -> np.ndarray:
@@ -237,12 +229,6 @@ def seed_from(res, eps: float):
     if len(curves) != 1 or curves[0][0][0] > 0 or curves[0][-1][0] > 0:
         return None
     return _densify(curves[0], eps / EPS_OVER_H / 8)
-
-
-def _solve_quiet(sc, start):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # near-bound warnings do not apply; verdicts are recorded
-        return solve(sc, x0=start)
 
 
 def _first(case: dict, which: str, v: float, r, z):

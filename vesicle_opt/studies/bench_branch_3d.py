@@ -42,6 +42,7 @@ from vesicle_opt.scene.schema import from_dict
 from vesicle_opt.studies import crossing_3d as cx
 from vesicle_opt.studies.runner import in_fresh_process, run_study
 from vesicle_opt.verify import lobpcg
+from vesicle_opt.studies._common import num as _num
 
 log = logging.getLogger(__name__)
 
@@ -145,13 +146,6 @@ def cases(quick: bool) -> list[dict]:
     levels = QUICK_LEVELS if quick else LEVELS
     return [{"case": f"eps{e:g}", "epsilon": e,
              "points": 4 if quick else (POINTS_LARGEST if e == min(levels) else POINTS)} for e in levels]
-
-
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def exponents(nodes, values) -> float:

@@ -68,6 +68,7 @@ from vesicle_opt.scene import bundled, load
 from vesicle_opt.scene.ranges import CHOICES
 from vesicle_opt.studies._common import human
 from vesicle_opt.studies.runner import run_into
+from vesicle_opt.studies._common import num as _num
 
 log = logging.getLogger(__name__)  # the study's lines (the CLI shows INFO; -q hides them)
 
@@ -139,13 +140,6 @@ def interleaved(scene: str, methods, repeats: int, run=one_run, **kw) -> dict[st
             log.info(f"{NAME}: {scene} {m} round {k + 1}/{repeats}: exit {r['exit']}, "
                      f"{r['summary'].get('outcome', '-')}, {r['wall']:.2f} s (load {r['load']:.2f})")
     return runs
-
-
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def _worst(codes: list) -> object:

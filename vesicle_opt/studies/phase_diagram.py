@@ -62,6 +62,7 @@ from vesicle_opt.studies import _hlevel as hl
 from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._pd_figure import figure
 from vesicle_opt.studies.runner import run_into
+from vesicle_opt.studies._common import num as _num
 
 log = logging.getLogger(__name__)
 
@@ -203,13 +204,6 @@ def _run(case: dict) -> list[dict]:
         points = list(walk(lay, eps, vs, meridians[0], name, states=case.get("states"), case=case["case"]))
     return [_row(which, res, v, eps, lay, ref.reduced_energy, seed, part=case["part"])
             for (v, res, seed), ref in zip(points, refs)]
-
-
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def _by_v(rows: list[dict], key: str = "reduced_volume", value: str = "f") -> tuple[list[float], list[float]]:
