@@ -146,11 +146,35 @@ PUSH_BEYOND = -1.0  # no push before (at -0.5 the oblate is stable); at c0 = -1.
 # capped at 150 IPOPT iterations moved f by 8e-4 only, at 800 they left the oblate (measured, eps 0.03)
 PUSH_AMPLITUDE = 0.5  # the push's largest change of phi (the critical mode scaled to this max |.|)
 PUSH_ITER = 800  # IPOPT iterations of a pushed solve: the oblate turns into the cup, a long way
-TALL = 0.0  # the box's least half-height (before the walls' 12 eps) in units of the oblate's radius; 0: the box
-# about the oblate. On that box the pushes landed on tubes from wall to wall (f 1.33 / 1.49 / 1.13 at c0 = -1.0 /
-# -1.25 / -1.5, no cup); with 0.6 / 0.7 / 0.8 / 1.0 the oblate's cold start at c0 = 0 stops after one IPOPT
-# iteration, kkt_not_met (dual 2.8e-6 > 1e-6), measured at eps 0.03: the seedless route is not reached yet
+TALL = 0.8  # the box's least half-height (before the walls' 12 eps) in units of the oblate's radius: the cup
+# (sharp, v 0.62) spans -0.84 .. +0.70 (c0 0) and -0.86 .. +0.80 (c0 -1) about its volume centroid, which the
+# axial pin holds at mid-height; 0.8 x 1.238 = 0.99. On the box about the oblate (half-height 0.34 + 12 eps) the
+# pushes landed on tubes from wall to wall (f 1.33 / 1.49 / 1.13 at c0 = -1.0 / -1.25 / -1.5, no cup)
 OBLATE_MODES = 16  # the sharp oblate of the detour's start (as phase_diagram's oblate rows)
+
+
+def even_layout(lay: dict) -> dict:
+    """The layout with an even number of coarse cells along z (one more, the box grown by half a cell
+    at each end: the same mid-height). ``mesh.refine.mirrored_tensor`` is mirrored about the box's
+    mid-height only for an even n_z; with an odd one an up-down symmetric oblate centred there is not
+    stationary along the axial slide, and the pin (``nlp.reuse.pin_row``) holds a force: on the tall
+    box at eps 0.03 (n_z = 19) the oblate's cold start ended kkt_not_met (kkt_dual 1.67e-6, pin
+    multiplier -0.11, updown_asymmetry 4.4e-4) after three re-meshes about the result (the last one
+    IPOPT iteration); with n_z = 20 it is certified in 14 iterations (multiplier -4e-12, asymmetry
+    7.5e-15, 4.8 CPU-s), measured. The uniform mesh (``refine`` off) has no pin: unchanged."""
+    if lay["mesh"].get("refine") != "interface" or lay["n"][1] % 2 == 0:
+        return lay
+    h0 = lay["h"] * 2 ** lay["mesh"]["levels"]
+    (z_lo, z_hi), n = lay["box"][1], [lay["n"][0], lay["n"][1] + 1]
+    return {**lay, "box": [list(lay["box"][0]), [z_lo - h0 / 2, z_hi + h0 / 2]], "n": n, "mesh": {**lay["mesh"], "n": n}}
+
+
+def tall_layout(mer, eps: float, eps_over_h: float, refine: bool = True) -> dict:
+    """The detour's box: about the oblate's meridian ``mer`` (centred at z = 0) and at least ``TALL``
+    times its radius above and below z = 0 (room for the cup the push turns it into), the walls'
+    ``WALL`` eps beyond (``_meridian.layout``), n_z even (``even_layout``)."""
+    half = TALL * float(np.max(mer[0]))
+    return even_layout(layout([mer, (np.zeros(2), np.array([-half, half]))], eps, eps_over_h, refine))
 
 
 def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=DETOUR_C0,
@@ -163,8 +187,7 @@ def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=D
     ``push_beyond``: ``PUSH_BEYOND`` unless given."""
     ref = sharp_a.solve(v, "oblate", OBLATE_MODES, second_order=False)
     mer = ref.meridian(2048)
-    half = TALL * float(mer[0].max())  # TALL: see there
-    lay = layout([mer, (np.zeros(2), np.array([-half, half]))] if half > 0 else [mer], eps, eps_over_h, refine)
+    lay = tall_layout(mer, eps, eps_over_h, refine)
 
     def solve(c0, start):
         pushed = isinstance(start, types.SimpleNamespace) and getattr(start, "pushed", False)
