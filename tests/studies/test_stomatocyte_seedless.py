@@ -94,3 +94,30 @@ def test_field_distance_of_nested_spheres_is_their_volume_ratio():
     assert order == pytest.approx(2.0, abs=0.2)  # the profile's eps^2 term (measured -0.0216, -0.0055)
     assert abs(dev[1]) < 0.01  # eps^2 / R^2 = 1.6e-3 times the measured factor 3.4
     assert max(same_state) < 0.01 * want  # the same state: two orders below another one
+
+
+@pytest.mark.slow
+def test_tall_box_oblate_cold_start_is_certified_with_even_coarse_rows():
+    """The detour's first solve (the oblate at eps 0.03, v 0.62, c0 0, from its sharp shape) on the tall
+    box: with n_z odd (19 coarse rows) the mesh is not mirrored and the axial pin holds a force, so
+    the solve is refused (kkt_not_met, the pin's force what fails: ``pin_held``); with n_z even
+    (``even_layout``) it is certified, the pin's multiplier at round-off (a symmetric state on a
+    mirrored mesh is exactly stationary along the slide), and f is that of the same oblate on the
+    box about the oblate alone (walls 12 eps away in both: their effect exponentially small)."""
+    from vesicle_opt.sharp import axisymmetric as sharp_a
+    from vesicle_opt.studies._meridian import seed, solve_quiet
+
+    eps, v = 0.03, 0.62
+    mer = sharp_a.solve(v, "oblate", S.OBLATE_MODES, second_order=False).meridian(2048)
+    half = 0.6 * float(mer[0].max())
+    odd = layout([mer, (np.zeros(2), np.array([-half, half]))], eps, 4.0, True)
+    assert odd["n"][1] % 2 == 1  # 19 coarse rows (measured)
+    res = {}
+    for key, lay in (("odd", odd), ("even", S.even_layout(odd)), ("own", S.even_layout(layout([mer], eps, 4.0)))):
+        sc = scene(lay, eps, v, f"tall-{key}")
+        res[key] = solve_quiet(sc, seed(sc, *mer, eps, lay["h"]))
+    assert res["odd"].outcome == "kkt_not_met" and res["odd"].extra["pin_held"]
+    assert res["even"].converged and res["own"].converged
+    assert abs(res["even"].extra["translation_multiplier"]) < 1e-9  # measured 4e-12 (IPOPT's tol 1e-6 scaled rows)
+    assert res["even"].extra["second_order_min_eigenvalue"] > 0  # a minimum (measured +0.0112 mu_ref)
+    assert res["even"].extra["f"] == pytest.approx(res["own"].extra["f"], rel=1e-6)  # walls 12 eps away: e^-12 tails

@@ -11,7 +11,10 @@ oblate's dimples meet (a torus) above v = 0.51 (at v = 0.58 for eps = 0.03, meas
 ``seedless`` tries another (``branch.detour``): the oblate walked out in c0 at fixed v to where its odd
 mode is unstable (the sharp branch point at v = 0.62 is at c0 = -0.985, the poles 0.27 R0 apart),
 pushed along that mode, the landing walked back to c0 = 0; it is opt-in (case key ``seedless``;
-docs/guide/bifurcation.md, "A detour in c0", for what it reached).
+docs/guide/bifurcation.md, "A detour in c0"). At eps 0.03 every push lands on a genus-1 state, not
+the cup: a sickle-shaped torus (one closed meridian curve off the axis, up-down symmetric), a
+certified minimum from c0 = -1.5 back to 0 (f 1.93522 there, below the seeded cup's 1.96834), so the
+detour ends "no switch to B" and the walk starts from the seed (its rows say so).
 From the seed two walks at fixed v (``_meridian.walk``: exact IPOPT solves, each warm from the
 previous point, second-order checked, axisymmetric perturbations only): ``up`` towards the fold on
 the v grid ``up`` (its steps shrinking towards the sharp fold, 0.6604), ending at the first point
@@ -145,11 +148,13 @@ DETOUR_C0 = (0.0, -0.5, -1.0, -1.25, -1.5)  # the way out at V_SEED (literature 
 PUSH_BEYOND = -1.0  # no push before (at -0.5 the oblate is stable); at c0 = -1.0 (mu -0.0014) pushes
 # capped at 150 IPOPT iterations moved f by 8e-4 only, at 800 they left the oblate (measured, eps 0.03)
 PUSH_AMPLITUDE = 0.5  # the push's largest change of phi (the critical mode scaled to this max |.|)
-PUSH_ITER = 800  # IPOPT iterations of a pushed solve: the oblate turns into the cup, a long way
+PUSH_ITER = 800  # IPOPT iterations of a pushed solve: on the tall box they took 82-96 (eps 0.03, measured)
 TALL = 0.8  # the box's least half-height (before the walls' 12 eps) in units of the oblate's radius: the cup
 # (sharp, v 0.62) spans -0.84 .. +0.70 (c0 0) and -0.86 .. +0.80 (c0 -1) about its volume centroid, which the
 # axial pin holds at mid-height; 0.8 x 1.238 = 0.99. On the box about the oblate (half-height 0.34 + 12 eps) the
-# pushes landed on tubes from wall to wall (f 1.33 / 1.49 / 1.13 at c0 = -1.0 / -1.25 / -1.5, no cup)
+# pushes landed on tubes from wall to wall (f 1.33 / 1.49 / 1.13 at c0 = -1.0 / -1.25 / -1.5, no cup); on this
+# one (n_z even, ``even_layout``) on a sickle torus, f 2.72638 / 2.99431 / 3.29131 (both signs, amplitudes 0.05
+# and 0.5, and a shift of the dimples by 0.25 along the axis: the same torus), no cup either (measured, eps 0.03)
 OBLATE_MODES = 16  # the sharp oblate of the detour's start (as phase_diagram's oblate rows)
 
 
