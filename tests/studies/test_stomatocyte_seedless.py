@@ -103,7 +103,7 @@ def test_tall_box_oblate_cold_start_is_certified_with_even_coarse_rows():
     the solve is refused (kkt_not_met, the pin's force what fails: ``pin_held``); with n_z even
     (``even_layout``) it is certified, the pin's multiplier at round-off (a symmetric state on a
     mirrored mesh is exactly stationary along the slide), and f is that of the same oblate on the
-    box about the oblate alone (walls 12 eps away in both: their effect exponentially small)."""
+    box about the oblate alone to the difference of two meshes' P1 errors."""
     from vesicle_opt.sharp import axisymmetric as sharp_a
     from vesicle_opt.studies._meridian import seed, solve_quiet
 
@@ -120,4 +120,6 @@ def test_tall_box_oblate_cold_start_is_certified_with_even_coarse_rows():
     assert res["even"].converged and res["own"].converged
     assert abs(res["even"].extra["translation_multiplier"]) < 1e-9  # measured 4e-12 (IPOPT's tol 1e-6 scaled rows)
     assert res["even"].extra["second_order_min_eigenvalue"] > 0  # a minimum (measured +0.0112 mu_ref)
-    assert res["even"].extra["f"] == pytest.approx(res["own"].extra["f"], rel=1e-6)  # walls 12 eps away: e^-12 tails
+    # the walls 12 eps away in both (e^-12 tails), but two band meshes from other coarse grids: their P1 errors
+    # differ (measured 3.4e-5 relative here, 1.7e-5 against the detour's taller box)
+    assert res["even"].extra["f"] == pytest.approx(res["own"].extra["f"], rel=1e-4)
