@@ -15,7 +15,8 @@ docs/guide/bifurcation.md, "A detour in c0"). At eps 0.03 every push lands on a 
 the cup: a sickle-shaped torus (one closed meridian curve off the axis, up-down symmetric), a
 certified minimum from c0 = -1.5 back to 0 (f 1.93522 there, below the seeded cup's 1.96834), so the
 detour ends "no switch to B" and the walk starts from the seed (its rows say so); at v 0.66 / 0.70
-(c0 -2.0 / -2.5) the pushes pinch the cup's neck instead (two nested spheres).
+(c0 -2.0 / -2.5) the pushes pinch the cup's neck instead (two nested spheres); at eps 0.02 (push at
+c0 -1.25) the same torus (f 1.93269 at c0 0).
 From the seed two walks at fixed v (``_meridian.walk``: exact IPOPT solves, each warm from the
 previous point, second-order checked, axisymmetric perturbations only): ``up`` towards the fold on
 the v grid ``up`` (its steps shrinking towards the sharp fold, 0.6604), ending at the first point
