@@ -27,12 +27,15 @@ in a second parameter where the branch point is resolvable; nothing here knows a
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from vesicle_opt.errors import InputError
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -93,6 +96,8 @@ def detour(solve: Callable, check: Callable, push: Callable, is_target: Callable
         ok, mu, _ = check(state)
         s = Step(leg, q, state, bool(ok), float(mu), bool(ok) and mu > 0 and bool(is_target(state)), sign)
         steps.append(s)
+        log.info("detour %s q = %g%s: converged %s, least eigenvalue %.4g, B %s", leg, q,
+                 f" (push {sign:+d})" if sign else "", s.converged, s.eigenvalue, s.target)
         return s
 
     start, landed, k_land = None, None, None

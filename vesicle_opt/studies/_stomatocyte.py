@@ -11,7 +11,12 @@ oblate's dimples meet (a torus) above v = 0.51 (at v = 0.58 for eps = 0.03, meas
 ``seedless`` tries another (``branch.detour``): the oblate walked out in c0 at fixed v to where its odd
 mode is unstable (the sharp branch point at v = 0.62 is at c0 = -0.985, the poles 0.27 R0 apart),
 pushed along that mode, the landing walked back to c0 = 0; it is opt-in (case key ``seedless``;
-docs/guide/bifurcation.md, "A detour in c0", for what it reached).
+docs/guide/bifurcation.md, "A detour in c0"). At eps 0.03 every push lands on a genus-1 state, not
+the cup: a sickle-shaped torus (one closed meridian curve off the axis, up-down symmetric), a
+certified minimum from c0 = -1.5 back to 0 (f 1.93522 there, below the seeded cup's 1.96834), so the
+detour ends "no switch to B" and the walk starts from the seed (its rows say so); at v 0.66 / 0.70
+(c0 -2.0 / -2.5) the pushes pinch the cup's neck instead (two nested spheres); at eps 0.02 (push at
+c0 -1.25) the same torus (f 1.93269 at c0 0).
 From the seed two walks at fixed v (``_meridian.walk``: exact IPOPT solves, each warm from the
 previous point, second-order checked, axisymmetric perturbations only): ``up`` towards the fold on
 the v grid ``up`` (its steps shrinking towards the sharp fold, 0.6604), ending at the first point
@@ -145,12 +150,38 @@ DETOUR_C0 = (0.0, -0.5, -1.0, -1.25, -1.5)  # the way out at V_SEED (literature 
 PUSH_BEYOND = -1.0  # no push before (at -0.5 the oblate is stable); at c0 = -1.0 (mu -0.0014) pushes
 # capped at 150 IPOPT iterations moved f by 8e-4 only, at 800 they left the oblate (measured, eps 0.03)
 PUSH_AMPLITUDE = 0.5  # the push's largest change of phi (the critical mode scaled to this max |.|)
-PUSH_ITER = 800  # IPOPT iterations of a pushed solve: the oblate turns into the cup, a long way
-TALL = 0.0  # the box's least half-height (before the walls' 12 eps) in units of the oblate's radius; 0: the box
-# about the oblate. On that box the pushes landed on tubes from wall to wall (f 1.33 / 1.49 / 1.13 at c0 = -1.0 /
-# -1.25 / -1.5, no cup); with 0.6 / 0.7 / 0.8 / 1.0 the oblate's cold start at c0 = 0 stops after one IPOPT
-# iteration, kkt_not_met (dual 2.8e-6 > 1e-6), measured at eps 0.03: the seedless route is not reached yet
+PUSH_ITER = 800  # IPOPT iterations of a pushed solve: on the tall box they took 82-96 (eps 0.03, measured)
+TALL = 0.8  # the box's least half-height (before the walls' 12 eps) in units of the oblate's radius: the cup
+# (sharp, v 0.62) spans -0.84 .. +0.70 (c0 0) and -0.86 .. +0.80 (c0 -1) about its volume centroid, which the
+# axial pin holds at mid-height; 0.8 x 1.238 = 0.99. On the box about the oblate (half-height 0.34 + 12 eps) the
+# pushes landed on tubes from wall to wall (f 1.33 / 1.49 / 1.13 at c0 = -1.0 / -1.25 / -1.5, no cup); on this
+# one (n_z even, ``even_layout``) on a sickle torus, f 2.72638 / 2.99431 / 3.29131 (both signs, amplitudes 0.05
+# and 0.5, and a shift of the dimples by 0.25 along the axis: the same torus), no cup either (measured, eps 0.03)
 OBLATE_MODES = 16  # the sharp oblate of the detour's start (as phase_diagram's oblate rows)
+
+
+def even_layout(lay: dict) -> dict:
+    """The layout with an even number of coarse cells along z (one more, the box grown by half a cell
+    at each end: the same mid-height). ``mesh.refine.mirrored_tensor`` is mirrored about the box's
+    mid-height only for an even n_z; with an odd one an up-down symmetric oblate centred there is not
+    stationary along the axial slide, and the pin (``nlp.reuse.pin_row``) holds a force: on the tall
+    box at eps 0.03 (n_z = 19) the oblate's cold start ended kkt_not_met (kkt_dual 1.67e-6, pin
+    multiplier -0.11, updown_asymmetry 4.4e-4) after three re-meshes about the result (the last one
+    IPOPT iteration); with n_z = 20 it is certified in 14 iterations (multiplier -4e-12, asymmetry
+    7.5e-15, 4.8 CPU-s), measured. The uniform mesh (``refine`` off) has no pin: unchanged."""
+    if lay["mesh"].get("refine") != "interface" or lay["n"][1] % 2 == 0:
+        return lay
+    h0 = lay["h"] * 2 ** lay["mesh"]["levels"]
+    (z_lo, z_hi), n = lay["box"][1], [lay["n"][0], lay["n"][1] + 1]
+    return {**lay, "box": [list(lay["box"][0]), [z_lo - h0 / 2, z_hi + h0 / 2]], "n": n, "mesh": {**lay["mesh"], "n": n}}
+
+
+def tall_layout(mer, eps: float, eps_over_h: float, refine: bool = True) -> dict:
+    """The detour's box: about the oblate's meridian ``mer`` (centred at z = 0) and at least ``TALL``
+    times its radius above and below z = 0 (room for the cup the push turns it into), the walls'
+    ``WALL`` eps beyond (``_meridian.layout``), n_z even (``even_layout``)."""
+    half = TALL * float(np.max(mer[0]))
+    return even_layout(layout([mer, (np.zeros(2), np.array([-half, half]))], eps, eps_over_h, refine))
 
 
 def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=DETOUR_C0,
@@ -163,8 +194,7 @@ def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=D
     ``push_beyond``: ``PUSH_BEYOND`` unless given."""
     ref = sharp_a.solve(v, "oblate", OBLATE_MODES, second_order=False)
     mer = ref.meridian(2048)
-    half = TALL * float(mer[0].max())  # TALL: see there
-    lay = layout([mer, (np.zeros(2), np.array([-half, half]))] if half > 0 else [mer], eps, eps_over_h, refine)
+    lay = tall_layout(mer, eps, eps_over_h, refine)
 
     def solve(c0, start):
         pushed = isinstance(start, types.SimpleNamespace) and getattr(start, "pushed", False)
