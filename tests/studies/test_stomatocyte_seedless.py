@@ -31,27 +31,26 @@ def _reflected_mesh_matches(disc, mid) -> bool:
     return tris(p) == tris(q)
 
 
-def test_even_layout_makes_the_band_mesh_mirrored_about_mid_height():
-    """An up-down symmetric interface (an ellipse centred at z = 0) on a box whose coarse cells along
-    z are odd in number: the band mesh is not its own mirror image (the middle row's diagonals);
-    ``even_layout`` adds one coarse cell (half at each end: the same mid-height, square cells) and the
-    mesh is mirrored triangle for triangle (an independent test: the reflected triangles)."""
+def _odd(lay: dict) -> dict:
+    """The layout with one coarse cell fewer along z (half a cell off each end: the same mid-height):
+    n_z odd where ``layout``'s is even (what ``layout`` made before it rounded n_z up)."""
+    h0 = lay["h"] * 2 ** lay["mesh"]["levels"]
+    (z_lo, z_hi), n = lay["box"][1], [lay["n"][0], lay["n"][1] - 1]
+    return {**lay, "box": [list(lay["box"][0]), [z_lo + h0 / 2, z_hi - h0 / 2]], "n": n, "mesh": {**lay["mesh"], "n": n}}
+
+
+def test_layout_makes_the_band_mesh_mirrored_about_mid_height():
+    """An up-down symmetric interface (an ellipse centred at z = 0): on ``layout``'s box (n_z even) the
+    band mesh is mirrored triangle for triangle (an independent test: the reflected triangles); on the
+    same box less one coarse row (n_z odd) it is not (the middle row's diagonals)."""
     eps = 0.1
     r, z = _ellipse(1.0, 0.62)
-    odd = None
-    for half in np.arange(0.6, 1.2, 0.05):  # a box height with an odd n_z
+    for half in np.arange(0.6, 1.2, 0.05):  # box heights whose n_z was odd before layout rounded it up
         lay = layout([(r, z), (np.zeros(2), np.array([-half, half]))], eps, 2.0, True)
-        if lay["n"][1] % 2:
-            odd = lay
-            break
-    assert odd is not None
-    ev = S.even_layout(odd)
-    h0 = odd["h"] * 2 ** odd["mesh"]["levels"]
-    assert ev["n"] == [odd["n"][0], odd["n"][1] + 1] and ev["mesh"]["n"] == ev["n"]
+        assert lay["n"][1] % 2 == 0 and lay["mesh"]["n"] == lay["n"]
+    ev, odd = lay, _odd(lay)
     (lo, hi), (lo2, hi2) = odd["box"][1], ev["box"][1]
     assert (lo2 + hi2) / 2 == pytest.approx((lo + hi) / 2, abs=1e-12)  # round-off of a sum of box bounds
-    assert (hi2 - lo2) / ev["n"][1] == pytest.approx(h0, rel=1e-12)  # square coarse cells: the same h0
-    assert S.even_layout(ev) is ev  # already even: unchanged
     for lay, mirrored in ((odd, False), (ev, True)):
         sc = scene(lay, eps, 0.62, "even-layout")
         disc = discretize(sc, interface=curve_distance(np.column_stack([r, z]), lay["h"]))
@@ -101,7 +100,7 @@ def test_tall_box_oblate_cold_start_is_certified_with_even_coarse_rows():
     """The detour's first solve (the oblate at eps 0.03, v 0.62, c0 0, from its sharp shape) on the tall
     box: with n_z odd (19 coarse rows) the mesh is not mirrored and the axial pin holds a force, so
     the solve is refused (kkt_not_met, the pin's force what fails: ``pin_held``); with n_z even
-    (``even_layout``) it is certified, the pin's multiplier at round-off (a symmetric state on a
+    (``layout``'s) it is certified, the pin's multiplier at round-off (a symmetric state on a
     mirrored mesh is exactly stationary along the slide), and f is that of the same oblate on the
     box about the oblate alone to the difference of two meshes' P1 errors."""
     from vesicle_opt.sharp import axisymmetric as sharp_a
@@ -110,10 +109,11 @@ def test_tall_box_oblate_cold_start_is_certified_with_even_coarse_rows():
     eps, v = 0.03, 0.62
     mer = sharp_a.solve(v, "oblate", S.OBLATE_MODES, second_order=False).meridian(2048)
     half = 0.6 * float(mer[0].max())
-    odd = layout([mer, (np.zeros(2), np.array([-half, half]))], eps, 4.0, True)
-    assert odd["n"][1] % 2 == 1  # 19 coarse rows (measured)
+    even = layout([mer, (np.zeros(2), np.array([-half, half]))], eps, 4.0, True)
+    odd = _odd(even)
+    assert odd["n"][1] % 2 == 1  # 19 coarse rows (measured: the box before layout rounded n_z up)
     res = {}
-    for key, lay in (("odd", odd), ("even", S.even_layout(odd)), ("own", S.even_layout(layout([mer], eps, 4.0)))):
+    for key, lay in (("odd", odd), ("even", even), ("own", layout([mer], eps, 4.0))):
         sc = scene(lay, eps, v, f"tall-{key}")
         res[key] = solve_quiet(sc, seed(sc, *mer, eps, lay["h"]))
     assert res["odd"].outcome == "kkt_not_met" and res["odd"].extra["pin_held"]

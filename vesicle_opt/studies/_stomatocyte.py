@@ -155,33 +155,20 @@ TALL = 0.8  # the box's least half-height (before the walls' 12 eps) in units of
 # (sharp, v 0.62) spans -0.84 .. +0.70 (c0 0) and -0.86 .. +0.80 (c0 -1) about its volume centroid, which the
 # axial pin holds at mid-height; 0.8 x 1.238 = 0.99. On the box about the oblate (half-height 0.34 + 12 eps) the
 # pushes landed on tubes from wall to wall (f 1.33 / 1.49 / 1.13 at c0 = -1.0 / -1.25 / -1.5, no cup); on this
-# one (n_z even, ``even_layout``) on a sickle torus, f 2.72638 / 2.99431 / 3.29131 (both signs, amplitudes 0.05
+# one (n_z even, ``_meridian.layout``) on a sickle torus, f 2.72638 / 2.99431 / 3.29131 (both signs, amplitudes 0.05
 # and 0.5, and a shift of the dimples by 0.25 along the axis: the same torus), no cup either (measured, eps 0.03)
 OBLATE_MODES = 16  # the sharp oblate of the detour's start (as phase_diagram's oblate rows)
-
-
-def even_layout(lay: dict) -> dict:
-    """The layout with an even number of coarse cells along z (one more, the box grown by half a cell
-    at each end: the same mid-height). ``mesh.refine.mirrored_tensor`` is mirrored about the box's
-    mid-height only for an even n_z; with an odd one an up-down symmetric oblate centred there is not
-    stationary along the axial slide, and the pin (``nlp.reuse.pin_row``) holds a force: on the tall
-    box at eps 0.03 (n_z = 19) the oblate's cold start ended kkt_not_met (kkt_dual 1.67e-6, pin
-    multiplier -0.11, updown_asymmetry 4.4e-4) after three re-meshes about the result (the last one
-    IPOPT iteration); with n_z = 20 it is certified in 14 iterations (multiplier -4e-12, asymmetry
-    7.5e-15, 4.8 CPU-s), measured. The uniform mesh (``refine`` off) has no pin: unchanged."""
-    if lay["mesh"].get("refine") != "interface" or lay["n"][1] % 2 == 0:
-        return lay
-    h0 = lay["h"] * 2 ** lay["mesh"]["levels"]
-    (z_lo, z_hi), n = lay["box"][1], [lay["n"][0], lay["n"][1] + 1]
-    return {**lay, "box": [list(lay["box"][0]), [z_lo - h0 / 2, z_hi + h0 / 2]], "n": n, "mesh": {**lay["mesh"], "n": n}}
 
 
 def tall_layout(mer, eps: float, eps_over_h: float, refine: bool = True) -> dict:
     """The detour's box: about the oblate's meridian ``mer`` (centred at z = 0) and at least ``TALL``
     times its radius above and below z = 0 (room for the cup the push turns it into), the walls'
-    ``WALL`` eps beyond (``_meridian.layout``), n_z even (``even_layout``)."""
+    ``WALL`` eps beyond and n_z even (``_meridian.layout``: with n_z odd the band mesh is not mirrored
+    about mid-height and the pin holds a force; on this box at eps 0.03, n_z = 19, the oblate's cold start
+    ended kkt_not_met, kkt_dual 1.67e-6, pin multiplier -0.11; with 20 rows it is certified in 14 IPOPT
+    iterations, multiplier -4e-12, measured)."""
     half = TALL * float(np.max(mer[0]))
-    return even_layout(layout([mer, (np.zeros(2), np.array([-half, half]))], eps, eps_over_h, refine))
+    return layout([mer, (np.zeros(2), np.array([-half, half]))], eps, eps_over_h, refine)
 
 
 def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=DETOUR_C0,
