@@ -67,6 +67,11 @@ def handled():
         signal.signal(s, _handler)
     try:
         yield
+    except SystemError as exc:  # the handler's Interrupted raised inside a C extension's call (CasADi's
+        # DM.__array__: "returned a result with an exception set"): the interrupt, not an error
+        if _state["signum"] is None:
+            raise
+        raise Interrupted(_state["signum"]) from exc
     finally:
         for s, h in old.items():
             signal.signal(s, h)
