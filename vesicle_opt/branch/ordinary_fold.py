@@ -44,7 +44,7 @@ from typing import ClassVar
 import numpy as np
 
 from vesicle_opt.branch import events as ev
-from vesicle_opt.branch.transition import plan
+from vesicle_opt.branch.transition import outward
 
 WIDTHS = (1, 0.5, 2, 0.25, 4, 0.125, 8, 16)  # the half-widths tried, in units of h, until the sides' indices
 # differ: narrower first (a wide pair may straddle two folds, as near the cusp where two meet), then wider
@@ -135,13 +135,9 @@ def line(solver, q0: float, centre, p0: float, t, h: float, values, theta: float
          progress=None) -> list[Fold]:
     """The fold at q0 (from ``centre``, ``p0``, chord ``t``, half-width ``h``) and at each q of
     ``values`` outward from q0, each predicted by the secant of its direction (module docstring)."""
-    out: list[Fold] = []
-    hist: dict[str, list[Fold]] = {}
-    for direction, q in plan(q0, [float(v) for v in values]):
-        past = hist.get("start", []) + (hist.get(direction, []) if direction != "start" else [])
-        if direction != "start" and (not past or not past[-1].converged):
-            continue
-        if direction == "start":
+
+    def step(q: float, past: list[Fold]) -> Fold:
+        if not past:  # the start
             c, p, tt, hh = centre, p0, t, h
         else:
             last = past[-1]
@@ -150,9 +146,5 @@ def line(solver, q0: float, centre, p0: float, t, h: float, values, theta: float
                 r = (q - last.q) / (last.q - past[-2].q)
                 c, p = c + r * (c - past[-2].point.phi), p + r * (p - past[-2].p)
             tt, hh = last.chord
-        f = locate(solver, q, c, p, tt, hh, theta)
-        hist.setdefault(direction, []).append(f)
-        out.append(f)
-        if progress is not None:
-            progress(f)
-    return out
+        return locate(solver, q, c, p, tt, hh, theta)
+    return outward(q0, [float(v) for v in values], step, progress)

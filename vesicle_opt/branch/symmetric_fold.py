@@ -58,7 +58,7 @@ from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multiplie
 from vesicle_opt.branch.lines import LINE_COLUMNS
 from vesicle_opt.branch.params import parameter
 from vesicle_opt.branch.store import cell_text
-from vesicle_opt.branch.transition import plan
+from vesicle_opt.branch.transition import outward
 from vesicle_opt.errors import InputError
 from vesicle_opt.model import functionals as F
 from vesicle_opt.nlp import build_nlp
@@ -278,24 +278,16 @@ def line(scene, param: str, second: str, values, *, at: float, warm, dp: float =
     check(scene, param, second, dp)
     solver = SymmetricSolver(scene, param, second, axis, np.asarray(warm, float), options)
     q0 = solver.second.start
-    out: list[Turn] = []
-    hist: dict[str, list[Turn]] = {}
-    for direction, q in plan(q0, [float(v) for v in values]):
-        past = hist.get("start", []) + (hist.get(direction, []) if direction != "start" else [])
-        if direction != "start" and (not past or not past[-1].converged):
-            continue
-        if direction == "start":
+
+    def step(q: float, past: list[Turn]) -> Turn:
+        if not past:  # the start
             pred, phi, lam = float(at), warm, None
         else:
             last = past[-1]
             pred = last.p if len(past) < 2 else last.p + (q - last.q) * (last.p - past[-2].p) / (last.q - past[-2].q)
             phi, lam = last.point.phi, last.point.lam
-        t = locate(solver, q, pred, dp, phi, lam)
-        hist.setdefault(direction, []).append(t)
-        out.append(t)
-        if progress is not None:
-            progress(t)
-    return out
+        return locate(solver, q, pred, dp, phi, lam)
+    return outward(q0, [float(v) for v in values], step, progress)
 
 
 COLUMNS = LINE_COLUMNS + ["converged", "reason", "bracket", "asymmetry", "solves", "wall_time_s", "cpu_time_s",

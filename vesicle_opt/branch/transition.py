@@ -232,6 +232,25 @@ def plan(q0: float, values) -> list[tuple[str, float]]:
     return [("start", q0)] + [("up", v) for v in up] + [("down", v) for v in down]
 
 
+def outward(q0: float, values, step, progress=None) -> list:
+    """``step(q, past)`` at each q of ``plan(q0, values)``, ``past`` the results so far of the start
+    and of q's direction ([] for the start itself), each result (with ``converged``) handed to
+    ``progress``; a direction stops after its first unconverged result, and every direction after an
+    unconverged start. Returns the results in the order computed."""
+    out: list = []
+    hist: dict[str, list] = {}
+    for direction, q in plan(q0, values):
+        past = hist.get("start", []) + (hist.get(direction, []) if direction != "start" else [])
+        if direction != "start" and (not past or not past[-1].converged):
+            continue
+        result = step(q, past)
+        hist.setdefault(direction, []).append(result)
+        out.append(result)
+        if progress is not None:
+            progress(result)
+    return out
+
+
 def continue_line(solver, q0: float, p0: float, towards: float, values, dp: float, store,
                   in_range=lambda p: True, progress=None) -> list[dict]:
     """The line (module docstring): a row per q of ``plan(q0, values)`` appended to ``store``
