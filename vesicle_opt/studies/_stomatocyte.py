@@ -45,6 +45,7 @@ import numpy as np
 from vesicle_opt.branch.detour import detour
 from vesicle_opt.sharp import axisymmetric as sharp_a
 from vesicle_opt.sharp import stomatocyte as sharp_s
+from vesicle_opt.studies._common import num as _num
 from vesicle_opt.studies._meridian import MAX_ITER, layout, scene, seed, solve_quiet, walk
 from vesicle_opt.verify import updown
 
@@ -52,13 +53,6 @@ V_SEED = 0.62  # the seed's reduced volume: the lower side, 0.04 below the sharp
 V_DOWN = 0.575  # the sharp reference's lower end: below the crossing with the oblate (0.5903)
 AHEAD = 3.0  # a lower-side fold is extrapolated in lambda by at most this many of its last lambda steps
 SHARP_MODES = 24  # the sharp lower side at each phase-field point (fold 0.660376 at 24 modes, 0.660850 at 48)
-
-
-def _num(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def fold_of(v, f, lam) -> tuple[float, float] | None:
