@@ -65,6 +65,13 @@ def start(scene, x0, remesh: bool = False):
     return new, refine.transfer(disc.mesh, phi, new.nodes)
 
 
+def axial_centre(disc, phi) -> float:
+    """z of the inside's centre of mass, int z (1 + phi) / int (1 + phi): the quantity the solve's
+    pin holds at the box's mid-height (``nlp.reuse.pin_row``)."""
+    w = np.asarray(disc.weights, float) * (1 + np.asarray(phi, float))
+    return float(w @ np.asarray(disc.nodes, float)[:, 1] / w.sum())
+
+
 def centred(disc, phi, edge: float):
     """phi translated along the axis so that the centre of mass of its inside, int z (1 + phi) /
     int (1 + phi), lies at the box's mid-height, where the solve's pin holds it (``nlp.reuse.pin_row``);
@@ -76,9 +83,8 @@ def centred(disc, phi, edge: float):
 
     phi = np.asarray(phi, float)
     nodes = np.asarray(disc.nodes, float)
-    w = disc.weights * (1 + phi)
     lo, hi = (float(b) for b in disc.box[-1])
-    dz = float(w @ nodes[:, 1] / w.sum()) - (lo + hi) / 2
+    dz = axial_centre(disc, phi) - (lo + hi) / 2
     if abs(dz) <= 0.01 * edge:
         return phi
     q = nodes + [0.0, dz]

@@ -18,13 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from vesicle_opt.mesh.band_start import axial_centre
 from vesicle_opt.verify import updown
-
-
-def centroid(disc, phi) -> float:
-    """z of the inside's centre of mass, int z (1 + phi) / int (1 + phi) (the pin's quantity)."""
-    inside = np.asarray(disc.weights, float) * (1 + np.asarray(phi, float)) / 2
-    return float(inside @ np.asarray(disc.nodes, float)[:, 1] / inside.sum())
 
 
 def field_distance(disc_a, phi_a, disc_b, phi_b) -> float:
@@ -32,7 +27,7 @@ def field_distance(disc_a, phi_a, disc_b, phi_b) -> float:
     from matplotlib.tri import LinearTriInterpolator, Triangulation  # third-party, lazy (as verify.updown)
 
     phi_a, phi_b = np.asarray(phi_a, float), np.asarray(phi_b, float)
-    shift = centroid(disc_b, phi_b) - centroid(disc_a, phi_a)
+    shift = axial_centre(disc_b, phi_b) - axial_centre(disc_a, phi_a)
     tri = Triangulation(disc_b.mesh.p[0], disc_b.mesh.p[1], disc_b.mesh.t.T)
     nodes = np.asarray(disc_a.nodes, float)
     moved = np.ma.filled(LinearTriInterpolator(tri, phi_b)(nodes[:, 0], nodes[:, 1] + shift), -1.0)
