@@ -248,8 +248,8 @@ def test_seedless_case_records_the_detour_and_falls_back_to_the_seed(monkeypatch
 
     seen = {}
 
-    def fake_walk(lay, eps, vs, first, name, stop=None, start=None, states=None, case=""):
-        seen["lay"], seen["start"] = lay, start
+    def fake_walk(lay, eps, vs, first, name, stop=None, start=None, states=None, case="", max_iter=None):
+        seen["lay"], seen["start"], seen["max_iter"] = lay, start, max_iter
         yield vs[0], "res", "previous point" if start is not None else "sharp shape"
 
     def row(res, v, eps, lay, sharp_f, seed, side, walk):
@@ -264,10 +264,10 @@ def test_seedless_case_records_the_detour_and_falls_back_to_the_seed(monkeypatch
     assert [(r["kind"], r["c0"]) for r in rows] == [("detour", 0.0), ("detour", -1.0), ("point", 0.0)]
     assert rows[1]["status"] == "detour not reached: no switch"
     assert rows[2]["seed"].endswith("(a seed); the detour in c0 was not reached")
-    assert seen == {"lay": {"seeded": True}, "start": None}
+    assert seen == {"lay": {"seeded": True}, "start": None, "max_iter": S.UP_MAX_ITER}  # the up walk's cap
 
     back = steps + (Step("switch", -1.0, "c", True, 0.02, True, 1), Step("back", 0.0, "d", True, 0.02, True))
     monkeypatch.setattr(S, "seedless", lambda *a, **k: (Detour(back, True, -1.0, None), {"detour": True}))
     rows = S.phase_case(case, row)
     assert rows[-1]["seed"] == "no seed: detour in c0 from the oblate (switched at c0 = -1)"
-    assert seen == {"lay": {"detour": True}, "start": "d"}
+    assert seen == {"lay": {"detour": True}, "start": "d", "max_iter": S.UP_MAX_ITER}

@@ -161,3 +161,48 @@ def test_stage_two_cases_from_located_transitions(tmp_path):
     assert ob["v"] == pro["v"] == 0.603 and ob["source"] == "oblate-eps0.05 v 0.6" and pro["walk_vs"] == [0.603]
     assert ob["state"] == str(state_path(tmp_path, "oblate-eps0.05", 0.6)) and ob["layout_vs"] == [0.6]
     assert [q["v"] for q in fold["points"]] == [0.65, 0.655, 0.66] and fold["walk_vs"] == up
+
+
+@pytest.mark.parametrize("p", [2.0, 1.7])
+def test_share_at_order_is_exact_with_the_true_order(p):
+    """y = y0 + C h^p at eps/h = 2 and 4 only, with the order p known (observed at another eps): the
+    limit and the share C (eps/4)^p of eps/h = 4 exactly (round-off of the Richardson factor); with
+    no order observed (nan), the p = 2 limit and ``order_used`` 2."""
+    eps, y0, c = 0.025, 1.82, -7.0
+    h = [eps / 2, eps / 4]
+    y = [y0 + c * x**p for x in h]
+    s = H.share_at_order(h, y, p)
+    assert s["limit"] == pytest.approx(y0, abs=1e-13) and s["share"] == pytest.approx(c * (eps / 4) ** p, abs=1e-13)
+    assert s["order_used"] == p and (abs(s["limit_p2"] - y0) < 1e-13) == (p == 2.0)
+    none = H.share_at_order(h, y, math.nan)
+    assert none["order_used"] == 2.0 and none["share"] == none["share_p2"] == s["share_p2"]
+
+
+def test_summary_with_the_order_from_the_coarsest_eps():
+    """Stage two as the study runs it (``ORDER_FROM``): eps/h = 8 at the coarsest eps alone, eps/h = 2
+    and 4 at the finer ones. The closed form's shares are exact in h^2, so every eps's corrected
+    crossing is the h = 0 one (brentq xtol), the finer eps carry the order observed at 0.05."""
+    rows = [r for r in _rows() if not (r["kind"] == "h_level" and r["eps_over_h"] == 8.0 and r["epsilon"] != 0.05)]
+    s = P.summarise(rows)
+    assert set(s["crossings_h_corrected"]) == {"0.05", "0.04", "0.03"}
+    for e, x in s["crossings_h_corrected"].items():
+        _, _, v0, f0 = _branches(float(e), 0.0)
+        assert x["v"] == pytest.approx(v0, abs=1e-12) and x["f"] == pytest.approx(f0, abs=1e-12)  # brentq xtol
+        lv = s["h_levels"][e]["prolate"]
+        assert lv["order"] == pytest.approx(2.0, abs=1e-8)  # brentq on p at eps 0.05, carried
+        assert lv["order_from_eps"] == (None if e == "0.05" else 0.05)
+    assert s["extrapolated_h_corrected"]["reduced_volume_p2"] == pytest.approx(0.6, abs=1e-9)  # round-off / (1 - r^2)
+
+
+def test_stage_two_levels_eps_over_h_8_at_the_coarsest_eps_only(tmp_path, monkeypatch):
+    """``cases`` gives each transition's coarsest eps the three levels and the finer eps two (eps/h = 4,
+    2); ``ORDER_FROM = "all"`` gives every eps three (the former stage two)."""
+    rows = [r for r in _rows((0.05, 0.04)) if r["kind"] == "point"]
+    for r in rows:
+        r["case"] = f"{r['branch']}-eps{r['epsilon']:g}"
+    summary = {"crossings": {"0.05": {"v": 0.6, "f": 1.2}, "0.04": {"v": 0.6, "f": 1.2}}}
+    grids = {"up": [], "down": [], "low": [], "near": [0.6]}
+    cs = H.cases(rows, summary, tmp_path, grids)
+    assert {(c["epsilon"], tuple(c["levels"])) for c in cs} == {(0.05, H.LEVELS), (0.04, H.CHEAP_LEVELS)}
+    monkeypatch.setattr(H, "ORDER_FROM", "all")
+    assert {tuple(c["levels"]) for c in H.cases(rows, summary, tmp_path, grids)} == {H.LEVELS}

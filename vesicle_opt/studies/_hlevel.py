@@ -8,7 +8,12 @@ doubled (eps/h = 2, 4, 8: ``mesh.levels`` one fewer / more, so the coarse cells 
 same), each warm from the eps/h = 4 state interpolated onto the new band (``mesh.refine.transfer``,
 through the front door's re-mesh: ``mesh.band_start``), and f (and the fold's lambda) extrapolated in h
 (``share``: the observed order p from the three levels, ``verify.metrics.richardson``; the fixed p = 2
-of a P1 energy from the two finest beside it). The transition is then moved by its states' mesh shares
+of a P1 energy from the two finest beside it). The level eps/h = 8 costs four times the nodes of eps/h
+= 4 (140-240 k at eps 0.03-0.02; 11-111 CPU s a solve, one process at 7 GB: measured), so it is solved
+at each transition's coarsest eps alone (``ORDER_FROM``), where it is cheapest and observes the order
+(2.03-2.05 on every state, measured): at the finer eps the states get eps/h = 4 and 2, and their limit
+uses that order (``share_at_order``: the P1 error at fixed eps/h is the same function of h/eps at
+every eps, to leading order). The transition is then moved by its states' mesh shares
 delta = y_4 - y_0 (y_0: the h -> 0 limit):
 
 * a crossing of branches a, b located at v* at eps/h = 4 (``corrected_crossing``): each branch's
@@ -43,6 +48,8 @@ from vesicle_opt.studies._common import num as _num
 
 STATES = "states"  # the walks' saved fields (``_meridian.save``), under the study's output directory
 LEVELS = (0, 1, -1)  # eps/h = 4 * 2^j: the eps/h = 4 state first, the others warm from it
+CHEAP_LEVELS = (0, -1)  # at the finer eps: eps/h = 4 and 2, the order taken from the coarsest eps (``ORDER_FROM``)
+ORDER_FROM = "coarsest"  # the eps whose states get eps/h = 8 too ("all": every eps, the former stage two)
 TRANSITIONS = ("crossing", "oblate_stomatocyte", "fold")
 
 
@@ -166,7 +173,7 @@ def _levels(case: dict, q: dict, base, lay_w, point_row) -> list[dict]:
     else:
         lay0 = lay_w
     rows = []
-    for j in LEVELS:
+    for j in case.get("levels", LEVELS):
         lay = level_layout(lay0, j)
         if j == 0 and base is not None:
             res = base
@@ -247,6 +254,11 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
             out[-1]["points"] = [{"v": _num(up[k]["target_v"]), "point": str(i), "state": str(state_path(
                 states, up[k]["case"], _num(up[k]["target_v"]))), "source": f"{up[k]['case']} v {_num(up[k]['target_v']):g}"}
                 for i, k in enumerate(idx)]
+    coarsest = {}
+    for c in out:
+        coarsest[c["transition"]] = max(coarsest.get(c["transition"], 0.0), c["epsilon"])
+    for c in out:  # eps/h = 8 where it is cheapest (``ORDER_FROM``): the order observed there serves every eps
+        c["levels"] = list(LEVELS if ORDER_FROM == "all" or c["epsilon"] == coarsest[c["transition"]] else CHEAP_LEVELS)
     return out
 
 
@@ -259,23 +271,50 @@ def up_walk(rows: list[dict], eps: float) -> list[dict]:
 
 # --- the summary ----------------------------------------------------------------------------------
 
+def share_at_order(h, y, p: float) -> dict:
+    """``share``'s record from the two levels eps/h = 2 and 4 (h decreasing) with the order ``p``
+    observed on three levels at another eps (``shares``; nan: none observed, p = 2 used): the limit
+    y_4 + (y_4 - y_2) / (2^p - 1) and the share of eps/h = 4, the finest here."""
+    h, y = np.asarray(h, float), np.asarray(y, float)
+    order = np.argsort(-h)
+    h, y = h[order], y[order]
+    lim2 = richardson_fixed(h, y, 2.0)
+    lim = richardson_fixed(h, y, p) if math.isfinite(p) else math.nan
+    observed = math.isfinite(lim)
+    return {"order": p, "limit": lim, "limit_p2": lim2, "share": y[-1] - (lim if observed else lim2),
+            "share_p2": y[-1] - lim2, "order_used": p if observed else 2.0}
+
+
 def shares(rows: list[dict]) -> dict:
     """{(transition, branch+point, eps): share(...) of f and of lambda, with the levels' eps/h and f}
-    from the certified ``h_level`` rows; a state without certified eps/h = 4 and 8 levels is left
-    out (one without its eps/h = 2 level gets the p = 2 share: ``share``)."""
-    out = {}
+    from the certified ``h_level`` rows. With eps/h = 2, 4, 8: ``share`` (its own observed order);
+    with eps/h = 2 and 4 only (the finer eps: ``cases``, ``ORDER_FROM``): ``share_at_order`` with the
+    order of f (and of lambda) observed on the same state of the same transition at the coarsest eps
+    that has three levels (``order_from_eps``); a state without a certified eps/h = 4 level, or with it
+    alone, is left out (one with eps/h = 4 and 8 only gets the p = 2 share: ``share``)."""
+    out, two = {}, {}
     hl = [r for r in rows if r.get("kind") == "h_level" and str(r.get("converged")) == "True"]
     for key in sorted({(r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])) for r in hl}):
         sel = [r for r in hl if (r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])) == key]
         sel = list({_num(r["eps_over_h"]): r for r in reversed(sel)}.values())  # one a level: the first row's
-        if not {4.0, 8.0} <= {_num(r["eps_over_h"]) for r in sel}:
+        got = {_num(r["eps_over_h"]) for r in sel}
+        if 4.0 not in got or len(got) < 2:
             continue
         sel.sort(key=lambda r: _num(r["eps_over_h"]))
         h = [key[2] / _num(r["eps_over_h"]) for r in sel]
-        out[key] = {"eps_over_h": [_num(r["eps_over_h"]) for r in sel], "f": [_num(r["f"]) for r in sel],
-                    "lambda": [_num(r["lambda"]) for r in sel], "v": _num(sel[0]["target_v"]),
-                    "f_share": share(h, [_num(r["f"]) for r in sel]),
-                    "lambda_share": share(h, [_num(r["lambda"]) for r in sel])}
+        entry = {"eps_over_h": [_num(r["eps_over_h"]) for r in sel], "f": [_num(r["f"]) for r in sel],
+                 "lambda": [_num(r["lambda"]) for r in sel], "v": _num(sel[0]["target_v"])}
+        if 8.0 in got:
+            out[key] = {**entry, "f_share": share(h, entry["f"]), "lambda_share": share(h, entry["lambda"])}
+        else:
+            two[key] = (h, entry)
+    for key, (h, entry) in two.items():  # the order of the same state at the coarsest eps with three levels
+        ref = [k for k in out if k[:2] == key[:2] and math.isfinite(out[k]["f_share"]["order"])]
+        k_ref = max(ref, key=lambda k: k[2]) if ref else None
+        p_f, p_l = ((out[k_ref][q]["order"] if k_ref else math.nan) for q in ("f_share", "lambda_share"))
+        out[key] = {**entry, "f_share": share_at_order(h, entry["f"], p_f),
+                    "lambda_share": share_at_order(h, entry["lambda"], p_l),
+                    "order_from_eps": k_ref[2] if k_ref else math.nan}
     return out
 
 
@@ -285,6 +324,7 @@ def _report(s: dict, f_walk: float) -> dict:
     row at a fold point): the h-levels' state is the walks' one when this is at the solver's tolerance."""
     fs = s["f_share"]
     return {"v": s["v"], "eps_over_h": s["eps_over_h"], "f": s["f"], "order": fs["order"], "order_used": fs["order_used"],
+            "order_from_eps": s.get("order_from_eps"),  # None: its own three levels
             "f_limit": fs["limit"], "mesh_share": fs["share"], "mesh_share_p2": fs["share_p2"],
             "lambda_order": s["lambda_share"]["order"], "same_state": s["f"][s["eps_over_h"].index(4.0)] - f_walk}
 

@@ -122,15 +122,17 @@ def solve_quiet(sc, start):
         return solve(sc, x0=start)
 
 
-def walk(lay: dict, eps: float, vs, first, name: str, stop=None, start=None, states=None, case: str = ""):
+def walk(lay: dict, eps: float, vs, first, name: str, stop=None, start=None, states=None, case: str = "",
+         max_iter: int = MAX_ITER):
     """Yield (v, Result, seed label) along ``vs``: the first from ``first`` ((r, z) of a sharp shape
     at vs[0]) or from ``start`` (a converged Result at vs[0], label "previous point"), then each
     warm from the last converged point; ``stop(result) -> bool`` ends the walk after a point (e.g. one
     that left its branch's form); ``states``: a directory where each converged point's field is saved
-    (``save``, as ``case``: what the h-levels, ``_hlevel``, restart from)."""
+    (``save``, as ``case``: what the h-levels, ``_hlevel``, restart from); ``max_iter``: IPOPT's cap on
+    a warm point."""
     label = "sharp shape" if start is None else "previous point"
     for v in vs:
-        sc = scene(lay, eps, v, f"{name}-v{v:g}-eps{eps:g}", max_iter=SEED_MAX_ITER if start is None else MAX_ITER)
+        sc = scene(lay, eps, v, f"{name}-v{v:g}-eps{eps:g}", max_iter=SEED_MAX_ITER if start is None else max_iter)
         if start is None:
             start = seed(sc, *first, eps, lay["h"])
         res = solve_quiet(sc, start)

@@ -52,6 +52,9 @@ from vesicle_opt.verify import updown
 V_SEED = 0.62  # the seed's reduced volume: the lower side, 0.04 below the sharp fold (0.6604)
 V_DOWN = 0.575  # the sharp reference's lower end: below the crossing with the oblate (0.5903)
 AHEAD = 3.0  # a lower-side fold is extrapolated in lambda by at most this many of its last lambda steps
+UP_MAX_ITER = 75  # IPOPT's cap on the up walk's warm points: the converged ones took <= 48 (eps 0.02, v 0.662,
+# next to the fold: measured); the walk's last point lies past the fold, where no minimiser exists and IPOPT
+# runs to the cap (150 iterations there, a third of the eps 0.03 walk's CPU time: measured)
 SHARP_MODES = 24  # the sharp lower side at each phase-field point (fold 0.660376 at 24 modes, 0.660850 at 48)
 
 
@@ -123,8 +126,9 @@ def phase_case(case: dict, point_row) -> list[dict]:
     def stop(res) -> bool:  # past the fold (no minimiser), or no stomatocyte any more (a torus, an oblate)
         return not res.converged or point_row(res, math.nan, eps, lay, math.nan, "", "", "")["shape"] != "cup"
 
+    cap = UP_MAX_ITER if case["walk"] == "up" else MAX_ITER
     for k, (v, res, label) in enumerate(walk(lay, eps, case["vs"], (r, z), name, stop, start,
-                                             case.get("states"), case.get("case", name))):
+                                             case.get("states"), case.get("case", name), max_iter=cap)):
         q = sharp_pts.get(v)
         if q is None:
             try:

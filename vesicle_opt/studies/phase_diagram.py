@@ -28,9 +28,10 @@ estimate (the change of the free-order limit from the three coarsest eps to the 
 stomatocyte walks; at eps >= 0.04 the oblate is a torus at its crossing with the stomatocyte): 0.02.
 
 The mesh's share (``studies._hlevel``, stage two of the run): at fixed eps/h the P1 error of f does not
-vanish as eps -> 0, so each transition's states are solved again at eps/h = 2, 4, 8 (same box and
-coarse cells), warm from the walks' saved fields (``_meridian.save``), f and lambda extrapolated in h
-with their observed order, and the transitions moved by those shares before eps -> 0
+vanish as eps -> 0, so each transition's states are solved again at eps/h = 2 and 4, and 8 at the
+transition's coarsest eps (same box and coarse cells), warm from the walks' saved fields
+(``_meridian.save``), f and lambda extrapolated in h with the order observed at that coarsest eps
+(``_hlevel.ORDER_FROM``), and the transitions moved by those shares before eps -> 0
 (``crossings_h_corrected``, ``extrapolated_h_corrected``, ``h_levels``; ``_p2``: with p = 2).
 
 Outputs: ``phase_diagram.csv`` (a row per point: f, c0_reduced, the sharp f, the verdicts, nodes, the
