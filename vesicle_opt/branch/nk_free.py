@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vesicle_opt.branch.bordered import Affine
+from vesicle_opt.branch.bordered import Affine, axial_pin
 from vesicle_opt.branch.krylov_bordered import Free, Linearization, newton
 from vesicle_opt.model.lumped import PhaseField
 
@@ -96,6 +96,8 @@ class VesicleKKT:
 
     def phase(self, phi_pred) -> list:
         """The phase conditions' vectors at the prediction (module docstring)."""
+        if getattr(self.disc, "axisymmetric", False):  # the axial pin (``branch.bordered.axial_pin``)
+            return [axial_pin(self.disc)]
         T = self.translations(np.asarray(phi_pred, float))
         w = self.disc.weights
         return [] if T is None else [w * T[:, i] for i in range(T.shape[1])]

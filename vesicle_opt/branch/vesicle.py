@@ -121,8 +121,11 @@ class VesicleProblem(TreeProblem):
             return arc.Attempt(nw.p, phi0, False, nw.iterations,
                                (None, f"bordered Newton-Krylov: {why}", time.perf_counter() - t0, None))
         try:
-            res = self.nk.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, -1 if branch is None else branch,
-                                max_iter=CERTIFY_MAX_ITER)
+            sc = self.par.scene_at(self.scene, nw.p)
+            if getattr(self.disc, "axisymmetric", False):  # the pin held: certified as it stands (``nk_free``)
+                res = self.nk.certify(sc, nw.phi, nw.lam, -1 if branch is None else branch)
+            else:
+                res = self.nk.solve(sc, nw.phi, nw.lam, -1 if branch is None else branch, max_iter=CERTIFY_MAX_ITER)
         except InputError as exc:  # infeasible targets at the p found: a failed attempt
             return arc.Attempt(nw.p, phi0, False, nw.iterations, (None, str(exc), time.perf_counter() - t0, None))
         res = dataclasses.replace(res, extra={**res.extra, "bordered_newton": nw.iterations,
