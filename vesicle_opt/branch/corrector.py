@@ -159,10 +159,21 @@ class IpoptCorrector:
         return self.reports(scene, nlp, res)
 
     def _cold_solve(self, nlp, phi0, p) -> Result:
+        """The cold solve; on a meridian mesh pinned as the warm ones (``axial_pin``, at the start's
+        centre of mass): unpinned, the stomatocyte's cold start from the sharp shape's tanh profile at
+        eps 0.1 (uniform, h = eps / 2) ran to 500 IPOPT iterations, sliding (measured)."""
+        phi0 = np.asarray(phi0, float)
         if self._cold is None:
-            self._cold = make_solver(self.nlp, self.cold_options)
-        return solve_exact(nlp, x0=nlp.from_phi(np.asarray(phi0, float)), solver=self._cold,
-                           options=self.cold_options, p=p)
+            self._cold = make_solver(self.warm_nlp if self.slide else self.nlp, self.cold_options)
+        if not self.slide:
+            return solve_exact(nlp, x0=nlp.from_phi(phi0), solver=self._cold, options=self.cold_options, p=p)
+        scene = nlp.scene
+        nlp = at_point(self.warm_nlp, scene, nlp.alpha, nlp.beta)
+        c = axial_pin(self.disc)
+        res = solve_exact(nlp, x0=nlp.from_phi(phi0), solver=self._cold, options=self.cold_options,
+                          p=np.concatenate([p, c, [c @ phi0]]))
+        return dataclasses.replace(res, lam_g=res.lam_g[:-1],
+                                   extra={**res.extra, "translation_multiplier": float(res.lam_g[-1])})
 
     def reports(self, scene: Scene, nlp, res: Result) -> Result:
         """``res`` with the second-order and topology reports of the front door (module docstring)."""
@@ -170,7 +181,7 @@ class IpoptCorrector:
         if scene.solver.second_order and res.converged:
             if getattr(self.disc, "axisymmetric", False):  # the assembled check with the solver's own derivatives
                 p = parameter_values(scene, self.disc, nlp.alpha, nlp.beta)
-                if self._cold is None and self.pin:  # the pinned solver's parameters: the row (linear) enters
+                if self.slide or (self._cold is None and self.pin):  # the pinned solver's parameters: the row (linear) enters
                     p = np.concatenate([p, np.zeros(self.disc.n_nodes + 1)])  # neither H nor dA, dB
                 so = second_order.check(nlp, res, derivatives=derivatives(nlp, self._cold or self.solver, p),
                                         pin=slide_row(self.disc, res.phi))
