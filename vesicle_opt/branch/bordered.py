@@ -15,7 +15,11 @@ beta, c0 moves C at fixed alpha, beta; ``branch.params``), W = diag(w) the lumpe
 conditions pin the translations t_i = d_i phi_pred (spectral derivatives, periodic grids only):
 exact symmetries of the continuum and near-null modes of the grid's KKT matrix (Rayleigh quotients
 ~1e-10 mu_ref, ``verify.second_order``), which would make the Newton matrix numerically singular;
-their multipliers mu_i vanish at a solution up to that symmetry breaking. At a simple fold the
+their multipliers mu_i vanish at a solution up to that symmetry breaking. On a meridian mesh the
+one phase condition is the axial pin (``axial_pin``: the inside's centre of mass held at the
+prediction's), the slide between the natural end walls being near-null (+-1e-5 mu_ref) and not an
+exact symmetry; its multiplier is the walls' tiny force (-3.6e-6 on the eps 0.05 stomatocyte,
+measured), which the certificate, recomputing stationarity without the row, judges. At a simple fold the
 Jacobian of this system is nonsingular where the fixed-p one is not (Keller's bordering lemma), so
 Newton converges quadratically through it.
 

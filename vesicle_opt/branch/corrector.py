@@ -16,7 +16,11 @@ problem along the grid-broken rotation (Rayleigh quotient -2e-4 ... -6e-4 mu_ref
 minimiser, then wandered at a few points (measured nu 0.58 - 0.51: 6-60 iterations without
 convergence, warm or cold, from the prediction or the last point; pinned: 2-3 iterations at all of
 them). The row's multiplier vanishes at shapes symmetric under the axis reflections, and the
-certificate recomputes stationarity without it (``rotation_multiplier`` in extra). Then the
+certificate recomputes stationarity without it (``rotation_multiplier`` in extra). On meridian
+meshes every solve (warm and cold) holds the axial pin instead (``branch.bordered.axial_pin``: the
+inside's centre of mass at the prediction's, the front door's pin row of ``nlp.reuse``;
+``translation_multiplier`` in extra): unpinned, the stomatocyte's warm solves stalled along the
+near-null slide and its branch did not leave its start (measured, ``tests/branch/test_stomatocyte_fold.py``). Then the
 common certificate (``verify.certify``, inside
 ``nlp.solve.solve_exact``), then the second-order check and the topology, reported exactly as the
 front door reports them (``api.with_reports``).
