@@ -3,7 +3,7 @@ pseudo-arclength corrector with v free, on IPOPT (``branch.bordered``, each poin
 pinned fixed-v IPOPT solve) and on Newton-Krylov (``branch.nk_free``, GMRES on the bordered system,
 each point certified as it stands), and both give the same fold.
 
-The mesh: uniform, eps = 0.1, h = eps / 2 (4.0 k nodes), the study's box about the sharp stomatocyte
+The mesh: uniform, eps = 0.1, h = eps / 2 (4.2 k nodes), the study's box about the sharp stomatocyte
 (``studies._meridian.layout``), the tanh profile of the sharp stomatocyte at v = 0.65 as the start.
 Before the axial pin (``branch.bordered.axial_pin``) this walk did not leave its start: the slide
 between the natural walls is near-null, the warm IPOPT solves stalled (dv = 1e-2 ... 8e-5, every one at
