@@ -87,7 +87,7 @@ def axial_pin(disc) -> np.ndarray:
 
 def phase_rows(disc, phi_pred) -> list[np.ndarray]:
     """The phase conditions' rows (module docstring): the weighted translations w d_i phi_pred on
-    periodic grids; on a meridian mesh the axial pin (``branch.corrector.axial_pin``: the centre of
+    periodic grids; on a meridian mesh the axial pin (``axial_pin``: the centre of
     mass of the inside held at the prediction's), the slide between the natural end walls being
     near-null; none elsewhere."""
     if getattr(disc, "axisymmetric", False):

@@ -138,19 +138,9 @@ class NewtonKrylovCorrector:
         with fft_library(scene.solver.fft):
             opts = self.options if max_iter is None else dataclasses.replace(self.options, max_iter=max_iter)
             res = nk_solve.solve(scene, x0=phi0, options=opts, setup=setup, check=False, warm=warm)
-            so, used, t0 = None, None, time.perf_counter()
-            if scene.solver.second_order and res.converged:
-                so, used = self.check(scene, res, setup, prev)
-        seconds = time.perf_counter() - t0
         if res.converged and res.history.get("dual_model") is not None:
             prev.dual_model = res.history["dual_model"]
-        res = with_reports(res, so, seconds=seconds, scene=scene)
-        extra = {**res.extra, "fft_library": resolve_fft(scene.solver.fft)}
-        if used is not None:
-            extra["second_order_warm"] = used
-        if so is not None:
-            extra.update(spectrum_extra(so))
-        return dataclasses.replace(res, extra=extra)
+        return self.reported(scene, res, setup, prev)
 
     def certify(self, scene: Scene, phi: np.ndarray, lam, branch: int = 0, iterations: int = 0) -> Result:
         """The common certificate (``verify.certify.build_result``), the second-order check and the
@@ -172,10 +162,15 @@ class NewtonKrylovCorrector:
                            exact_constraints=True, floor=l2_floor(disc, rig, eps, grads, lam), iterations=iterations,
                            extra={"backend": "newton-krylov", "mesh_kind": disc.kind,
                                   "discretization_path": discretization_path(scene, disc, setup[2])})
-        prev = self.warm.setdefault(branch, _Warm())
+        return self.reported(scene, res, setup, self.warm.setdefault(branch, _Warm()))
+
+    def reported(self, scene: Scene, res: Result, setup, prev: _Warm) -> Result:
+        """``res`` with the second-order check (``check``, warm from ``prev``), the topology and the
+        branch's spectrum keys, as ``solve`` reports a point."""
         so, used, t0 = None, None, time.perf_counter()
         if scene.solver.second_order and res.converged:
-            so, used = self.check(scene, res, setup, prev)
+            with fft_library(scene.solver.fft):
+                so, used = self.check(scene, res, setup, prev)
         res = with_reports(res, so, seconds=time.perf_counter() - t0, scene=scene)
         extra = {**res.extra, "fft_library": resolve_fft(scene.solver.fft)}
         if used is not None:
