@@ -37,7 +37,10 @@ def test_corrector_decides_the_stomatocyte_seed_as_the_front_door():
         ref = vo.solve(sc, x0=phi0)
         res = IpoptCorrector(sc).solve(sc, phi0)  # cold, from the same field
     assert ref.converged and res.converged
-    assert abs(res.energy - ref.energy) < 1e-9 * abs(ref.energy)  # one NLP from one start (measured ~1e-13)
+    # the corrector's cold solve holds the axial pin at the start's centre of mass (``bordered.axial_pin``),
+    # the front door's uniform-mesh solve does not: the two differ by a slide along the near-null mode
+    # (+-1e-5 mu_ref), measured 2.3e-8 relative in energy (1e-13 before the pin: one NLP from one start)
+    assert abs(res.energy - ref.energy) < 1e-7 * abs(ref.energy)
     ex, rx = res.extra, ref.extra
     assert rx["second_order"] == "minimum"  # least 2.5e-5 mu_ref, error bound 1e-10 (measured)
     assert ex["second_order"] == rx["second_order"]

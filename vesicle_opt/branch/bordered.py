@@ -15,7 +15,11 @@ beta, c0 moves C at fixed alpha, beta; ``branch.params``), W = diag(w) the lumpe
 conditions pin the translations t_i = d_i phi_pred (spectral derivatives, periodic grids only):
 exact symmetries of the continuum and near-null modes of the grid's KKT matrix (Rayleigh quotients
 ~1e-10 mu_ref, ``verify.second_order``), which would make the Newton matrix numerically singular;
-their multipliers mu_i vanish at a solution up to that symmetry breaking. At a simple fold the
+their multipliers mu_i vanish at a solution up to that symmetry breaking. On a meridian mesh the
+one phase condition is the axial pin (``axial_pin``: the inside's centre of mass held at the
+prediction's), the slide between the natural end walls being near-null (+-1e-5 mu_ref) and not an
+exact symmetry; its multiplier is the walls' tiny force (-3.6e-6 on the eps 0.05 stomatocyte,
+measured), which the certificate, recomputing stationarity without the row, judges. At a simple fold the
 Jacobian of this system is nonsingular where the fixed-p one is not (Keller's bordering lemma), so
 Newton converges quadratically through it.
 
@@ -35,6 +39,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from vesicle_opt.model import functionals as F
+from vesicle_opt.nlp.reuse import pin_row
 from vesicle_opt.verify.second_order import translation_modes
 
 MAX_NEWTON = 30  # steps, Newton or chord
@@ -66,6 +71,28 @@ class Newton:
     converged: bool
     iterations: int
     message: str = ""
+
+
+def axial_pin(disc) -> np.ndarray:
+    """The row c of the warm solves' axial pin on a meridian mesh: the centre of mass of the inside,
+    c . phi = sum m (z - z_m) phi / sum m |z - z_m| (``nlp.reuse.pin_row``, the front door's pin, linear
+    and the same at every point), held at the prediction's value c . phi0 (``branch.corrector.IpoptCorrector.solve``)
+    and, as a phase condition, by the p-free correctors (``phase_rows``; ``branch.nk_free``).
+    Unpinned, the slide between the natural end walls is near-null (+-1e-5 mu_ref): the stomatocyte's
+    warm solves at eps 0.1 (uniform, h = eps / 2) ran IPOPT into 50 iterations of step lengths 1.5e-5
+    at dual 1.4e-7 after dv = 1e-4, and Newton on the bordered system diverged (a numerically singular
+    LU) even at the converged point's own v (measured)."""
+    return pin_row(disc)[:-1]
+
+
+def phase_rows(disc, phi_pred) -> list[np.ndarray]:
+    """The phase conditions' rows (module docstring): the weighted translations w d_i phi_pred on
+    periodic grids; on a meridian mesh the axial pin (``axial_pin``: the centre of
+    mass of the inside held at the prediction's), the slide between the natural end walls being
+    near-null; none elsewhere."""
+    if getattr(disc, "axisymmetric", False):
+        return [axial_pin(disc)]
+    return [disc.weights * t for t in translation_modes(disc, phi_pred)]
 
 
 class BorderedCorrector:
@@ -121,7 +148,7 @@ class BorderedCorrector:
         step is halved (at most ``HALVINGS`` times) until m |R| decreases (a backtracking line search
         on the deflated residual, Farrell et al.'s globalisation), else taken whole."""
         n, w = self.n, self.disc.weights
-        trans = [w * t for t in translation_modes(self.disc, phi_pred)]
+        trans = phase_rows(self.disc, phi_pred)
         d = len(trans)
         z = np.concatenate([np.asarray(phi_pred, float), np.asarray(lam_pred, float), [p_pred]])
         mu = np.zeros(d)

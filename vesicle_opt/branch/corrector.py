@@ -16,7 +16,11 @@ problem along the grid-broken rotation (Rayleigh quotient -2e-4 ... -6e-4 mu_ref
 minimiser, then wandered at a few points (measured nu 0.58 - 0.51: 6-60 iterations without
 convergence, warm or cold, from the prediction or the last point; pinned: 2-3 iterations at all of
 them). The row's multiplier vanishes at shapes symmetric under the axis reflections, and the
-certificate recomputes stationarity without it (``rotation_multiplier`` in extra). Then the
+certificate recomputes stationarity without it (``rotation_multiplier`` in extra). On meridian
+meshes every solve (warm and cold) holds the axial pin instead (``branch.bordered.axial_pin``: the
+inside's centre of mass at the prediction's, the front door's pin row of ``nlp.reuse``;
+``translation_multiplier`` in extra): unpinned, the stomatocyte's warm solves stalled along the
+near-null slide and its branch did not leave its start (measured, ``tests/branch/test_stomatocyte_fold.py``). Then the
 common certificate (``verify.certify``, inside
 ``nlp.solve.solve_exact``), then the second-order check and the topology, reported exactly as the
 front door reports them (``api.with_reports``).
@@ -47,6 +51,7 @@ import numpy as np
 
 from vesicle_opt.api import with_reports
 from vesicle_opt.backends import supports
+from vesicle_opt.branch.bordered import axial_pin
 from vesicle_opt.branch.events import spectrum_extra
 from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.spectral import FourierGrid, fft_library
@@ -115,9 +120,11 @@ class IpoptCorrector:
         self.cold_options = options or IpoptOptions.from_scene(self.scene)
         self.options = dataclasses.replace(self.cold_options, max_iter=min(WARM_MAX_ITER, self.cold_options.max_iter),
                                            extra=WARM + tuple(self.cold_options.extra))
-        # FD grids: the warm solves hold the rotation (``rotation_row``); elsewhere none is near-null
-        self.pin = self.disc.kind == "fd" and self.disc.grid_shape is not None and self.disc.dim == 2 \
-            and not self.disc.consistent
+        # FD grids: the warm solves hold the rotation (``rotation_row``); meridian meshes the axial slide
+        # (``axial_pin``); elsewhere none is near-null
+        self.slide = bool(getattr(self.disc, "axisymmetric", False))
+        self.pin = self.slide or (self.disc.kind == "fd" and self.disc.grid_shape is not None and self.disc.dim == 2
+                                  and not self.disc.consistent)
         self.warm_nlp = pinned(self.nlp) if self.pin else self.nlp
         self.solver = make_solver(self.warm_nlp, self.options)
         self._cold = None  # the cold solver (the scene's max_iter, IPOPT's own multipliers): on demand
@@ -140,9 +147,9 @@ class IpoptCorrector:
         if lam0 is None:  # no prediction (the start): cold, as the front door starts
             return self.reports(scene, nlp, self._cold_solve(nlp, phi0, p))
         phi0 = np.asarray(phi0, float)
-        if self.pin:  # the rotation row: its multiplier starts at 0 (it vanishes at symmetric shapes)
+        if self.pin:  # the rotation row or the axial pin: its multiplier starts at 0 (module docstring)
             nlp = at_point(self.warm_nlp, scene, alpha, beta)
-            c = rotation_row(self.disc, phi0)
+            c = axial_pin(self.disc) if self.slide else rotation_row(self.disc, phi0)
             p = np.concatenate([p, c, [c @ phi0]])
         lam_g0 = -np.asarray(lam0, float) * nlp.g_scale / nlp.f_scale  # inverse of NLP.multipliers
         if nlp.lbg.size > 2:  # the consistent-mass rows M w + K phi = 0 or the rotation row: start at 0
@@ -151,15 +158,26 @@ class IpoptCorrector:
                           options=self.options, p=p)
         if self.pin:  # the result in the unpinned NLP's layout, as the front door's; the row's
             # multiplier (IPOPT's scaled units) in extra, for the record
-            res = dataclasses.replace(res, lam_g=res.lam_g[:-1],
-                                      extra={**res.extra, "rotation_multiplier": float(res.lam_g[-1])})
+            key = "translation_multiplier" if self.slide else "rotation_multiplier"
+            res = dataclasses.replace(res, lam_g=res.lam_g[:-1], extra={**res.extra, key: float(res.lam_g[-1])})
         return self.reports(scene, nlp, res)
 
     def _cold_solve(self, nlp, phi0, p) -> Result:
+        """The cold solve; on a meridian mesh pinned as the warm ones (``axial_pin``, at the start's
+        centre of mass): unpinned, the stomatocyte's cold start from the sharp shape's tanh profile at
+        eps 0.1 (uniform, h = eps / 2) ran to 500 IPOPT iterations, sliding (measured)."""
+        phi0 = np.asarray(phi0, float)
         if self._cold is None:
-            self._cold = make_solver(self.nlp, self.cold_options)
-        return solve_exact(nlp, x0=nlp.from_phi(np.asarray(phi0, float)), solver=self._cold,
-                           options=self.cold_options, p=p)
+            self._cold = make_solver(self.warm_nlp if self.slide else self.nlp, self.cold_options)
+        if not self.slide:
+            return solve_exact(nlp, x0=nlp.from_phi(phi0), solver=self._cold, options=self.cold_options, p=p)
+        scene = nlp.scene
+        nlp = at_point(self.warm_nlp, scene, nlp.alpha, nlp.beta)
+        c = axial_pin(self.disc)
+        res = solve_exact(nlp, x0=nlp.from_phi(phi0), solver=self._cold, options=self.cold_options,
+                          p=np.concatenate([p, c, [c @ phi0]]))
+        return dataclasses.replace(res, lam_g=res.lam_g[:-1],
+                                   extra={**res.extra, "translation_multiplier": float(res.lam_g[-1])})
 
     def reports(self, scene: Scene, nlp, res: Result) -> Result:
         """``res`` with the second-order and topology reports of the front door (module docstring)."""
@@ -167,6 +185,8 @@ class IpoptCorrector:
         if scene.solver.second_order and res.converged:
             if getattr(self.disc, "axisymmetric", False):  # the assembled check with the solver's own derivatives
                 p = parameter_values(scene, self.disc, nlp.alpha, nlp.beta)
+                if self.slide or (self._cold is None and self.pin):  # the pinned solver's parameters: the row (linear) enters
+                    p = np.concatenate([p, np.zeros(self.disc.n_nodes + 1)])  # neither H nor dA, dB
                 so = second_order.check(nlp, res, derivatives=derivatives(nlp, self._cold or self.solver, p),
                                         pin=slide_row(self.disc, res.phi))
                 so = dataclasses.replace(so, reason=so.reason.replace(V.PINNED, SLIDE_EXCLUDED))

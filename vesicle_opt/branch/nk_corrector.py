@@ -74,10 +74,12 @@ from vesicle_opt.model.feasibility import check_feasible
 from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.nk import solve as nk_solve
 from vesicle_opt.nk.options import NewtonKrylovOptions
-from vesicle_opt.nk.setup import prepare
+from vesicle_opt.nk.setup import discretization_path, prepare
+from vesicle_opt.nk.solve import l2_floor
 from vesicle_opt.result import Result
 from vesicle_opt.scene.schema import Scene
 from vesicle_opt.verify import lobpcg, verdict
+from vesicle_opt.verify.certify import build_result
 
 TARGET_ITERATIONS = 8  # the Newton steps a point's step control aims at on this corrector (``branch.run``;
 # IPOPT's 6 is ``arclength.Settings``): the median of the converged warm points of the ~64^3 prolate
@@ -136,13 +138,40 @@ class NewtonKrylovCorrector:
         with fft_library(scene.solver.fft):
             opts = self.options if max_iter is None else dataclasses.replace(self.options, max_iter=max_iter)
             res = nk_solve.solve(scene, x0=phi0, options=opts, setup=setup, check=False, warm=warm)
-            so, used, t0 = None, None, time.perf_counter()
-            if scene.solver.second_order and res.converged:
-                so, used = self.check(scene, res, setup, prev)
-        seconds = time.perf_counter() - t0
         if res.converged and res.history.get("dual_model") is not None:
             prev.dual_model = res.history["dual_model"]
-        res = with_reports(res, so, seconds=seconds, scene=scene)
+        return self.reported(scene, res, setup, prev)
+
+    def certify(self, scene: Scene, phi: np.ndarray, lam, branch: int = 0, iterations: int = 0) -> Result:
+        """The common certificate (``verify.certify.build_result``), the second-order check and the
+        reports of a point a p-free Newton converged to (``branch.nk_free``), without a fixed-p solve:
+        on a meridian mesh, where that Newton held the axial pin (``branch.bordered.axial_pin``) and the
+        fixed-p solve, which cannot hold it, slides (module docstring of ``branch.nk_free``). The
+        certificate recomputes stationarity without the pin, as the IPOPT corrector's does."""
+        scene = scene.replace(solver=dataclasses.replace(scene.solver, method="exact"))
+        setup = self.setup(scene)
+        disc, pf = setup[0], setup[1]
+        alpha, beta = constraint_data(scene, disc)
+        phi = np.asarray(phi, float)
+        st = pf.state(phi)
+        grads = pf.gradients(st)
+        lam = tuple(float(v) for v in lam)
+        rig, eps = scene.model.rigidity, scene.model.epsilon
+        res = build_result(scene=scene, disc=disc, alpha=alpha, beta=beta, phi=phi, tol=self.options.tol,
+                           solver_status="converged", solver_success=True, method="exact", lam=lam,
+                           exact_constraints=True, floor=l2_floor(disc, rig, eps, grads, lam), iterations=iterations,
+                           extra={"backend": "newton-krylov", "mesh_kind": disc.kind,
+                                  "discretization_path": discretization_path(scene, disc, setup[2])})
+        return self.reported(scene, res, setup, self.warm.setdefault(branch, _Warm()))
+
+    def reported(self, scene: Scene, res: Result, setup, prev: _Warm) -> Result:
+        """``res`` with the second-order check (``check``, warm from ``prev``), the topology and the
+        branch's spectrum keys, as ``solve`` reports a point."""
+        so, used, t0 = None, None, time.perf_counter()
+        if scene.solver.second_order and res.converged:
+            with fft_library(scene.solver.fft):
+                so, used = self.check(scene, res, setup, prev)
+        res = with_reports(res, so, seconds=time.perf_counter() - t0, scene=scene)
         extra = {**res.extra, "fft_library": resolve_fft(scene.solver.fft)}
         if used is not None:
             extra["second_order_warm"] = used

@@ -11,7 +11,8 @@ the sparse path); where the parameter is c0 only the pointwise part (PhaseField 
 
 Phase conditions (the near-null modes that would make J numerically singular): the translations
 w d_i phi_pred on spectral periodic grids (exact symmetries, as ``nk.setup`` projects them; their
-multipliers vanish at a solution up to aliasing). None on FD grids (whole-cell shifts only, as
+multipliers vanish at a solution up to aliasing); on meridian meshes the axial pin
+(``branch.bordered.axial_pin``). None on FD grids (whole-cell shifts only, as
 ``nk.setup``) and mirror grids (their symmetry class fixes position and orientation). The rotation
 is not pinned: on FD grids it is no symmetry, and a rotation row (the IPOPT warm solves' row,
 ``branch.corrector.rotation_row``) held the FD ellipse at its axis orientation where the certified
@@ -27,14 +28,17 @@ and the relative constraint residual (IPOPT's scaling) 100x below it (``CONSTRAI
 solve at the p found (``branch.nk_corrector``), started there with these multipliers, then meets
 its own test at once (0 Newton steps: inner 0.1 tol, constraints ``constraint_margin`` tol) and
 certifies the point with the one certificate (``verify.certify``), its second-order check and
-topology, as the IPOPT path certifies ``branch.bordered``'s point.
+topology, as the IPOPT path certifies ``branch.bordered``'s point. On a meridian mesh the point is
+certified as it stands (``NewtonKrylovCorrector.certify``: the certificate, the check, no solve):
+the fixed-p solve has no pin and slides along the near-null slide (measured on the eps 0.05
+stomatocyte: 200 Newton steps without converging from a pinned point whose certificate holds).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from vesicle_opt.branch.bordered import Affine
+from vesicle_opt.branch.bordered import Affine, axial_pin
 from vesicle_opt.branch.krylov_bordered import Free, Linearization, newton
 from vesicle_opt.model.lumped import PhaseField
 
@@ -96,6 +100,8 @@ class VesicleKKT:
 
     def phase(self, phi_pred) -> list:
         """The phase conditions' vectors at the prediction (module docstring)."""
+        if getattr(self.disc, "axisymmetric", False):  # the axial pin (``branch.bordered.axial_pin``)
+            return [axial_pin(self.disc)]
         T = self.translations(np.asarray(phi_pred, float))
         w = self.disc.weights
         return [] if T is None else [w * T[:, i] for i in range(T.shape[1])]

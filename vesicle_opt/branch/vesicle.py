@@ -42,6 +42,7 @@ from vesicle_opt.branch.symmetry import align_mirror
 from vesicle_opt.errors import InputError
 from vesicle_opt.mesh import discretize
 from vesicle_opt.mesh.cosine import KIND as MIRROR
+from vesicle_opt.model.problem import initial_guess
 from vesicle_opt.nk.setup import prepare
 from vesicle_opt.scene.schema import Scene
 from vesicle_opt.verify import lobpcg
@@ -121,8 +122,11 @@ class VesicleProblem(TreeProblem):
             return arc.Attempt(nw.p, phi0, False, nw.iterations,
                                (None, f"bordered Newton-Krylov: {why}", time.perf_counter() - t0, None))
         try:
-            res = self.nk.solve(self.par.scene_at(self.scene, nw.p), nw.phi, nw.lam, -1 if branch is None else branch,
-                                max_iter=CERTIFY_MAX_ITER)
+            sc = self.par.scene_at(self.scene, nw.p)
+            if getattr(self.disc, "axisymmetric", False):  # the pin held: certified as it stands (``nk_free``)
+                res = self.nk.certify(sc, nw.phi, nw.lam, -1 if branch is None else branch)
+            else:
+                res = self.nk.solve(sc, nw.phi, nw.lam, -1 if branch is None else branch, max_iter=CERTIFY_MAX_ITER)
         except InputError as exc:  # infeasible targets at the p found: a failed attempt
             return arc.Attempt(nw.p, phi0, False, nw.iterations, (None, str(exc), time.perf_counter() - t0, None))
         res = dataclasses.replace(res, extra={**res.extra, "bordered_newton": nw.iterations,
@@ -203,7 +207,11 @@ class VesicleProblem(TreeProblem):
                 sc = self.par.scene_at(self.scene, p)
             restarted = None
             try:
-                if self.nk is not None and start:  # the scene's own start (nested iteration, least squares)
+                if self.nk is not None and start and getattr(self.disc, "axisymmetric", False):
+                    # a meridian mesh: Newton with the axial pin from the scene's start (the fixed-p solve
+                    # slides: from the eps 0.1 stomatocyte at v 0.7038 it ran 336 Newton steps to another state)
+                    res, restarted = self.nk_fixed(branch, sc, p, initial_guess(sc, self.disc), None, t0)
+                elif self.nk is not None and start:  # the scene's own start (nested iteration, least squares)
                     res = self.nk.solve(sc, phi_start, None, branch)
                 elif self.nk is not None:
                     res, restarted = self.nk_fixed(branch, sc, p, phi_start, self.multipliers(branch, p), t0)

@@ -22,9 +22,17 @@ previous point, second-order checked, axisymmetric perturbations only): ``up`` t
 the v grid ``up`` (its steps shrinking towards the sharp fold, 0.6604), ending at the first point
 that does not converge or is no cup (past the phase field's fold there is no stomatocyte at that
 v); ``down`` below the crossing with the oblate. Fixed-v minimisers stay on the fold's lower
-(stable) side: the branch package's pseudo-arclength walk (p free) had stalled below the fold
-(steps shrinking to dv 4e-4; at v 0.645/0.638/0.637 after 26 points at eps 0.04/0.03/0.025), so the
-fold is located from the lower side (``fold_of``). Every row carries the sharp lower side at its v
+(stable) side, so the fold is located from the lower side (``fold_of``). The branch package's
+pseudo-arclength walk (p free) had stalled below the fold (steps shrinking to dv 4e-4; at v
+0.645/0.638/0.637 after 26 points at eps 0.04/0.03/0.025): the axial slide was held by neither its
+IPOPT solves nor its bordered Newton. With the axial pin (``branch.bordered.axial_pin``) it passes the
+fold on IPOPT and on Newton-Krylov, on uniform meshes at eps/h = 2 (docs/guide/bifurcation.md):
+eps 0.1 fold (0.7064385, 1.9249315) on both; eps 0.05 (0.6699719, 1.8901716), IPOPT 40 points
+(60.6 CPU s), Newton-Krylov 16 (49.9 CPU s, 8 Newton steps and a median 366 GMRES iterations a
+point). There the minimisers end 5e-4 below the fold (an eigenvalue crosses zero first, v still
+rising), and the lower-side vertex through the last three falls 1.1e-4 short in v. The study's
+refined meshes are banded about a shape, which the branch package cannot yet take from a seed field,
+so its walks stay at fixed v. Every row carries the sharp lower side at its v
 (``sharp_f``: Newton at 24 modes from the previous sharp point).
 
 The fold of a walk (``fold_of``): the branch's v and f are smooth in the volume multiplier
