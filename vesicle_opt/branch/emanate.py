@@ -41,8 +41,9 @@ from vesicle_opt.errors import InputError
 log = logging.getLogger(__name__)
 
 MAX_TRIES = 6  # switch amplitudes a, a/2, ... a/32 (as ``branch.switch``)
-GROW, GROW_BELOW, SHRINK_ABOVE = 1.6, 6, 10  # Newton steps: ds grows after at most a fifth of the corrector's 30 (``bordered.MAX_NEWTON``)
-# and shrinks after more than a third: the quadratic phase from a close prediction, or the edge of its basin
+GROW, GROW_BELOW, SHRINK_ABOVE = 1.6, 6, 10  # Newton steps: ds grows after at most a fifth of the
+# corrector's 30 (``bordered.MAX_NEWTON``), shrinks after more than a third: the quadratic phase from a
+# close prediction, or the edge of its basin
 
 
 @dataclass(frozen=True)
