@@ -124,3 +124,25 @@ def test_tall_box_oblate_cold_start_is_certified_with_even_coarse_rows():
     # the walls 12 eps away in both (e^-12 tails), but two band meshes from other coarse grids: their P1 errors
     # differ (measured 3.4e-5 relative here, 1.7e-5 against the detour's taller box)
     assert res["even"].extra["f"] == pytest.approx(res["own"].extra["f"], rel=1e-4)
+
+
+@pytest.mark.slow
+def test_switched_branch_leaves_the_oblate_subcritically_as_an_asymmetric_saddle():
+    """``_stomatocyte.switched`` at eps 0.03, v 0.62 with a short budget: the secant's branch point
+    is where the oblate's least eigenvalue vanishes (the bracket's values 5e-4 and -2e-4 mu_ref,
+    the located point's two orders below), at the c0 the branch package located on another mesh
+    (-0.8327, ``oblate-axisymmetric``) to the secant's error; the branch followed from it goes up
+    in c0 (subcritical: where the oblate is still a minimum), one meridian curve, up-down
+    asymmetric (docs/guide/bifurcation.md, "A continuous switch": up to c0 -0.39 in ~220 points)."""
+    from vesicle_opt.verify import updown
+
+    out = S.switched(0.62, 0.03, budget_s=120.0)
+    (_, ra), (_, rb) = out.oblate[-2:]
+    bracket = min(abs(ra.extra["second_order_min_eigenvalue"]), abs(rb.extra["second_order_min_eigenvalue"]))
+    assert abs(out.bp.extra["second_order_min_eigenvalue"]) < bracket / 20  # measured 2e-6 against 2.3e-4
+    assert out.c_star == pytest.approx(-0.8327, abs=0.005)  # the bracket's curvature: measured -0.8338
+    f = out.followed
+    assert f.end is None and f.stopped.startswith("CPU budget")
+    assert 2 * max(f.ps) > out.c_star + 0.05  # the branch rises 0.44 to its fold (c0 -0.390); 0.05 is ~20 points
+    last = updown.describe(out.corrector.disc, f.points[-1].phi)
+    assert last["form"] in ("cup", "oblate") and last["updown_asymmetry"] > 100 * updown.SYMMETRIC
