@@ -211,10 +211,11 @@ def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=D
 SWITCH_C0 = (0.0, -0.4, -0.7, -0.8, -0.85, -0.9)  # the oblate's walk in c0 at v 0.62 (literature c0): its
 # least eigenvalue +0.0106, +0.0058, +0.0019, +0.0005, -0.0002, -0.0009 mu_ref (eps 0.03, eps/h 2, measured)
 SWITCH_EPS_OVER_H = 2.0  # the uniform mesh of the walk (the branch moves the interface by O(R0): no band
-# holds it); 19.7 k nodes on the tall box at eps 0.03, ~1 s a bordered Newton step
+# holds it); 19.7 k nodes on the tall box at eps 0.03, ~2.5 s a point of 5-10 Newton or chord steps (measured)
 SWITCH_AMPLITUDE = 0.02  # a of the switch (<u - u*, v>_w = a, v M-normalised, max |v| 3.9): at 0.1 the
 # bordered Newton diverged (c0 -> -5e8), at 0.02 it converged in 11 steps (measured)
-SWITCH_DS = (0.02, 0.3)  # the arclength's first and largest step (|phi|_w = 4.5 on this box)
+SWITCH_DS = (0.02, 0.3)  # the arclength's first and largest step: |phi|_w = 4.5 on this box, so a step changes
+# the field by at most ~7 % (the walks measured stayed at 0.007-0.03: Newton took 6-10 steps)
 
 
 def pin_rows(disc, phi):
@@ -226,14 +227,15 @@ def pin_rows(disc, phi):
 
 def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SWITCH_C0,
              amplitude: float = SWITCH_AMPLITUDE, budget_s: float = 3000.0, name: str = "stomatocyte-switch"):
-    """The phase-field stomatocyte at (v, c0 = 0) WITHOUT a seed, by continuation (``branch.emanate``):
+    """An attempt at the phase-field stomatocyte at (v, c0 = 0) WITHOUT a seed, by continuation
+    (``branch.emanate``; at eps 0.03, v 0.60 and 0.62 it does not get there: module docstring):
     the oblate (from its sharp shape) walked in c0 down ``c0s`` on the uniform tall box to the first
     sign change of its least eigenvalue, the branch point located by the secant (one solve), then the
     branch leaving it along the critical (odd) mode followed with c0 free (the bordered corrector, the
     axial pin as its phase condition) until c0 passes 0, every point required to stay one meridian
     curve from the axis to the axis (``verify.updown.form`` oblate or cup: no torus, no two
     components); the landing certified by the fixed-c0 IPOPT solve and its second-order check.
-    Returns a namespace: ``oblate`` [(c0, Result)], ``c_star`` (literature c0), ``followed`` (the
+    Returns a namespace: ``oblate`` [(c0, Result)], ``c_star`` (literature c0), ``bp`` (its Result), ``followed`` (the
     ``Followed``, its p = model.c0 = c0 / 2), ``end`` (the certified Result at c0 = 0 or None), ``lay``,
     ``corrector``."""
     import types as _t
@@ -249,7 +251,7 @@ def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SW
     sc = scene(lay, eps, v, name, max_iter=MAX_ITER)
     corr = IpoptCorrector(sc)
     par = parameter(sc, "c0")
-    out = _t.SimpleNamespace(oblate=[], c_star=None, followed=None, end=None, lay=lay, corrector=corr)
+    out = _t.SimpleNamespace(oblate=[], c_star=None, bp=None, followed=None, end=None, lay=lay, corrector=corr)
     res = corr.solve(sc, seed(sc, *mer, eps, lay["h"]).phi, None)
 
     def at(c0, phi, last):  # warm (capped at WARM_MAX_ITER = 6), else cold from the same field
