@@ -17,11 +17,13 @@ certified minimum from c0 = -1.5 back to 0 (f 1.93522 there, below the seeded cu
 detour ends "no switch to B" and the walk starts from the seed (its rows say so); at v 0.66 / 0.70
 (c0 -2.0 / -2.5) the pushes pinch the cup's neck instead (two nested spheres); at eps 0.02 (push at
 c0 -1.25) the same torus (f 1.93269 at c0 0).
-``switched`` tries a continuous switch (``branch.emanate``): the branch out of the oblate's odd
-branch point in c0 followed by pseudo-arclength, c0 free, on a uniform mesh; at eps 0.03 it is
-subcritical, turns at a fold in c0 (-0.390 at v 0.62, -0.523 at v 0.60) and never reaches c0 = 0
-(at v 0.62 it ends on another up-down symmetric state, dimples 0.14 R0 apart, at c0 -0.54)
-(docs/guide/bifurcation.md, "A continuous switch"); opt-in, no case calls it.
+``switched`` + ``down_in_v`` reach it without a seed by a continuous switch (``branch.emanate``): the
+branch out of the oblate's odd branch point in c0 followed by pseudo-arclength, c0 free, on a uniform
+mesh. At eps 0.03 it is subcritical; at v 0.60 / 0.62 it turns at a fold in c0 (-0.523 / -0.390; at
+0.62 it ends on another up-down symmetric state, dimples 0.14 R0 apart, at c0 -0.54), at v 0.66
+(``V_SWITCH``) it passes c0 = 0, and the minimiser from there walked down in v at c0 = 0 is at v 0.62
+the seeded cup's mirror image (f to 2.6e-15; docs/guide/bifurcation.md, "A continuous switch");
+opt-in, no case calls them.
 From the seed two walks at fixed v (``_meridian.walk``: exact IPOPT solves, each warm from the
 previous point, second-order checked, axisymmetric perturbations only): ``up`` towards the fold on
 the v grid ``up`` (its steps shrinking towards the sharp fold, 0.6604), ending at the first point
@@ -227,8 +229,8 @@ def pin_rows(disc, phi):
 
 def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SWITCH_C0,
              amplitude: float = SWITCH_AMPLITUDE, budget_s: float = 3000.0, name: str = "stomatocyte-switch"):
-    """An attempt at the phase-field stomatocyte at (v, c0 = 0) WITHOUT a seed, by continuation
-    (``branch.emanate``; at eps 0.03, v 0.60 and 0.62 it does not get there: module docstring):
+    """The phase-field stomatocyte's branch at (v, c0 = 0) WITHOUT a seed, by continuation
+    (``branch.emanate``; at eps 0.03 it gets there at v = ``V_SWITCH``, not at 0.60 / 0.62: module docstring):
     the oblate (from its sharp shape) walked in c0 down ``c0s`` on the uniform tall box to the first
     sign change of its least eigenvalue, the branch point located by the secant (one solve), then the
     branch leaving it along the critical (odd) mode followed with c0 free (the bordered corrector, the
@@ -286,4 +288,29 @@ def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SW
     if out.followed.end is not None:
         e = out.followed.end
         out.end = corr.solve(sc, e.phi, e.lam, feasibility=False)
+    return out
+
+
+V_SWITCH = 0.66  # where the branch of ``switched`` reaches c0 = 0 (eps 0.03): it turns in c0 at -0.523 / -0.390 for
+# v 0.60 / 0.62 and passes c0 = 0 at v 0.66, next to the cup's fold in v (sharp 0.6604), measured
+
+
+def down_in_v(corr, sc, phi, vs) -> list:
+    """The landing of ``switched`` (``phi`` at c0 = 0, v = ``sc``'s) walked down in v at c0 = 0 by the
+    fixed-v minimiser (``corr``, the route's IpoptCorrector): cold from the landing (a saddle next to
+    the fold: the minimiser slides to the fold's stable side, the cup), then warm along ``vs`` (cold
+    where a warm solve capped at 6 iterations does not finish). [(v, Result)]; the walk stops at the
+    first point that does not converge."""
+    from vesicle_opt.branch.params import parameter
+
+    pv = parameter(sc, "reduced_volume")
+    res = corr.solve(sc, phi, None)
+    out = [(pv.start, res)]
+    for v in vs:
+        if not res.converged:
+            break
+        s = pv.scene_at(sc, v)
+        warm = corr.solve(s, res.phi, (res.lambda_volume, res.lambda_area), feasibility=False)
+        res = warm if warm.converged else corr.solve(s, res.phi, None, feasibility=False)
+        out.append((v, res))
     return out
