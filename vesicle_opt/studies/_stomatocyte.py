@@ -53,7 +53,7 @@ from vesicle_opt.branch.detour import detour
 from vesicle_opt.sharp import axisymmetric as sharp_a
 from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies._common import num as _num
-from vesicle_opt.studies._meridian import MAX_ITER, layout, scene, seed, solve_quiet, walk
+from vesicle_opt.studies._meridian import MAX_ITER, SEED_MAX_ITER, layout, scene, seed, solve_quiet, walk
 from vesicle_opt.verify import updown
 
 V_SEED = 0.62  # the seed's reduced volume: the lower side, 0.04 below the sharp fold (0.6604)
@@ -250,7 +250,9 @@ def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SW
 
     mer = sharp_a.solve(v, "oblate", OBLATE_MODES, second_order=False).meridian(2048)
     lay = tall_layout(mer, eps, eps_over_h, refine=False)
-    sc = scene(lay, eps, v, name, max_iter=MAX_ITER)
+    # the cold solves' cap (the oblate's start, ``down_in_v``'s slide off the landing: 210 iterations at
+    # v 0.66, eps 0.03, measured; MAX_ITER's 150 stopped it short)
+    sc = scene(lay, eps, v, name, max_iter=SEED_MAX_ITER)
     corr = IpoptCorrector(sc)
     par = parameter(sc, "c0")
     out = _t.SimpleNamespace(oblate=[], c_star=None, bp=None, followed=None, end=None, lay=lay, corrector=corr)
