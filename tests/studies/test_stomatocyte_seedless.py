@@ -124,3 +124,60 @@ def test_tall_box_oblate_cold_start_is_certified_with_even_coarse_rows():
     # the walls 12 eps away in both (e^-12 tails), but two band meshes from other coarse grids: their P1 errors
     # differ (measured 3.4e-5 relative here, 1.7e-5 against the detour's taller box)
     assert res["even"].extra["f"] == pytest.approx(res["own"].extra["f"], rel=1e-4)
+
+
+@pytest.mark.slow
+def test_switched_branch_leaves_the_oblate_subcritically_as_an_asymmetric_saddle():
+    """``_stomatocyte.switched`` at eps 0.03, v 0.62 with a short budget: the secant's branch point
+    is where the oblate's least eigenvalue vanishes (the bracket's values 5e-4 and -2e-4 mu_ref,
+    the located point's two orders below), at the c0 the branch package located on another mesh
+    (-0.8327, ``oblate-axisymmetric``) to the secant's error; the branch followed from it goes up
+    in c0 (subcritical: where the oblate is still a minimum), one meridian curve, up-down
+    asymmetric (docs/guide/bifurcation.md, "A continuous switch": up to c0 -0.39 in ~220 points)."""
+    from vesicle_opt.verify import updown
+
+    out = S.switched(0.62, 0.03, budget_s=120.0)
+    (_, ra), (_, rb) = out.oblate[-2:]
+    bracket = min(abs(ra.extra["second_order_min_eigenvalue"]), abs(rb.extra["second_order_min_eigenvalue"]))
+    assert abs(out.bp.extra["second_order_min_eigenvalue"]) < bracket / 20  # measured 2e-6 against 2.3e-4
+    assert out.c_star == pytest.approx(-0.8327, abs=0.005)  # the bracket's curvature: measured -0.8338
+    f = out.followed
+    assert f.end is None and f.stopped.startswith("CPU budget")
+    assert 2 * max(f.ps) > out.c_star + 0.05  # the branch rises 0.44 to its fold (c0 -0.390); 0.05 is ~20 points
+    last = updown.describe(out.corrector.disc, f.points[-1].phi)
+    assert last["form"] in ("cup", "oblate") and last["updown_asymmetry"] > 100 * updown.SYMMETRIC
+
+
+@pytest.mark.slow
+def test_switched_at_v066_reaches_the_seeded_cup_mirrored():
+    """The seedless route (docs/guide/bifurcation.md, "A continuous switch"): at v = V_SWITCH the branch
+    out of the oblate's odd branch point passes c0 = 0; its landing, walked down in v at c0 = 0 by
+    the minimiser (``down_in_v``), is at v 0.62 the seeded cup's mirror image (the switch's sign picks
+    which pole invaginates): certified minimum, f and least eigenvalue equal to the seeded cup's on
+    the same mesh, and the field distance to the mirrored field at interpolation level (measured
+    f to 2.6e-15, distance 1.9e-7 against 0.15 unmirrored; 8 min)."""
+    from matplotlib.tri import LinearTriInterpolator, Triangulation
+
+    from vesicle_opt.branch.params import parameter
+    from vesicle_opt.sharp import stomatocyte as sharp_s
+    from vesicle_opt.studies._meridian import seed
+
+    out = S.switched(S.V_SWITCH, 0.03, c0s=(0.0, -0.5, -1.0, -1.25, -1.5))
+    assert out.followed.end is not None and out.followed.end.converged
+    corr = out.corrector
+    disc, sc = corr.disc, corr.scene
+    walk = S.down_in_v(corr, sc, out.followed.end.phi, (0.65, 0.64, 0.63, 0.62))
+    v, cup = walk[-1]
+    assert v == 0.62 and cup.converged and cup.extra["second_order"] == "minimum"
+    s62 = parameter(sc, "reduced_volume").scene_at(sc, 0.62)
+    r, z = sharp_s.start_point(0.62, 0.0, 24).meridian(2048)
+    seeded = corr.solve(s62, seed(s62, r, z, 0.03, out.lay["h"]).phi, None)
+    assert cup.extra["f"] == pytest.approx(seeded.extra["f"], rel=1e-9)  # IPOPT's tol 1e-8 on a scaled f
+    mu = seeded.extra["second_order_min_eigenvalue"]
+    assert cup.extra["second_order_min_eigenvalue"] == pytest.approx(mu, rel=1e-3)  # the check's own error
+    tri = Triangulation(disc.mesh.p[0], disc.mesh.p[1], disc.mesh.t.T)
+    mid = sum(out.lay["box"][1]) / 2
+    flip = np.ma.filled(LinearTriInterpolator(tri, cup.phi)(disc.nodes[:, 0], 2 * mid - disc.nodes[:, 1]), -1.0)
+    d_same = min(same.field_distance(disc, seeded.phi, disc, cup.phi),
+                 same.field_distance(disc, seeded.phi, disc, flip))
+    assert d_same < 1e-3 * 0.0767  # three orders below the torus's distance from the cup (module docstring)

@@ -17,7 +17,9 @@
   classified (fold or branch point); ``switch``: the first point of a bifurcating branch and the
   recognition of a known branch (``symmetry``: the grid's images of a field); ``deflation``: other
   roots at the same parameter (Farrell et al. 2015); ``detour``: a disconnected branch reached by a
-  detour in a second parameter (out until unstable, a push along the critical mode, back); ``tree``: the recursive diagram, on a
+  detour in a second parameter (out until unstable, a push along the critical mode, back);
+  ``emanate``: a bifurcating branch followed from its branch point by pseudo-arclength to a target p
+  (switch on the amplitude hyperplane, a guard per point); ``tree``: the recursive diagram, on a
   ``problem`` (``problem``: the rows side; ``vesicle``: the vesicle's correctors); ``lines``: fold
   lines in a second parameter by sweeps of diagrams; ``symmetric_fold`` (a symmetric turn) and
   ``ordinary_fold`` (a fold by its index change; ``ordinary_fold_vesicle.from_branch(b, second,

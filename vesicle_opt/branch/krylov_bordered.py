@@ -89,6 +89,7 @@ class Free:
     krylov: tuple = ()  # GMRES iterations of each Newton step
     message: str = ""
     mu: tuple = ()  # the phase conditions' multipliers (0 at a solution up to symmetry breaking)
+    best: tuple = ()  # not converged: (error, phi, lam) of the iterate with the least error
 
 
 def bordered_solve(hvp, pinv, cols, rows, corner, f, g, eta: float, max_iter: int = MAX_KRYLOV):
@@ -169,6 +170,8 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
     err = lin.error(r, lin.c)
     for k in range(1, max_newton + 1):
         cnt.errors.append(err)
+        if np.isfinite(err) and err <= min(cnt.errors):
+            best = (err, phi, lam)
         if not np.isfinite(err):
             return Free(phi, p, tuple(lam), False, k - 1, tuple(cnt.krylov), "non-finite residual", tuple(mu))
         held = abs(N) <= arc_tol * scale and all(abs(v) <= arc_tol * scale for v in ph)
@@ -205,4 +208,4 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
                         tuple(mu))
         phi, lam, p, mu, lin, r, N, ph, err = phi_t, lam_t, p_t, mu_t, lin_t, r_t, N_t, ph_t, err_t
     return Free(phi, p, tuple(lam), False, max_newton, tuple(cnt.krylov),
-                f"no convergence in {max_newton} Newton steps (error {err:.2e})", tuple(mu))
+                f"no convergence in {max_newton} Newton steps (error {err:.2e})", tuple(mu), best)

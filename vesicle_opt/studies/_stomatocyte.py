@@ -17,6 +17,13 @@ certified minimum from c0 = -1.5 back to 0 (f 1.93522 there, below the seeded cu
 detour ends "no switch to B" and the walk starts from the seed (its rows say so); at v 0.66 / 0.70
 (c0 -2.0 / -2.5) the pushes pinch the cup's neck instead (two nested spheres); at eps 0.02 (push at
 c0 -1.25) the same torus (f 1.93269 at c0 0).
+``switched`` + ``down_in_v`` reach it without a seed by a continuous switch (``branch.emanate``): the
+branch out of the oblate's odd branch point in c0 followed by pseudo-arclength, c0 free, on a uniform
+mesh. At eps 0.03 it is subcritical; at v 0.60 / 0.62 it turns at a fold in c0 (-0.523 / -0.390; at
+0.62 it ends on another up-down symmetric state, dimples 0.14 R0 apart, at c0 -0.54), at v 0.66
+(``V_SWITCH``) it passes c0 = 0, and the minimiser from there walked down in v at c0 = 0 is at v 0.62
+the seeded cup's mirror image (f to 2.6e-15; docs/guide/bifurcation.md, "A continuous switch");
+opt-in, no case calls them.
 From the seed two walks at fixed v (``_meridian.walk``: exact IPOPT solves, each warm from the
 previous point, second-order checked, axisymmetric perturbations only): ``up`` towards the fold on
 the v grid ``up`` (its steps shrinking towards the sharp fold, 0.6604), ending at the first point
@@ -54,7 +61,7 @@ from vesicle_opt.branch.detour import detour
 from vesicle_opt.sharp import axisymmetric as sharp_a
 from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies._common import num as _num
-from vesicle_opt.studies._meridian import MAX_ITER, layout, scene, seed, solve_quiet, walk
+from vesicle_opt.studies._meridian import MAX_ITER, SEED_MAX_ITER, layout, scene, seed, solve_quiet, walk
 from vesicle_opt.verify import updown
 
 V_SEED = 0.62  # the seed's reduced volume: the lower side, 0.04 below the sharp fold (0.6604)
@@ -212,3 +219,112 @@ def seedless(v: float, eps: float, eps_over_h: float, refine: bool = True, c0s=D
 
     return detour(solve, check, push, is_cup, c0s, PUSH_AMPLITUDE,
                   PUSH_BEYOND if push_beyond is None else push_beyond, is_oblate), lay
+
+
+# --- the seedless start by continuation: the branch out of the oblate's odd branch point in c0 -----
+SWITCH_C0 = (0.0, -0.4, -0.7, -0.8, -0.85, -0.9)  # the oblate's walk in c0 at v 0.62 (literature c0): its
+# least eigenvalue +0.0106, +0.0058, +0.0019, +0.0005, -0.0002, -0.0009 mu_ref (eps 0.03, eps/h 2, measured)
+SWITCH_EPS_OVER_H = 2.0  # the uniform mesh of the walk (the branch moves the interface by O(R0): no band
+# holds it); 19.7 k nodes on the tall box at eps 0.03, ~2.5 s a point of 5-10 Newton or chord steps (measured)
+SWITCH_AMPLITUDE = 0.02  # a of the switch (<u - u*, v>_w = a, v M-normalised, max |v| 3.9): at 0.1 the
+# bordered Newton diverged (c0 -> -5e8), at 0.02 it converged in 11 steps (measured)
+SWITCH_DS = (0.02, 0.3)  # the arclength's first and largest step: |phi|_w = 4.5 on this box, so a step changes
+# the field by at most ~7 % (the walks measured stayed at 0.007-0.03: Newton took 6-10 steps)
+
+
+def pin_rows(disc, phi):
+    """The bordered corrector's phase condition on a meridian mesh: the axial pin's row
+    (``nlp.reuse.pin_row``; the slide between natural walls is near-null, ``branch.corrector``)."""
+    from vesicle_opt.nlp.reuse import pin_row
+    return [pin_row(disc)[:-1]]
+
+
+def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SWITCH_C0,
+             amplitude: float = SWITCH_AMPLITUDE, budget_s: float = 3000.0, name: str = "stomatocyte-switch"):
+    """The phase-field stomatocyte's branch at (v, c0 = 0) WITHOUT a seed, by continuation
+    (``branch.emanate``; at eps 0.03 it gets there at v = ``V_SWITCH``, not at 0.60 / 0.62: module docstring):
+    the oblate (from its sharp shape) walked in c0 down ``c0s`` on the uniform tall box to the first
+    sign change of its least eigenvalue, the branch point located by the secant (one solve), then the
+    branch leaving it along the critical (odd) mode followed with c0 free (the bordered corrector, the
+    axial pin as its phase condition) until c0 passes 0, every point required to stay one meridian
+    curve from the axis to the axis (``verify.updown.form`` oblate or cup: no torus, no two
+    components); the landing certified by the fixed-c0 IPOPT solve and its second-order check.
+    Returns a namespace: ``oblate`` [(c0, Result)], ``c_star`` (literature c0), ``bp`` (its Result), ``followed`` (the
+    ``Followed``, its p = model.c0 = c0 / 2), ``end`` (the certified Result at c0 = 0 or None), ``lay``,
+    ``corrector``."""
+    import types as _t
+
+    from vesicle_opt.branch.bordered import Affine, BorderedCorrector
+    from vesicle_opt.branch.corrector import IpoptCorrector
+    from vesicle_opt.branch.emanate import follow
+    from vesicle_opt.branch.params import parameter
+    from vesicle_opt.io.meridian import meridian_curves
+
+    mer = sharp_a.solve(v, "oblate", OBLATE_MODES, second_order=False).meridian(2048)
+    lay = tall_layout(mer, eps, eps_over_h, refine=False)
+    # the cold solves' cap (the oblate's start, ``down_in_v``'s slide off the landing: 210 iterations at
+    # v 0.66, eps 0.03, measured; MAX_ITER's 150 stopped it short)
+    sc = scene(lay, eps, v, name, max_iter=SEED_MAX_ITER)
+    corr = IpoptCorrector(sc)
+    par = parameter(sc, "c0")
+    out = _t.SimpleNamespace(oblate=[], c_star=None, bp=None, followed=None, end=None, lay=lay, corrector=corr)
+    res = corr.solve(sc, seed(sc, *mer, eps, lay["h"]).phi, None)
+
+    def at(c0, phi, last):  # warm (capped at WARM_MAX_ITER = 6), else cold from the same field
+        warm = corr.solve(par.scene_at(sc, c0 / 2), phi, (last.lambda_volume, last.lambda_area))
+        return warm if warm.converged else corr.solve(par.scene_at(sc, c0 / 2), phi, None)
+    for c0 in c0s:
+        if c0 != c0s[0]:
+            res = at(c0, res.phi, res)
+        if not res.converged:
+            return out
+        out.oblate.append((c0, res))
+        if len(out.oblate) > 1 and res.extra["second_order_min_eigenvalue"] < 0:
+            break
+    else:
+        return out
+    (ca, ra), (cb, rb) = out.oblate[-2:]
+    ma, mb = ra.extra["second_order_min_eigenvalue"], rb.extra["second_order_min_eigenvalue"]
+    c_star = ca - ma * (cb - ca) / (mb - ma)
+    s = (c_star - ca) / (cb - ca)
+    bp = at(c_star, (1 - s) * ra.phi + s * rb.phi, ra)
+    if not bp.converged:
+        return out
+    out.c_star, out.bp = c_star, bp
+    bc = BorderedCorrector(corr.scene, corr.disc, Affine(*par.affine(sc)), pins=pin_rows)
+
+    def accept(nw) -> bool:  # one meridian curve from the axis to the axis: no torus, no two components
+        return updown.form(meridian_curves(corr.disc, nw.phi)) in ("oblate", "cup")
+
+    out.followed = follow(bc, bp.phi, c_star / 2, (bp.lambda_volume, bp.lambda_area),
+                          bp.history["second_order_mode"], amplitude, corr.disc.weights, 0.0, accept=accept,
+                          ds=SWITCH_DS[0], ds_max=SWITCH_DS[1], budget_s=budget_s)
+    if out.followed.end is not None:
+        e = out.followed.end
+        out.end = corr.solve(sc, e.phi, e.lam, feasibility=False)
+    return out
+
+
+V_SWITCH = 0.66  # where the branch of ``switched`` reaches c0 = 0 (eps 0.03): it turns in c0 at -0.523 / -0.390 for
+# v 0.60 / 0.62 and passes c0 = 0 at v 0.66, next to the cup's fold in v (sharp 0.6604), measured
+
+
+def down_in_v(corr, sc, phi, vs) -> list:
+    """The landing of ``switched`` (``phi`` at c0 = 0, v = ``sc``'s) walked down in v at c0 = 0 by the
+    fixed-v minimiser (``corr``, the route's IpoptCorrector): cold from the landing (a saddle next to
+    the fold: the minimiser slides to the fold's stable side, the cup), then warm along ``vs`` (cold
+    where a warm solve capped at 6 iterations does not finish). [(v, Result)]; the walk stops at the
+    first point that does not converge."""
+    from vesicle_opt.branch.params import parameter
+
+    pv = parameter(sc, "reduced_volume")
+    res = corr.solve(sc, phi, None)
+    out = [(pv.start, res)]
+    for v in vs:
+        if not res.converged:
+            break
+        s = pv.scene_at(sc, v)
+        warm = corr.solve(s, res.phi, (res.lambda_volume, res.lambda_area), feasibility=False)
+        res = warm if warm.converged else corr.solve(s, res.phi, None, feasibility=False)
+        out.append((v, res))
+    return out
