@@ -194,14 +194,19 @@ def test_a_one_point_blip_is_no_crossing_and_a_zigzag_is_one_turn():
     """The measured symmetric turning point in c0 (2D ellipse, nu = 0.8, 48^2): the parameter
     creeps round the top (a zigzag of ~1e-6), one point's critical eigenvalue (the relative
     translation of the two droplets it has become; measured when the check excluded the rotation)
-    is decidedly negative (-8.4e-7, bound 1.5e-7) between undecided and positive ones: one turn,
-    no crossing."""
+    is negative beyond its bound (-8.4e-7, bound 1.5e-7) but above the certificate's saddle threshold
+    (``verdict.TOL_REL`` = 1e-6: marginal), between undecided and positive ones: index 0 throughout,
+    one turn, no crossing; the same point ten times lower (decidedly negative) is a one-point blip:
+    still no crossing."""
     ps = [0.73437251, 0.73464357, 0.73474587, 0.73476515, 0.73476171, 0.73475984, 0.73476227, 0.73476518,
           0.73475825, 0.73471667, 0.73459087]
     mus = [1.3e-3, 4.0e-4, 7.7e-5, 1.6e-6, -2.2e-6, -1.6e-7, -2.7e-6, -8.4e-7, 3.4e-5, 1.7e-4, 5.6e-4]
     errs = [2.3e-4, 1.9e-4, 7.7e-5, 1.5e-6, 4.9e-3, 4.6e-7, 4.9e-3, 1.5e-7, 2.9e-5, 1.7e-4, 2.0e-4]
     pts = [events.Point(p, np.zeros(1), 0.0, (mu, 4.7), (e, 1e-3)) for p, mu, e in zip(ps, mus, errs)]
-    assert [q.index for q in pts].count(1) == 1 and events.crossings(pts) == []
+    assert [q.index for q in pts].count(1) == 0 and events.crossings(pts) == []
+    blip = [events.Point(p, np.zeros(1), 0.0, (mu * (10 if k == 7 else 1), 4.7), (e, 1e-3))
+            for k, (p, mu, e) in enumerate(zip(ps, mus, errs))]
+    assert [q.index for q in blip].count(1) == 1 and events.crossings(blip) == []
     assert events.turns(pts) == [3]
     loc = events.locate_fold_parabola(pts[2:5], np.ones(1), 1.0)
     assert abs(loc.p - 0.734765) < 5e-6  # the vertex within the zigzag's amplitude
