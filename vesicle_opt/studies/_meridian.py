@@ -43,8 +43,9 @@ from vesicle_opt.scene import from_dict
 WALL = 12.0  # walls this many eps from the sharp shapes (a translation saddle at 10 eps: measured)
 LEVELS = 4  # the coarse cells are 2^LEVELS band cells: 4 eps at eps/h = 4 (fewer where the box is small)
 BAND = 8.0  # the band's half-width in eps (mesh.band's default: narrower bands perturb the axial slide)
-MAX_ITER = 150  # IPOPT iterations a warm point: the full run's took <= 67 (prolate at eps 0.025, dv = 0.01) and
-# 48 (the stomatocyte at eps 0.02, v 0.662, next to its fold); a point past the fold ran into the default 500
+MAX_ITER = 150  # IPOPT iterations a warm point: the full run's converged ones took <= 79 (the oblate's low walk),
+# 77 (the stomatocyte's down walk), 41 (prolate near, dv = 0.01; 67 before re-meshed starts kept their
+# multipliers), 44 (the stomatocyte's up walk: measured); a point past the fold ran into the default 500
 SEED_MAX_ITER = 300  # a walk's first, cold point from a sharp shape: the stomatocyte seed (v 0.62) took 62, 86, 129
 # iterations at eps 0.03, 0.025, 0.02 on this layout's box, 178 at 0.02 on the former one (measured)
 

@@ -9,7 +9,9 @@ eps/h = 4 in a band of 8 eps about the interface, coarse cells of 4 eps elsewher
 from the sharp shapes. Every walk is SEEDED with the tanh profile of the sharp shape at its first v
 (``io.meridian.phase_field_of``, the mesh refined about that shape; the column ``seed`` says so): the
 tanh ellipsoid start reached another state at eps = 0.02 (f 1.502 against 1.284 from the sharp seed,
-measured), and the phase-field stomatocyte has no seedless route here (``studies._stomatocyte``).
+measured). The phase-field stomatocyte has a seedless route (``_stomatocyte.switched``, a continuous
+switch at the oblate's odd branch point in c0; at eps 0.03 on a uniform eps/h = 2 mesh it lands on the
+seeded cup's mirror image) that no case calls yet: the walks here are on refined eps/h = 4 meshes.
 R0 = 1 (area 4 pi), exact constraints, IPOPT, second-order checked (axisymmetric perturbations only).
 
 Cases, one per (branch, eps, part), run in parallel through the study runner (``runner.run_cases``:
