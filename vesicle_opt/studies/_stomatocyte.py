@@ -57,7 +57,13 @@ import types
 
 import numpy as np
 
+from vesicle_opt.branch.bordered import Affine, BorderedCorrector
+from vesicle_opt.branch.corrector import IpoptCorrector
 from vesicle_opt.branch.detour import detour
+from vesicle_opt.branch.emanate import follow
+from vesicle_opt.branch.params import parameter
+from vesicle_opt.io.meridian import meridian_curves
+from vesicle_opt.nlp.reuse import pin_row
 from vesicle_opt.sharp import axisymmetric as sharp_a
 from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies._common import num as _num
@@ -235,7 +241,6 @@ SWITCH_DS = (0.02, 0.3)  # the arclength's first and largest step: |phi|_w = 4.5
 def pin_rows(disc, phi):
     """The bordered corrector's phase condition on a meridian mesh: the axial pin's row
     (``nlp.reuse.pin_row``; the slide between natural walls is near-null, ``branch.corrector``)."""
-    from vesicle_opt.nlp.reuse import pin_row
     return [pin_row(disc)[:-1]]
 
 
@@ -254,11 +259,6 @@ def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SW
     ``corrector``."""
     import types as _t
 
-    from vesicle_opt.branch.bordered import Affine, BorderedCorrector
-    from vesicle_opt.branch.corrector import IpoptCorrector
-    from vesicle_opt.branch.emanate import follow
-    from vesicle_opt.branch.params import parameter
-    from vesicle_opt.io.meridian import meridian_curves
 
     mer = sharp_a.solve(v, "oblate", OBLATE_MODES, second_order=False).meridian(2048)
     lay = tall_layout(mer, eps, eps_over_h, refine=False)
@@ -315,7 +315,6 @@ def down_in_v(corr, sc, phi, vs) -> list:
     the fold: the minimiser slides to the fold's stable side, the cup), then warm along ``vs`` (cold
     where a warm solve capped at 6 iterations does not finish). [(v, Result)]; the walk stops at the
     first point that does not converge."""
-    from vesicle_opt.branch.params import parameter
 
     pv = parameter(sc, "reduced_volume")
     res = corr.solve(sc, phi, None)
