@@ -96,15 +96,12 @@ def phase_rows(disc, phi_pred) -> list[np.ndarray]:
 
 
 class BorderedCorrector:
-    """The bordered system of one branch (module docstring), its CasADi Jacobian built once.
-    ``pins(disc, phi) -> [row, ...]``: the phase conditions row . (phi - phi_pred) = 0, each with
-    its multiplier (None: ``phase_rows``, the periodic grid's translation modes times the weights, on a
-    meridian mesh the axial pin's row: the slide between natural walls is near-null and would leave
-    the Newton matrix numerically singular)."""
+    """The bordered system of one branch (module docstring), its CasADi Jacobian built once; its
+    phase conditions ``phase_rows``."""
 
-    def __init__(self, scene, disc, affine: Affine, pins=None):
+    def __init__(self, scene, disc, affine: Affine):
         import casadi as ca  # third-party, lazy: only the IPOPT path builds graphs (0.25 s at import)
-        self.scene, self.disc, self.affine, self.pins = scene, disc, affine, pins
+        self.scene, self.disc, self.affine = scene, disc, affine
         if disc.consistent:
             raise ValueError("the bordered corrector runs on lumped mass (unknowns phi only)")
         n = disc.n_nodes
@@ -152,8 +149,7 @@ class BorderedCorrector:
         step is halved (at most ``HALVINGS`` times) until m |R| decreases (a backtracking line search
         on the deflated residual, Farrell et al.'s globalisation), else taken whole."""
         n, w = self.n, self.disc.weights
-        trans = phase_rows(self.disc, phi_pred) if self.pins is None \
-            else [np.asarray(c, float) for c in self.pins(self.disc, phi_pred)]
+        trans = phase_rows(self.disc, phi_pred)
         d = len(trans)
         z = np.concatenate([np.asarray(phi_pred, float), np.asarray(lam_pred, float), [p_pred]])
         mu = np.zeros(d)

@@ -168,6 +168,7 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
     lin = model.at(phi, lam, p)
     r, N, ph = residual(lin, phi, p, mu)
     err = lin.error(r, lin.c)
+    best: tuple = ()
     for k in range(1, max_newton + 1):
         cnt.errors.append(err)
         if np.isfinite(err) and err <= min(cnt.errors):

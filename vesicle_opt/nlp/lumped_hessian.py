@@ -16,9 +16,9 @@ and pin rows linear) makes IPOPT's matrix sigma rigidity / f_scale d2E + lam_B /
 (beta, C, f_scale) read from the parametric NLP's p at each call. ``hess_lag`` is that matrix as a
 CasADi Function (a ``Callback`` on CasADi's buffers: ``Assembled``, vector operations on the fixed
 pattern of L^T L + K + I with L^T diag(m) L kept per mesh), given to ``nlpsol`` as ``hess_lag``: its
-upper triangle; ``lagrangian_hessian`` is the same matrix by scipy's sparse products (the reference). Only for parametric exact NLPs with lumped
-mass and nodal quadrature (``applies``); elsewhere CasADi's own Hessian stays.
-``tests/nlp/test_lumped_hessian.py``: the same matrix as CasADi's to round-off, and the same solve.
+upper triangle. Only for parametric exact NLPs with lumped mass and nodal quadrature (``applies``);
+elsewhere CasADi's own Hessian stays. ``tests/nlp/test_lumped_hessian.py``: the same matrix as CasADi's
+and as scipy's sparse products of the formulas above to round-off, and the same solve.
 """
 
 from __future__ import annotations
@@ -38,10 +38,10 @@ def applies(nlp) -> bool:
 
 
 class Assembled:
-    """IPOPT's matrix (``lagrangian_hessian``) on a fixed pattern, by arrays kept per mesh: the upper
+    """IPOPT's matrix (module docstring) on a fixed pattern, by arrays kept per mesh: the upper
     triangle (CSC, CasADi's order) of the pattern of L^T L + K + I, and on it L^T diag(m) L, L_ij, L_ji and
     (K + K^T)/2, so that each call is a few vector operations on the pattern's entries (0.01 s at 62 k
-    nodes, 430 k entries, against 0.065 s for the sparse products of ``lagrangian_hessian``: measured)."""
+    nodes, 430 k entries, against 0.065 s for the same matrix by scipy's sparse products: measured)."""
 
     def __init__(self, disc):
         L, K, m = disc.laplacian.tocsc(), disc.K.tocsc(), np.asarray(disc.weights, float)
@@ -63,7 +63,8 @@ class Assembled:
 
     def values(self, phi, epsilon: float, rigidity: float, f_scale: float, beta: float, C: float,
                sigma: float, lam_area: float) -> np.ndarray:
-        """The upper triangle's values of ``lagrangian_hessian`` (same arguments) on ``upper``:
+        """The upper triangle's values of sigma rigidity / f_scale d2E_h + lam_area / beta d2B at phi
+        (module docstring; ``lam_area`` IPOPT's multiplier of the area row) on ``upper``:
         J^T D J = eps^2 L^T D L + eps (L^T D G + G D L) + D G^2 with G = diag(g'(phi)), D = diag(m)."""
         phi = np.asarray(phi, float)
         m, i, j = self.m, self.rows, self.cols
@@ -75,20 +76,6 @@ class Assembled:
         out[self.diag] += a * m * (gp * gp + fc * F.reaction_second_derivative(phi, epsilon, C)) \
             + b * m * F.double_well_second_derivative(phi) / epsilon
         return out
-
-
-def lagrangian_hessian(disc, phi, epsilon: float, rigidity: float, f_scale: float, beta: float, C: float,
-                       sigma: float, lam_area: float) -> sp.csc_matrix:
-    """sigma rigidity / f_scale d2E_h + lam_area / beta d2B at phi (module docstring): the full symmetric
-    matrix (scipy CSC) of IPOPT's scaled NLP, ``lam_area`` its multiplier of the area row."""
-    phi = np.asarray(phi, float)
-    m, L, K = disc.weights, disc.laplacian, disc.K
-    fc = F.curvature_residual(phi, L @ phi, epsilon, C)
-    J = (epsilon * L + sp.diags(F.reaction_derivative(phi, epsilon, C))).tocsr()
-    d2E = (J.T @ sp.diags(m) @ J + sp.diags(m * fc * F.reaction_second_derivative(phi, epsilon, C))) / epsilon
-    Ks = (K + K.T) / 2  # CasADi's Hessian of phi^T K phi / 2, whatever K's round-off asymmetry
-    d2B = epsilon * Ks + sp.diags(m * F.double_well_second_derivative(phi) / epsilon)
-    return (sigma * rigidity / f_scale * d2E + lam_area / beta * d2B).tocsc()
 
 
 def hess_lag(nlp):

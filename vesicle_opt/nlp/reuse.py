@@ -26,7 +26,7 @@ second-order check's Hessian graph 0.09 s, against 0.2-0.3 s of IPOPT iterations
   band's coarse cells push it, multiplier 6.1e-4 and kkt_not_met for the eps = 0.1 prolate 0.37 up;
   now certified, multiplier 2e-11, after one re-mesh.)
 * IPOPT's Hessian of the Lagrangian assembled by sparse products (``nlp.lumped_hessian``, lumped
-  meshes: 0.02-0.03 s a call at 62 k nodes against CasADi's 0.14-0.23 s);
+  meshes: 0.01 s a call at 62 k nodes against CasADi's 0.14 s, measured);
 * IPOPT's own derivative functions ``nlp_hess_l`` and ``nlp_jac_g`` of that solver, which the
   assembled second-order check (``verify.second_order.check``) evaluates instead of building its own
   Hessian graph (the same matrix: 0.0 apart, measured).

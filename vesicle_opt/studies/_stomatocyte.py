@@ -63,7 +63,6 @@ from vesicle_opt.branch.detour import detour
 from vesicle_opt.branch.emanate import follow
 from vesicle_opt.branch.params import parameter
 from vesicle_opt.io.meridian import meridian_curves
-from vesicle_opt.nlp.reuse import pin_row
 from vesicle_opt.sharp import axisymmetric as sharp_a
 from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies._common import num as _num
@@ -238,12 +237,6 @@ SWITCH_DS = (0.02, 0.3)  # the arclength's first and largest step: |phi|_w = 4.5
 # the field by at most ~7 % (the walks measured stayed at 0.007-0.03: Newton took 6-10 steps)
 
 
-def pin_rows(disc, phi):
-    """The bordered corrector's phase condition on a meridian mesh: the axial pin's row
-    (``nlp.reuse.pin_row``; the slide between natural walls is near-null, ``branch.corrector``)."""
-    return [pin_row(disc)[:-1]]
-
-
 def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SWITCH_C0,
              amplitude: float = SWITCH_AMPLITUDE, budget_s: float = 3000.0, name: str = "stomatocyte-switch"):
     """The phase-field stomatocyte's branch at (v, c0 = 0) WITHOUT a seed, by continuation
@@ -291,7 +284,7 @@ def switched(v: float, eps: float, eps_over_h: float = SWITCH_EPS_OVER_H, c0s=SW
     if not bp.converged:
         return out
     out.c_star, out.bp = c_star, bp
-    bc = BorderedCorrector(corr.scene, corr.disc, Affine(*par.affine(sc)), pins=pin_rows)
+    bc = BorderedCorrector(corr.scene, corr.disc, Affine(*par.affine(sc)))
 
     def accept(nw) -> bool:  # one meridian curve from the axis to the axis: no torus, no two components
         return updown.form(meridian_curves(corr.disc, nw.phi)) in ("oblate", "cup")
