@@ -1,10 +1,14 @@
-"""The phase-field stomatocyte's fold in the reduced volume (c0 = 0) passed on the meridian mesh by the
+"""A fold in the reduced volume (c0 = 0) passed on the meridian mesh, from the stomatocyte's seed, by the
 pseudo-arclength corrector with v free, on IPOPT (``branch.bordered``, each point certified by the
 pinned fixed-v IPOPT solve) and on Newton-Krylov (``branch.nk_free``, GMRES on the bordered system,
 each point certified as it stands), and both give the same fold.
 
 The mesh: uniform, eps = 0.1, h = eps / 2 (4.2 k nodes), the study's box about the sharp stomatocyte
 (``studies._meridian.layout``), the tanh profile of the sharp stomatocyte at v = 0.65 as the start.
+At this eps the states are not stomatocytes: the cup's mouth closes (a shell round a pocket of outside
+fluid) and the shell perforates into a torus before the fold (the last test); the fold is the discrete
+problem's, which is what the correctors are tested on here. The stomatocyte's own fold (cups up to the
+fold): docs/guide/bifurcation.md.
 Before the axial pin (``branch.bordered.axial_pin``) this walk did not leave its start: the slide
 between the natural walls is near-null, the warm IPOPT solves stalled (dv = 1e-2 ... 8e-5, every one at
 its 6 iterations) and the bordered Newton's LU was singular (measured). Independent checks: the fold
@@ -92,6 +96,28 @@ def test_ipopt_passes_the_stomatocyte_fold(walks):
     # before the fold one eigenvalue crossed zero with v still rising (located "branch point" at
     # v 0.69260, measured): every point from there on is a saddle, the fold adds the second
     assert [r["event"] for r in ip.located(0)] == ["branch point", "fold"]
+
+
+SHELL, TORUS = "sphere-like (genus 0), enclosing 1 cavity", "genus 1 (torus-like)"
+
+
+def test_the_eps01_walk_is_no_stomatocyte_and_its_branch_point_is_the_perforation(walks):
+    """At eps = 0.1 the seed's cup does not stay a cup: its mouth (radius < eps) closes at once, so
+    the walk's states are shells round a pocket of outside fluid (the revolved solid's topology,
+    ``verify.topology``), and the branch point before the fold is where the shell's two polar layers
+    (thinner than the interface) perforate: the inside leaves the axis and the solid becomes a
+    torus. Measured: the axis's largest phi falls 0.51, 0.40, 0.29, 0.18, 0.06 from v 0.65 to 0.688,
+    -0.06 at 0.6955; at the located branch point -0.001. So the fold this file passes is the
+    discrete problem's, not the stomatocyte's (docs/guide/bifurcation.md)."""
+    ip, _ = walks
+    pts = ip.points(0)
+    topo = [r["topology"] for r in pts]
+    k = topo.index(TORUS)
+    assert k > 0 and set(topo[:k]) == {SHELL} and set(topo[k:]) == {TORUS}  # one change, shell -> torus
+    bp = [r for r in ip.located(0) if r["event"] == "branch point"][0]
+    # the perforation between the last shell and the first torus, as the branch point is
+    assert pts[k - 1]["target"] < bp["target"] < pts[k]["target"]
+    assert pts[k - 1]["second_order_min_eigenvalue"] > 0 > pts[k]["second_order_min_eigenvalue"]
 
 
 def test_newton_krylov_passes_the_same_fold(walks):

@@ -186,5 +186,51 @@ def test_cases_put_the_sharp_case_and_the_finest_eps_first():
     # the pear's first point goes through every coarser eps (descending); the prolate and the coarsest don't
     chains = {c["case"]: c.get("chain") for c in cs}
     assert chains["pear-eps0.015"] == [0.03, 0.02] and chains["pear-eps0.02"] == [0.03]
+    assert chains["pear-eps0.01"] == [0.03, 0.02, 0.015, 0.0125]
     assert chains["pear-eps0.03"] is None and chains["prolate_c2.4-eps0.015"] is None
     assert all("chain" not in c for c in P.cases(cfg={**P.FULL, "chain": False}))
+    # the pear starts at start_v (both ways from it); the prolate from its highest v
+    assert {c.get("start_v") for c in cs if c["branch"] == "pear" and c["epsilon"] > 0} == {P.FULL["start_v"]}
+    assert all("start_v" not in c for c in cs if c["branch"] != "pear")
+
+
+def test_phase_case_walks_both_ways_from_its_first_point(monkeypatch):
+    """The walk's order and starts with the solves stubbed (each 'solution' records its v and its start):
+    up from start_v warm, then down from the first point (not from the last up point); an up point that
+    fails ends that direction only; a first point that fails ends the case."""
+    import types
+
+    calls = []
+
+    def solve(sc, start):
+        v = sc.v
+        calls.append((v, getattr(start, "v", "seed")))
+        ok = v not in fail
+        return types.SimpleNamespace(v=v, converged=ok, extra={"f": v}, disc=types.SimpleNamespace(n_nodes=1),
+                                     phi=None, kkt_residual=0.0, iterations=1, wall_time_s=0.0,
+                                     outcome="converged" if ok else "failed")
+
+    sharp = types.SimpleNamespace(converged=True, f=0.1, meridian=lambda m: (np.zeros(2), np.zeros(2)))
+    monkeypatch.setattr(P, "sharp_branches", lambda vs, n, which: {which[0]: [sharp] * len(vs)})
+    monkeypatch.setattr(P, "_first", lambda case, which, v, r, z: ([[0, 1], [-1, 1]], [2, 2], 1, "seed", "s", ""))
+    monkeypatch.setattr(P, "_solve_quiet", solve)
+    monkeypatch.setattr(P, "_scene", lambda box, n, levels, eps, v, name: types.SimpleNamespace(v=v))
+    monkeypatch.setattr(P, "meridian_curves", lambda disc, phi: [])
+    monkeypatch.setattr(P, "form", lambda curves, eps: ("pear", 4.0, 0.1))
+    case = {"case": "pear-eps0.02", "branch": "pear", "epsilon": 0.02, "vs": [0.74, 0.75, 0.76, 0.77],
+            "n_modes": 24, "start_v": 0.75}
+    fail = set()
+    rows = P.phase_case(case)
+    assert calls == [(0.75, "seed"), (0.76, 0.75), (0.77, 0.76), (0.74, 0.75)]
+    assert [r["walk"] for r in rows] == ["up", "up", "up", "down"]
+    calls.clear()
+    fail = {0.76}
+    P.phase_case(case)
+    assert calls == [(0.75, "seed"), (0.76, 0.75), (0.74, 0.75)]
+    calls.clear()
+    fail = {0.75}
+    assert len(P.phase_case(case)) == 1 and calls == [(0.75, "seed")]
+    calls.clear()
+    fail = set()
+    P.phase_case({**case, "start_v": None})  # no start_v: up from the lowest v, as before
+    assert calls == [(0.74, "seed"), (0.75, 0.74), (0.76, 0.75), (0.77, 0.76)]

@@ -56,3 +56,26 @@ def test_hollow_ball_is_genus_zero_with_a_cavity():
     t = topology.analyse(d, phi)
     assert (t.components, t.euler_characteristic, t.cavities) == (1, 2, 1)
     assert t.describe(3) == "sphere-like (genus 0), enclosing 1 cavity"
+
+
+@pytest.mark.parametrize("name, field, expected", [
+    # (r, z) -> phi on the meridian half-plane; expected (components, chi, cavities, words) of the solid
+    ("ball", lambda r, z: 1 - np.hypot(r, z), (1, 1, 0, "sphere-like (genus 0)")),
+    ("solid torus", lambda r, z: 0.4 - np.hypot(r - 1.0, z), (1, 0, 0, "genus 1 (torus-like)")),
+    ("hollow ball", lambda r, z: 0.4 - np.abs(np.hypot(r, z) - 1.2), (1, 2, 1, "sphere-like (genus 0), enclosing 1 cavity")),
+    # a cup: the hollow ball with its mouth open (the shell cut away above z = 0.7 within r < 0.5)
+    ("cup", lambda r, z: np.minimum(0.4 - np.abs(np.hypot(r, z) - 1.2), np.maximum(r - 0.5, 0.7 - z)),
+     (1, 1, 0, "sphere-like (genus 0)")),
+    ("two balls on the axis", lambda r, z: 0.5 - np.minimum(np.hypot(r, z - 1), np.hypot(r, z + 1)),
+     (2, 2, 0, "2 components")),
+])
+def test_meridian_topology_is_the_solid_of_revolutions(name, field, expected):
+    """On the meridian half-plane (``mesh.axisymmetric``) the topology is that of the revolved solid,
+    against the closed forms: chi = the inside's intervals on the axis, cavities = the outside's
+    components beyond the exterior (a pocket on the axis revolves to one cavity)."""
+    from vesicle_opt.mesh import axisymmetric as ax
+
+    d = ax.p1(((0.0, 2.0), (-2.0, 2.0)), (40, 80))
+    phi = field(d.nodes[:, 0], d.nodes[:, 1])
+    t = topology.analyse(d, phi)
+    assert (t.components, t.euler_characteristic, t.cavities, t.describe(3)) == expected

@@ -59,7 +59,7 @@ PUBLISHED = (0.746, 0.107)  # SBL 1991, read off their figure (+-0.005 in v, +-0
 BRANCHES = ("pear", "prolate_c2.4")  # not "prolate": the c0 = 0 prolate rows of phase_diagram keep their name
 # the phase field's v grid: its crossing lies above the sharp one at finite eps (at eps = 0.03 the pear
 # lies 0.013 below its sharp f, measured, the prolate above it), so the grid reaches v = 0.77
-FULL = {"epsilons": (0.03, 0.02, 0.015), "vs": (0.74, 0.75, 0.76, 0.77), "seed_modes": 48,
+FULL = {"epsilons": (0.03, 0.02, 0.015, 0.0125, 0.01), "vs": (0.74, 0.75, 0.76), "start_v": 0.75, "seed_modes": 48,
         "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 128, "chain": True}
 # chain: the pear's first point through the coarser eps (at eps = 0.015 through 0.03, 0.02: pears at
 # v = 0.75, 0.76, 283-302 CPU-s in all, measured; docs/guide/axisymmetric.md)
@@ -270,11 +270,17 @@ def phase_case(case: dict) -> list[dict]:
     vs = sorted(case["vs"], reverse=which != "pear")
     ref = sharp_branches(vs, case["n_modes"], (which,))[which]
     ref = ref if which == "pear" else ref[::-1]  # sharp_branches returns ascending v
-    if not ref[0].converged:  # no seed (e.g. the kicked SLSQP left the shapes): said so, not meshed on NaN
-        raise SolverError(f"the sharp {which} seed at v = {vs[0]:g} did not converge ({case['n_modes']} modes)")
-    box, n, levels, start, seed, chain = _first(case, which, vs[0], *ref[0].meridian(4096))
-    rows = []
-    for v, s in zip(vs, ref):
+    k0 = vs.index(case["start_v"]) if case.get("start_v") is not None else 0
+    if not ref[k0].converged:  # no seed (e.g. the kicked SLSQP left the shapes): said so, not meshed on NaN
+        raise SolverError(f"the sharp {which} seed at v = {vs[k0]:g} did not converge ({case['n_modes']} modes)")
+    box, n, levels, start, seed, chain = _first(case, which, vs[k0], *ref[k0].meridian(4096))
+    rows, first = [], None
+    todo = list(range(k0, len(vs))) + list(range(k0 - 1, -1, -1))  # on from the first point, then back from it
+    while todo:
+        k = todo.pop(0)
+        v, s = vs[k], ref[k]
+        if k == k0 - 1:  # the walk back starts at the first point
+            start, seed, chain = first, "previous point", ""
         sc = _scene(box, n, levels, eps, v, f"phase_diagram-{which}-v{v:g}-eps{eps:g}")
         c1 = time.process_time()
         res = _solve_quiet(sc, start)
@@ -286,11 +292,14 @@ def phase_case(case: dict) -> list[dict]:
                          f_minus_sharp=f - s.f, converged=res.converged, second_order=ex.get("second_order"),
                          second_order_min_eigenvalue=ex.get("second_order_min_eigenvalue"),
                          topology=ex.get("topology"), kkt_residual=res.kkt_residual, iterations=res.iterations,
-                         wall_time_s=res.wall_time_s, seed=seed, status=res.outcome, walk="up" if which == "pear"
-                         else "down", neck_over_eps=neck, neck_radius=neck * eps, asymmetry=asym, nodes=res.disc.n_nodes,
+                         wall_time_s=res.wall_time_s, seed=seed, status=res.outcome,
+                         walk="up" if (which == "pear") == (k >= k0) else "down", neck_over_eps=neck,
+                         neck_radius=neck * eps, asymmetry=asym, nodes=res.disc.n_nodes,
                          cpu_s=time.process_time() - c1, chain=chain))
-        if not res.converged:
-            break
+        if not res.converged:  # this direction ends here; the other goes on from a converged first point
+            todo = [j for j in todo if j < k0] if k > k0 else []
+            continue
+        first = res if k == k0 else first
         start, seed, chain = res, "previous point", ""
     rows[0]["cpu_s"] = _num(rows[0]["cpu_s"]) + (time.process_time() - t0 - sum(_num(q["cpu_s"]) for q in rows))
     return rows
@@ -313,6 +322,8 @@ def cases(quick: bool = False, cfg: dict | None = None) -> list[dict]:
     for eps in sorted(cfg["epsilons"]):
         out += [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "vs": list(cfg["vs"]),
                  "n_modes": cfg["seed_modes"]} for b in BRANCHES]
+        if cfg.get("start_v") is not None:  # the pear's first point (both ways from it, ``phase_case``)
+            out[-2]["start_v"] = cfg["start_v"]
         coarser = sorted((e for e in cfg["epsilons"] if e > eps), reverse=True)
         if cfg.get("chain") and coarser:  # the pear's first point through the coarser eps (``_first``)
             out[-2]["chain"] = coarser

@@ -16,8 +16,12 @@ closed cells (pixels/voxels) of the nodes with phi > 0, with the box's periodici
 On mirror grids (``mesh.cosine``) the inside is first reflected into the doubled periodic box
 (``cosine.unfold``), so a vesicle centred at the box's corner counts as the one closed body it is.
 
-On unstructured meshes only the components are computed (graph of mesh edges between nodes with
-phi > 0); chi and wraps are None there.
+On unstructured meshes the components are computed on the graph of mesh edges between nodes with
+phi > 0; chi and wraps are None there, except on the meridian half-plane (``mesh.kind =
+"axisymmetric"``), which stands for the solid of revolution: chi is the number of intervals the inside
+cuts from the axis (the rest of the half-plane sweeps circles, chi 0) and the cavities are the outside's
+components beyond the exterior, so a cup with an open mouth reads sphere-like, a closed mouth (a shell
+round a pocket of outside fluid) "enclosing 1 cavity", and an inside off the axis genus 1 (torus-like).
 """
 
 from __future__ import annotations
@@ -120,17 +124,32 @@ def analyse(disc, phi: np.ndarray) -> Topology:
                       and _label_periodic(np.concatenate([X, X], axis=a), periodic=True) < 2 * n)
         cavities = max(_label_periodic(~X, periodic=True) - 1, 0)
         return Topology(n, euler_characteristic(X), wraps, cavities)
-    t = disc.mesh.t
+    n = _mesh_components(disc.mesh.t, inside)
+    if getattr(disc, "kind", None) != "axisymmetric":
+        return Topology(n, None, None)
+    # the meridian half-plane revolved about the axis (r = 0): the part off the axis sweeps circles
+    # (chi 0), so chi of the solid is that of the inside's trace on the axis (its intervals along z);
+    # the outside's components revolve to components too, the first the exterior, the rest cavities
+    on_axis = np.flatnonzero(disc.nodes[:, 0] <= 0.0)
+    trace = inside[on_axis[np.argsort(disc.nodes[on_axis, 1])]]
+    intervals = int(trace[0]) + int(np.count_nonzero(trace[1:] & ~trace[:-1])) if trace.size else 0
+    return Topology(n, intervals, None, max(_mesh_components(disc.mesh.t, ~inside) - 1, 0))
+
+
+def _mesh_components(t: np.ndarray, mask: np.ndarray) -> int:
+    """Connected components of the nodes in ``mask`` joined by the mesh's edges (``t``: 3 x elements).
+    On P1 triangles this is exact for the interpolant's sets {phi > 0} and {phi <= 0}: each is convex
+    on an element and holds the edge between two of its nodes."""
     rows, cols = [], []
     for i in range(t.shape[0]):
         for j in range(i):
             rows.append(t[i])
             cols.append(t[j])
     r, c = np.concatenate(rows), np.concatenate(cols)
-    keep = inside[r] & inside[c]
-    graph = sp.coo_matrix((np.ones(keep.sum()), (r[keep], c[keep])), shape=(len(phi),) * 2)
+    keep = mask[r] & mask[c]
+    graph = sp.coo_matrix((np.ones(keep.sum()), (r[keep], c[keep])), shape=(len(mask),) * 2)
     _, labels = sp.csgraph.connected_components(graph, directed=False)
-    return Topology(len(np.unique(labels[inside])), None, None)
+    return len(np.unique(labels[mask]))
 
 
 def report(disc, phi: np.ndarray) -> dict:
