@@ -149,18 +149,25 @@ class IpoptCorrector:
         phi0 = np.asarray(phi0, float)
         if self.pin:  # the rotation row or the axial pin: its multiplier starts at 0 (module docstring)
             nlp = at_point(self.warm_nlp, scene, alpha, beta)
-            c = axial_pin(self.disc) if self.slide else rotation_row(self.disc, phi0)
-            p = np.concatenate([p, c, [c @ phi0]])
+            p = self._pinned(p, phi0)
         lam_g0 = -np.asarray(lam0, float) * nlp.g_scale / nlp.f_scale  # inverse of NLP.multipliers
         if nlp.lbg.size > 2:  # the consistent-mass rows M w + K phi = 0 or the rotation row: start at 0
             lam_g0 = np.concatenate([lam_g0, np.zeros(nlp.lbg.size - 2)])
         res = solve_exact(nlp, x0=nlp.from_phi(phi0), lam_g0=lam_g0, solver=self.solver,
                           options=self.options, p=p)
-        if self.pin:  # the result in the unpinned NLP's layout, as the front door's; the row's
-            # multiplier (IPOPT's scaled units) in extra, for the record
-            key = "translation_multiplier" if self.slide else "rotation_multiplier"
-            res = dataclasses.replace(res, lam_g=res.lam_g[:-1], extra={**res.extra, key: float(res.lam_g[-1])})
-        return self.reports(scene, nlp, res)
+        return self.reports(scene, nlp, self._unpinned(res) if self.pin else res)
+
+    def _pinned(self, p: np.ndarray, phi0: np.ndarray) -> np.ndarray:
+        """The pinned NLP's parameters: the point's ``p``, then the row c (the axial pin on a meridian
+        mesh, else the rotation row at ``phi0``) and its value c . phi0 (held at the start's)."""
+        c = axial_pin(self.disc) if self.slide else rotation_row(self.disc, phi0)
+        return np.concatenate([p, c, [c @ phi0]])
+
+    def _unpinned(self, res: Result) -> Result:
+        """A pinned solve's result in the unpinned NLP's layout, as the front door's; the row's
+        multiplier (IPOPT's scaled units) in extra, for the record."""
+        key = "translation_multiplier" if self.slide else "rotation_multiplier"
+        return dataclasses.replace(res, lam_g=res.lam_g[:-1], extra={**res.extra, key: float(res.lam_g[-1])})
 
     def _cold_solve(self, nlp, phi0, p) -> Result:
         """The cold solve; on a meridian mesh pinned as the warm ones (``axial_pin``, at the start's
@@ -171,13 +178,9 @@ class IpoptCorrector:
             self._cold = make_solver(self.warm_nlp if self.slide else self.nlp, self.cold_options)
         if not self.slide:
             return solve_exact(nlp, x0=nlp.from_phi(phi0), solver=self._cold, options=self.cold_options, p=p)
-        scene = nlp.scene
-        nlp = at_point(self.warm_nlp, scene, nlp.alpha, nlp.beta)
-        c = axial_pin(self.disc)
-        res = solve_exact(nlp, x0=nlp.from_phi(phi0), solver=self._cold, options=self.cold_options,
-                          p=np.concatenate([p, c, [c @ phi0]]))
-        return dataclasses.replace(res, lam_g=res.lam_g[:-1],
-                                   extra={**res.extra, "translation_multiplier": float(res.lam_g[-1])})
+        nlp = at_point(self.warm_nlp, nlp.scene, nlp.alpha, nlp.beta)
+        return self._unpinned(solve_exact(nlp, x0=nlp.from_phi(phi0), solver=self._cold,
+                                          options=self.cold_options, p=self._pinned(p, phi0)))
 
     def reports(self, scene: Scene, nlp, res: Result) -> Result:
         """``res`` with the second-order and topology reports of the front door (module docstring)."""

@@ -67,11 +67,15 @@ def share(h, y) -> dict:
     h, y = h[order], y[order]
     d = np.diff(y[-3:])
     lim, p = richardson(h, y) if len(h) >= 3 and np.isfinite(d).all() and (d != 0).all() else (math.nan, math.nan)
-    lim2 = richardson_fixed(h, y, 2.0)
-    mid = y[len(y) - 2]
+    return _record(p, lim, richardson_fixed(h, y, 2.0), y[len(y) - 2])
+
+
+def _record(p: float, lim: float, lim2: float, at: float) -> dict:
+    """A share's record: the share of the level valued ``at`` against the limit of order ``p``
+    (``lim``), or against the p = 2 limit ``lim2`` where ``lim`` is nan (no order observed)."""
     observed = math.isfinite(lim)
-    return {"order": p, "limit": lim, "limit_p2": lim2, "share": mid - (lim if observed else lim2),
-            "share_p2": mid - lim2, "order_used": p if observed else 2.0}
+    return {"order": p, "limit": lim, "limit_p2": lim2, "share": at - (lim if observed else lim2),
+            "share_p2": at - lim2, "order_used": p if observed else 2.0}
 
 
 def corrected_crossing(va, fa, vb, fb, delta_a: float, delta_b: float) -> dict | None:
@@ -278,11 +282,8 @@ def share_at_order(h, y, p: float) -> dict:
     h, y = np.asarray(h, float), np.asarray(y, float)
     order = np.argsort(-h)
     h, y = h[order], y[order]
-    lim2 = richardson_fixed(h, y, 2.0)
     lim = richardson_fixed(h, y, p) if math.isfinite(p) else math.nan
-    observed = math.isfinite(lim)
-    return {"order": p, "limit": lim, "limit_p2": lim2, "share": y[-1] - (lim if observed else lim2),
-            "share_p2": y[-1] - lim2, "order_used": p if observed else 2.0}
+    return _record(p, lim, richardson_fixed(h, y, 2.0), y[-1])
 
 
 def shares(rows: list[dict]) -> dict:
