@@ -271,3 +271,46 @@ def test_seedless_case_records_the_detour_and_falls_back_to_the_seed(monkeypatch
     rows = S.phase_case(case, row)
     assert rows[-1]["seed"] == "no seed: detour in c0 from the oblate (switched at c0 = -1)"
     assert seen == {"lay": {"detour": True}, "start": "d", "max_iter": S.UP_MAX_ITER}
+
+
+def test_both_walks_share_one_seed_and_the_up_walk_stops_short_of_its_fold(monkeypatch):
+    """``walk`` "both" (``_stomatocyte.phase_case``), the solves replaced by a branch with a known fold
+    v(lambda) = v* - (lambda - 1)^2 on its lower side: the seed is solved once (one walk from the
+    sharp shape), the down walk starts from the up walk's first point; the up walk does not try a grid
+    v more than PAST_FOLD past the fold its last three minima extrapolate to (``fold_of``: exact on
+    this parabola), and does try one closer to it (where the solve fails: no minimiser)."""
+    import types
+
+    from vesicle_opt.studies import _stomatocyte as S
+
+    calls = []
+
+    def fake_walk(lay, eps, vs, first, name, stop=None, start=None, states=None, case="", max_iter=None):
+        calls.append((name, list(vs), start))
+        for v in vs:
+            ok = v <= v_star
+            lam = 1.0 - math.sqrt(max(v_star - v, 0.0))
+            res = types.SimpleNamespace(v=v, converged=ok, lambda_volume=lam, extra={"reduced_volume": v, "f": 2 - v})
+            yield v, res, "previous point" if start is not None or v != vs[0] else "sharp shape"
+            if stop(res):
+                return
+
+    def row(res, v, eps, lay, sharp_f, seed, side, walk):
+        return {"kind": "point", "seed": seed, "walk": walk, "v": v, "shape": "cup" if res.converged else None}
+
+    monkeypatch.setattr(S, "walk", fake_walk)
+    monkeypatch.setattr(S, "layout", lambda *a: {"lay": True})
+    sharp = types.SimpleNamespace(a=None, f=1.9, meridian=lambda m: (np.zeros(2), np.zeros(2)))
+    monkeypatch.setattr(S.sharp_s, "start_point", lambda v, c0, n: sharp)
+    monkeypatch.setattr(S.sharp_s, "newton", lambda a, v, c0, n: sharp)
+    up = [0.62, 0.63, 0.64, 0.65, 0.656, 0.66, 0.662, 0.664, 0.666]
+    case = {"epsilon": 0.03, "walk": "both", "vs": up, "vs_down": [0.62, 0.61, 0.6], "n_modes": 8, "eps_over_h": 4.0}
+    for v_star, last_up in ((0.6625, 0.662), (0.6638, 0.664)):  # 0.664 is 1.5e-3 / 2e-4 past the fold
+        calls.clear()
+        rows = S.phase_case(case, row)
+        got = [(r["walk"], r["v"]) for r in rows]
+        ups = [v for w, v in got if w == "up"]
+        assert ups == up[:up.index(last_up) + 1] and [v for w, v in got if w == "down"] == [0.61, 0.6]
+        (_, _, s_up), (_, vs_down, s_down) = calls
+        assert s_up is None and vs_down == [0.61, 0.6] and s_down.v == 0.62  # the seed once; down from it
+        assert rows[0]["seed"].endswith("(a seed)") and rows[len(ups)]["seed"] == "the up walk's first point (the same seed)"

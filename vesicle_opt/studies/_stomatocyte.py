@@ -32,15 +32,20 @@ v); ``down`` below the crossing with the oblate. Fixed-v minimisers stay on the 
 (stable) side, so the fold is located from the lower side (``fold_of``). The branch package's
 pseudo-arclength walk (p free) had stalled below the fold (steps shrinking to dv 4e-4; at v
 0.645/0.638/0.637 after 26 points at eps 0.04/0.03/0.025): the axial slide was held by neither its
-IPOPT solves nor its bordered Newton. With the axial pin (``branch.bordered.axial_pin``) it passes the
-fold on IPOPT and on Newton-Krylov, on uniform meshes at eps/h = 2 (docs/guide/bifurcation.md):
-eps 0.1 fold (0.7064385, 1.9249315) on both; eps 0.05 (0.6699719, 1.8901716), IPOPT 40 points
-(60.6 CPU s), Newton-Krylov 16 (49.9 CPU s, 8 Newton steps and a median 366 GMRES iterations a
-point). There the minimisers end 5e-4 below the fold (an eigenvalue crosses zero first, v still
-rising), and the lower-side vertex through the last three falls 1.1e-4 short in v. The study's
-refined meshes are banded about a shape, which the branch package cannot yet take from a seed field,
-so its walks stay at fixed v. Every row carries the sharp lower side at its v
-(``sharp_f``: Newton at 24 modes from the previous sharp point).
+IPOPT solves nor its bordered Newton. With the axial pin (``branch.bordered.axial_pin``) it passes a
+fold on IPOPT and on Newton-Krylov from this seed on uniform meshes at eps/h = 2, but at eps 0.1 and
+0.05 the states there are no stomatocytes (a shell round a pocket, then a torus; a torus: the
+meridian's topology, ``verify.topology``), and at eps 0.04 (cups) the walk had not reached the fold in
+31 points (docs/guide/bifurcation.md). The study's refined meshes are banded about a shape, which the
+branch package cannot yet take from a seed field, so its walks stay at fixed v. Every row carries the
+sharp lower side at its v (``sharp_f``: Newton at 24 modes from the previous sharp point).
+
+One case an eps walks both ways (``walk`` "both": ``vs`` up, then ``vs_down`` down from the same seeded
+first point; the seed, 38-130 IPOPT iterations at eps 0.04-0.02, is solved once, where two cases
+solved it twice: 144 of the diagram's 2016 CPU s, measured). The up walk stops before a grid point
+that lies past the fold the lower side extrapolates to (``fold_of`` on its minima so far, by more than
+``PAST_FOLD``): no minimiser exists there, and IPOPT ran to ``UP_MAX_ITER`` at that point (the last
+point of every up walk, ~100 of the diagram's CPU s, measured).
 
 The fold of a walk (``fold_of``): the branch's v and f are smooth in the volume multiplier
 lambda = df/dv (``lambda_volume`` of the solves, any fixed unit), which is monotone through a fold,
@@ -76,6 +81,8 @@ UP_MAX_ITER = 75  # IPOPT's cap on the up walk's warm points: the converged ones
 # next to the fold: measured); the walk's last point lies past the fold, where no minimiser exists and IPOPT
 # runs to the cap (150 iterations there, a third of the eps 0.03 walk's CPU time: measured)
 SHARP_MODES = 24  # the sharp lower side at each phase-field point (fold 0.660376 at 24 modes, 0.660850 at 48)
+PAST_FOLD = 5e-4  # the up walk skips a grid v this far past its lower-side fold (the lower-side vertex fell
+# 1.1e-4 short of the walked fold at eps 0.05, measured; the grid's last steps are 2e-3)
 
 
 def fold_of(v, f, lam) -> tuple[float, float] | None:
@@ -118,16 +125,16 @@ def sharp_case(case: dict) -> list[dict]:
 
 
 def phase_case(case: dict, point_row) -> list[dict]:
-    """The phase-field stomatocyte at ``case["epsilon"]``, the walk ``case["walk"]`` (up / down) over
-    ``case["vs"]`` from the seed at vs[0] = ``V_SEED`` (module docstring), or with ``case["seedless"]``
-    from the detour in c0 (``seedless``: its solves are rows of kind "detour", their c0 their own; the
-    seed where it is not reached, the column ``seed`` saying so);
+    """The phase-field stomatocyte at ``case["epsilon"]``, the walk ``case["walk"]`` (up / down, or
+    "both": up over ``vs``, then down over ``vs_down`` from the same first point) from the seed at
+    vs[0] = ``V_SEED`` (module docstring), or with ``case["seedless"]`` from the detour in c0
+    (``seedless``: its solves are rows of kind "detour", their c0 their own; the seed where it is not
+    reached, the column ``seed`` saying so);
     ``point_row(res, v, eps, lay, sharp_f, seed, side, walk)`` makes a study row (side "lower":
     fixed-v minimisers)."""
-    eps, name = case["epsilon"], f"phase_diagram-stomatocyte-{case['walk']}"
+    eps, name = case["epsilon"], "phase_diagram-stomatocyte"
     seed_pt = sharp_s.start_point(case["vs"][0], 0.0, case["n_modes"])  # the sharp reference (and the seed)
     r, z = seed_pt.meridian(2048)
-    sharp_pts = {case["vs"][0]: seed_pt}
     rows, start, first = [], None, f"sharp stomatocyte at v = {case['vs'][0]} (a seed)"
     if case.get("seedless"):
         d, lay = seedless(case["vs"][0], eps, case["eps_over_h"], case.get("refine", True), name=f"{name}-detour")
@@ -142,12 +149,36 @@ def phase_case(case: dict, point_row) -> list[dict]:
             first += "; the detour in c0 was not reached"
     if start is None:
         lay = layout([(r, z)], eps, case["eps_over_h"], case.get("refine", True))
+    legs = [("up", case["vs"]), ("down", case["vs_down"])] if case["walk"] == "both" else [(case["walk"], case["vs"])]
+    for leg, vs in legs:
+        if leg == "down" and case["walk"] == "both":  # from the up walk's first point, solved once
+            if start is None:
+                break
+            vs, first = vs[1:], "the up walk's first point (the same seed)"
+        got = _leg(case, leg, vs, lay, eps, name, (r, z), start, first, seed_pt, point_row)
+        if leg == "up" and case["walk"] == "both":
+            start = got[0][1] if got and got[0][1].converged else None
+        rows += [row for row, _ in got]
+    return rows
+
+
+def _leg(case, leg, vs, lay, eps, name, first_shape, start, first, seed_pt, point_row) -> list:
+    """One walk of ``phase_case`` (up / down) over ``vs``: [(row, Result)]; an up walk stops after a
+    point that is no cup or did not converge, or before a v past its lower-side fold (``PAST_FOLD``)."""
+    sharp_pts = {case["vs"][0]: seed_pt}
+    mins: list = []  # (v, f, lambda) of the walk's cups so far, one a grid point of ``vs``
 
     def stop(res) -> bool:  # past the fold (no minimiser), or no stomatocyte any more (a torus, an oblate)
-        return not res.converged or point_row(res, math.nan, eps, lay, math.nan, "", "", "")["shape"] != "cup"
+        row = point_row(res, math.nan, eps, lay, math.nan, "", "", "")
+        if not res.converged or row["shape"] != "cup":
+            return True
+        mins.append((_num(res.extra.get("reduced_volume")), _num(res.extra.get("f")), res.lambda_volume))
+        fv = fold_of(*zip(*mins)) if leg == "up" and len(mins) >= 3 else None
+        return bool(fv is not None and len(mins) < len(vs) and vs[len(mins)] > fv[0] + PAST_FOLD)
 
-    cap = UP_MAX_ITER if case["walk"] == "up" else MAX_ITER
-    for k, (v, res, label) in enumerate(walk(lay, eps, case["vs"], (r, z), name, stop, start,
+    cap = UP_MAX_ITER if leg == "up" else MAX_ITER
+    out = []
+    for k, (v, res, label) in enumerate(walk(lay, eps, vs, first_shape, f"{name}-{leg}", stop, start,
                                              case.get("states"), case.get("case", name), max_iter=cap)):
         q = sharp_pts.get(v)
         if q is None:
@@ -157,8 +188,8 @@ def phase_case(case: dict, point_row) -> list[dict]:
             except (sharp_s.NotConverged, np.linalg.LinAlgError):
                 q = None  # past the sharp fold: no lower-side point
         seed = first if k == 0 else label
-        rows.append(point_row(res, v, eps, lay, q.f if q is not None else math.nan, seed, "lower", case["walk"]))
-    return rows
+        out.append((point_row(res, v, eps, lay, q.f if q is not None else math.nan, seed, "lower", leg), res))
+    return out
 
 
 # --- the seedless start: a detour in c0 (``branch.detour``) ----------------------------------------

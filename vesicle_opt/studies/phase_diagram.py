@@ -20,7 +20,8 @@ The v grid is fine where the transitions are and coarse elsewhere: ``near`` (pro
 v 0.68 ... 0.62 by 0.01, warm-started along v, about the prolate/oblate crossing, sharp 0.6511), ``low``
 (the oblate 0.63 ... 0.57 by 0.005-0.01, about its crossing with the stomatocyte, sharp 0.5909),
 ``far`` (v 0.95, 0.85, 0.75 and the prolate's 0.55, 0.5: each point from its own sharp shape), and
-the stomatocyte's two walks from v = 0.62 (``up`` to its fold, ``down`` to 0.5). A crossing per eps
+the stomatocyte's two walks from v = 0.62 (``up`` to its fold, ``down`` to 0.5; one case an eps, the seed
+solved once). A crossing per eps
 is the root of the difference of cubic splines f(v) through certified points of each branch's own
 form (``branch.crossing``; an oblate that turned torus is not used); a fold per eps is the vertex
 of v(lambda) (``_stomatocyte.fold_of``). The eps -> 0 limits (``extrapolate``): free-order Richardson
@@ -109,8 +110,9 @@ def cases(quick: bool, states=None) -> list[dict]:
     """One case per (branch, eps, part): the parts and eps values run in parallel (the runner), in
     the order of what the transitions need (the pool takes them in order; a run stopped early, and
     resumed, has the transitions first): the sharp stomatocyte; the prolate/oblate ``near`` walks;
-    the stomatocyte's ``up`` walks (its fold; with ``low_extra``'s finer eps); the ``low`` oblate and
-    the stomatocyte's ``down`` walks (their crossing; with ``low_extra``'s); the ``far`` points; within
+    the stomatocyte's walks (``up`` to its fold, then ``down`` from the same seed: one case an eps; with
+    ``low_extra``'s finer eps); the ``low`` oblate (its crossing with the stomatocyte's ``down`` walk;
+    with ``low_extra``'s); the ``far`` points; within
     each the finest (longest) eps first. ``states``: where the walks save their points' fields (``_hlevel``)."""
     cfg = QUICK if quick else FULL
     common = {"eps_over_h": cfg["eps_over_h"], "refine": cfg["refine"], "n_modes": cfg["n_modes"],
@@ -121,15 +123,15 @@ def cases(quick: bool, states=None) -> list[dict]:
     if not quick:
         st = {**common, "n_modes": 24}
 
-        def walk_case(w, eps, v_min=0.0):
-            return {"case": f"stomatocyte-{w}-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps, "walk": w,
-                    "vs": [v for v in cfg[f"stomatocyte_{w}"] if v >= v_min], **st}
+        def walk_case(eps, v_min=0.0):  # both walks from one seed (``_stomatocyte.phase_case``)
+            return {"case": f"stomatocyte-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps, "walk": "both",
+                    "vs": list(cfg["stomatocyte_up"]), "vs_down": [v for v in cfg["stomatocyte_down"] if v >= v_min], **st}
         out = [{"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]}] \
-            + out + [walk_case("up", eps) for eps in sorted(cfg["low_extra"]) + order]
+            + out + [walk_case(eps, cfg["down_extra_min"] if eps in cfg["low_extra"] else 0.0)
+                     for eps in sorted(cfg["low_extra"]) + order]
         for eps in sorted(cfg["low_extra"]) + order:
             out += [{"case": f"oblate-low-eps{eps:g}", "branch": "oblate", "epsilon": eps, "part": "low",
-                     "vs": list(cfg["oblate_low"]), **common},
-                    walk_case("down", eps, cfg["down_extra_min"] if eps in cfg["low_extra"] else 0.0)]
+                     "vs": list(cfg["oblate_low"]), **common}]
         out += [{"case": f"{b}-far-eps{eps:g}", "branch": b, "epsilon": eps, "part": "far", "vs": list(vs), **common}
                 for eps in order for b, vs in cfg["far"].items()]
     for name in EXTENSIONS:
