@@ -178,19 +178,25 @@ def test_seed_from_carries_a_solutions_curve_to_a_finer_eps():
     assert P.seed_from(two, 0.04) is None
 
 
-def test_cases_put_the_sharp_case_and_the_finest_eps_first():
+def test_cases_put_the_sharp_case_and_the_longest_first():
     cs = P.cases()
-    assert cs[0]["epsilon"] == 0.0 and [c["epsilon"] for c in cs[1:3]] == [min(P.FULL["epsilons"])] * 2
-    assert {c["branch"] for c in cs} == set(P.BRANCHES) and len({c["case"] for c in cs}) == len(cs)
-
-    # the pear's first point goes through every coarser eps (descending); the prolate and the coarsest don't
+    eps = sorted(P.FULL["epsilons"])
+    assert cs[0]["epsilon"] == 0.0 and len({c["case"] for c in cs}) == len(cs)
+    # the pear one case a v, each an eps-continuation through every coarser eps with a row at each step
+    pears = [c for c in cs if c["branch"] == "pear" and c["epsilon"] > 0]
+    assert cs[1:1 + len(pears)] == pears and [c["vs"] for c in pears] == [[v] for v in P.FULL["vs"]]
+    assert all(c["epsilon"] == eps[0] and c["chain"] == eps[:0:-1] and c["chain_rows"] for c in pears)
+    assert [c["epsilon"] for c in cs[1 + len(pears):]] == eps  # the prolate's, finest first
+    # without pear_per_v: one pear case an eps, its first point through every coarser eps (descending)
+    cs = P.cases(cfg={**P.FULL, "pear_per_v": False, "start_v": 0.75})
+    assert [c["epsilon"] for c in cs[1:3]] == [eps[0]] * 2 and {c["branch"] for c in cs} == set(P.BRANCHES)
     chains = {c["case"]: c.get("chain") for c in cs}
     assert chains["pear-eps0.015"] == [0.03, 0.02] and chains["pear-eps0.02"] == [0.03]
     assert chains["pear-eps0.01"] == [0.03, 0.02, 0.015, 0.0125]
     assert chains["pear-eps0.03"] is None and chains["prolate_c2.4-eps0.015"] is None
-    assert all("chain" not in c for c in P.cases(cfg={**P.FULL, "chain": False}))
+    assert all("chain" not in c for c in P.cases(cfg={**P.FULL, "pear_per_v": False, "chain": False}))
     # the pear starts at start_v (both ways from it); the prolate from its highest v
-    assert {c.get("start_v") for c in cs if c["branch"] == "pear" and c["epsilon"] > 0} == {P.FULL["start_v"]}
+    assert {c.get("start_v") for c in cs if c["branch"] == "pear" and c["epsilon"] > 0} == {0.75}
     assert all("start_v" not in c for c in cs if c["branch"] != "pear")
 
 
@@ -212,7 +218,13 @@ def test_phase_case_walks_both_ways_from_its_first_point(monkeypatch):
 
     sharp = types.SimpleNamespace(converged=True, f=0.1, meridian=lambda m: (np.zeros(2), np.zeros(2)))
     monkeypatch.setattr(P, "sharp_branches", lambda vs, n, which: {which[0]: [sharp] * len(vs)})
-    monkeypatch.setattr(P, "_first", lambda case, which, v, r, z: ([[0, 1], [-1, 1]], [2, 2], 1, "seed", "s", ""))
+    def first(case, which, v, r, z, keep=None):  # a chain step at eps 0.03 recorded where asked (chain_rows)
+        if keep is not None:
+            keep.append((0.03, solve(types.SimpleNamespace(v=v), "seed"), [2, 2], 1.0))
+            calls.pop()
+        return [[0, 1], [-1, 1]], [2, 2], 1, "seed", "s", ""
+
+    monkeypatch.setattr(P, "_first", first)
     monkeypatch.setattr(P, "_solve_quiet", solve)
     monkeypatch.setattr(P, "_scene", lambda box, n, levels, eps, v, name: types.SimpleNamespace(v=v))
     monkeypatch.setattr(P, "meridian_curves", lambda disc, phi: [])
@@ -234,3 +246,6 @@ def test_phase_case_walks_both_ways_from_its_first_point(monkeypatch):
     fail = set()
     P.phase_case({**case, "start_v": None})  # no start_v: up from the lowest v, as before
     assert calls == [(0.74, "seed"), (0.75, 0.74), (0.76, 0.75), (0.77, 0.76)]
+    rows = P.phase_case({**case, "vs": [0.75], "chain_rows": True})  # a per-v case: the chain's step, then the point
+    assert [(r["epsilon"], r["target_v"]) for r in rows] == [(0.03, 0.75), (0.02, 0.75)]
+    assert rows[0]["seed"].startswith("eps-continuation step") and rows[0]["converged"]

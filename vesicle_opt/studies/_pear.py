@@ -14,7 +14,9 @@ zero); the pear is reached at v = ``V_KICK`` from it kicked along sin(3 s) (24 m
 and carried up the ladder ``LADDER`` of N, each solve from the previous N's coefficients (its narrow
 neck converges only algebraically in N; a cold kick at N >= 48 leaves the shapes, measured).
 
-Phase field: one case per (branch, eps). The first point is SEEDED (column ``seed``) with the tanh
+Phase field: the pear one case per v (``FULL["pear_per_v"]``: an eps-continuation through every eps, a
+row at each step, ``chain_rows``; at the finest eps a walk in v did not converge), the prolate one case
+per eps (a walk in v). Without ``pear_per_v``, one case per (branch, eps). The first point is SEEDED (column ``seed``) with the tanh
 profile of the sharp shape at that v (``io.meridian.phase_field_of``) on a band mesh built about the
 sharp meridian (``refine.curve_distance``), and the walk goes on warm-started (the front door re-meshes
 where the interface leaves its band). With ``case["chain"]`` (coarser eps, descending) the first point
@@ -59,8 +61,12 @@ PUBLISHED = (0.746, 0.107)  # SBL 1991, read off their figure (+-0.005 in v, +-0
 BRANCHES = ("pear", "prolate_c2.4")  # not "prolate": the c0 = 0 prolate rows of phase_diagram keep their name
 # the phase field's v grid: its crossing lies above the sharp one at finite eps (at eps = 0.03 the pear
 # lies 0.013 below its sharp f, measured, the prolate above it), so the grid reaches v = 0.77
-FULL = {"epsilons": (0.03, 0.02, 0.015, 0.0125, 0.01), "vs": (0.74, 0.75, 0.76), "start_v": 0.75, "seed_modes": 48,
-        "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 128, "chain": True}
+FULL = {"epsilons": (0.03, 0.02, 0.015, 0.0125, 0.01), "vs": (0.74, 0.75, 0.76), "seed_modes": 48,
+        "sharp_vs": (0.734, 0.74, 0.746, 0.752, 0.758), "sharp_modes": 128, "chain": True, "pear_per_v": True}
+# pear_per_v: the pear one case a v, each an eps-continuation through every eps (a row at each step): walked in
+# v at eps 0.01 from its first point (v 0.75, 578 CPU s through the chain) the warm pears at 0.76 and 0.74 ran to
+# IPOPT's 500 iterations unconverged (630, 655 CPU s), measured; without it, one case a (branch, eps) as the
+# prolate's, the pear started at "start_v" (if given) and walked both ways
 # chain: the pear's first point through the coarser eps (at eps = 0.015 through 0.03, 0.02: pears at
 # v = 0.75, 0.76, 283-302 CPU-s in all, measured; docs/guide/axisymmetric.md)
 V_KICK, KICK = 0.72, 0.3  # the pear is reached here from the symmetric shape + KICK sin(3 s) (24 modes)
@@ -231,11 +237,12 @@ def seed_from(res, eps: float):
     return _densify(curves[0], eps / EPS_OVER_H / 8)
 
 
-def _first(case: dict, which: str, v: float, r, z):
+def _first(case: dict, which: str, v: float, r, z, keep: list | None = None):
     """The first point's (box, n, levels, start, seed text, chain text): seeded at ``case["epsilon"]``
     with the sharp shape (r, z), or, with ``case["chain"]`` (coarser eps, descending), solved at the
     first of them from the sharp shape and carried down the chain by ``seed_from``, each step's
-    CPU-s and IPOPT iterations in the chain text (the last step's solve is the case's first point)."""
+    CPU-s and IPOPT iterations in the chain text (the last step's solve is the case's first point).
+    ``keep``: a list that gets (eps, Result, n, CPU-s) of each chain step (``chain_case``)."""
     eps, steps, notes = case["epsilon"], [*case.get("chain", ()), case["epsilon"]], []
     for k, e in enumerate(steps):
         box, n, levels = box_of(r, z, e)
@@ -248,6 +255,8 @@ def _first(case: dict, which: str, v: float, r, z):
         res = _solve_quiet(_scene(box, n, levels, e, v, f"phase_diagram-{which}-v{v:g}-eps{e:g}-chain"), start)
         shape = form(meridian_curves(res.disc, res.phi), e)[0] if res.converged else "failed"
         notes.append(f"eps {e:g}: {time.process_time() - c1:.1f} CPU-s, {res.iterations} it, {shape}")
+        if keep is not None:
+            keep.append((e, res, n, time.process_time() - c1))
         nxt = seed_from(res, steps[k + 1]) if res.converged else None
         if nxt is None:  # the chain broke: the sharp seed at eps (a cold start), said so
             notes.append("chain broken: sharp seed")
@@ -273,8 +282,11 @@ def phase_case(case: dict) -> list[dict]:
     k0 = vs.index(case["start_v"]) if case.get("start_v") is not None else 0
     if not ref[k0].converged:  # no seed (e.g. the kicked SLSQP left the shapes): said so, not meshed on NaN
         raise SolverError(f"the sharp {which} seed at v = {vs[k0]:g} did not converge ({case['n_modes']} modes)")
-    box, n, levels, start, seed, chain = _first(case, which, vs[k0], *ref[k0].meridian(4096))
-    rows, first = [], None
+    steps: list | None = [] if case.get("chain_rows") else None
+    box, n, levels, start, seed, chain = _first(case, which, vs[k0], *ref[k0].meridian(4096), keep=steps)
+    rows = [_point(which, vs[k0], e, res, ref[k0].f, m, f"eps-continuation step from the sharp {which} "
+                   f"({case['n_modes']} modes; a seed)", "up", cpu, chain) for e, res, m, cpu in steps or ()]
+    first = None
     todo = list(range(k0, len(vs))) + list(range(k0 - 1, -1, -1))  # on from the first point, then back from it
     while todo:
         k = todo.pop(0)
@@ -284,18 +296,8 @@ def phase_case(case: dict) -> list[dict]:
         sc = _scene(box, n, levels, eps, v, f"phase_diagram-{which}-v{v:g}-eps{eps:g}")
         c1 = time.process_time()
         res = _solve_quiet(sc, start)
-        ex = res.extra
-        shape, neck, asym = form(meridian_curves(res.disc, res.phi), eps) if res.converged else (None, math.nan, math.nan)
-        f = _num(ex.get("f"))
-        rows.append(_row(which, v, eps, shape=shape, n="x".join(map(str, n)), h=eps / EPS_OVER_H, f=f,
-                         c0_reduced=ex.get("c0_reduced"), reduced_volume=ex.get("reduced_volume"), sharp_f=s.f,
-                         f_minus_sharp=f - s.f, converged=res.converged, second_order=ex.get("second_order"),
-                         second_order_min_eigenvalue=ex.get("second_order_min_eigenvalue"),
-                         topology=ex.get("topology"), kkt_residual=res.kkt_residual, iterations=res.iterations,
-                         wall_time_s=res.wall_time_s, seed=seed, status=res.outcome,
-                         walk="up" if (which == "pear") == (k >= k0) else "down", neck_over_eps=neck,
-                         neck_radius=neck * eps, asymmetry=asym, nodes=res.disc.n_nodes,
-                         cpu_s=time.process_time() - c1, chain=chain))
+        rows.append(_point(which, v, eps, res, s.f, n, seed, "up" if (which == "pear") == (k >= k0) else "down",
+                           time.process_time() - c1, chain))
         if not res.converged:  # this direction ends here; the other goes on from a converged first point
             todo = [j for j in todo if j < k0] if k > k0 else []
             continue
@@ -303,6 +305,21 @@ def phase_case(case: dict) -> list[dict]:
         start, seed, chain = res, "previous point", ""
     rows[0]["cpu_s"] = _num(rows[0]["cpu_s"]) + (time.process_time() - t0 - sum(_num(q["cpu_s"]) for q in rows))
     return rows
+
+
+def _point(which: str, v: float, eps: float, res, sharp_f: float, n, seed: str, walk: str, cpu: float,
+           chain: str) -> dict:
+    """A phase-field row of one solve: f against the sharp one, the verdicts, the meridian's form."""
+    ex = res.extra
+    shape, neck, asym = form(meridian_curves(res.disc, res.phi), eps) if res.converged else (None, math.nan, math.nan)
+    f = _num(ex.get("f"))
+    return _row(which, v, eps, shape=shape, n="x".join(map(str, n)), h=eps / EPS_OVER_H, f=f,
+                c0_reduced=ex.get("c0_reduced"), reduced_volume=ex.get("reduced_volume"), sharp_f=sharp_f,
+                f_minus_sharp=f - sharp_f, converged=res.converged, second_order=ex.get("second_order"),
+                second_order_min_eigenvalue=ex.get("second_order_min_eigenvalue"),
+                topology=ex.get("topology"), kkt_residual=res.kkt_residual, iterations=res.iterations,
+                wall_time_s=res.wall_time_s, seed=seed, status=res.outcome, walk=walk, neck_over_eps=neck,
+                neck_radius=neck * eps, asymmetry=asym, nodes=res.disc.n_nodes, cpu_s=cpu, chain=chain)
 
 
 def run(case: dict) -> list[dict]:
@@ -319,9 +336,16 @@ def cases(quick: bool = False, cfg: dict | None = None) -> list[dict]:
     cfg = cfg or FULL
     out = [{"case": "pear-sharp", "branch": "pear", "epsilon": 0.0, "vs": list(cfg["sharp_vs"]),
             "n_modes": cfg["sharp_modes"]}]
+    per_v = cfg.get("pear_per_v")
+    if per_v:  # the longest cases first: the chain through every eps, a row at each (``chain_rows``)
+        out += [{"case": f"pear-v{v:g}", "branch": "pear", "epsilon": min(cfg["epsilons"]), "vs": [v],
+                 "n_modes": cfg["seed_modes"], "chain": sorted(cfg["epsilons"], reverse=True)[:-1],
+                 "chain_rows": True} for v in cfg["vs"]]
     for eps in sorted(cfg["epsilons"]):
         out += [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "vs": list(cfg["vs"]),
-                 "n_modes": cfg["seed_modes"]} for b in BRANCHES]
+                 "n_modes": cfg["seed_modes"]} for b in BRANCHES if not (per_v and b == "pear")]
+        if per_v:
+            continue
         if cfg.get("start_v") is not None:  # the pear's first point (both ways from it, ``phase_case``)
             out[-2]["start_v"] = cfg["start_v"]
         coarser = sorted((e for e in cfg["epsilons"] if e > eps), reverse=True)
