@@ -277,8 +277,9 @@ def phase_case(case: dict) -> list[dict]:
     the sharp shape, or through the eps-continuation ``case["chain"]``), then the walk."""
     eps, which, t0 = case["epsilon"], case["branch"], time.process_time()
     vs = sorted(case["vs"], reverse=which != "pear")
-    ref = sharp_branches(vs, case["n_modes"], (which,))[which]
-    ref = ref if which == "pear" else ref[::-1]  # sharp_branches returns ascending v
+    grid = sorted({*vs, *case.get("ref_vs", ())})  # the sharp path: its SLSQP solves depend on the steps
+    ref = dict(zip(grid, sharp_branches(grid, case["n_modes"], (which,))[which]))  # (ascending v)
+    ref = [ref[v] for v in vs]
     k0 = vs.index(case["start_v"]) if case.get("start_v") is not None else 0
     if not ref[k0].converged:  # no seed (e.g. the kicked SLSQP left the shapes): said so, not meshed on NaN
         raise SolverError(f"the sharp {which} seed at v = {vs[k0]:g} did not converge ({case['n_modes']} modes)")
@@ -340,7 +341,7 @@ def cases(quick: bool = False, cfg: dict | None = None) -> list[dict]:
     if per_v:  # the longest cases first: the chain through every eps, a row at each (``chain_rows``)
         out += [{"case": f"pear-v{v:g}", "branch": "pear", "epsilon": min(cfg["epsilons"]), "vs": [v],
                  "n_modes": cfg["seed_modes"], "chain": sorted(cfg["epsilons"], reverse=True)[:-1],
-                 "chain_rows": True} for v in cfg["vs"]]
+                 "chain_rows": True, "ref_vs": list(cfg["vs"])} for v in cfg["vs"]]
     for eps in sorted(cfg["epsilons"]):
         out += [{"case": f"{b}-eps{eps:g}", "branch": b, "epsilon": eps, "vs": list(cfg["vs"]),
                  "n_modes": cfg["seed_modes"]} for b in BRANCHES if not (per_v and b == "pear")]
