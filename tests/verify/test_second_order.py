@@ -68,3 +68,22 @@ def test_a_saddle_verdict_is_confirmed_by_descent():
     pushed = S.solve(nlp, x0=res.phi + 0.2 * mode)
     assert pushed.converged and pushed.energy < res.energy
     assert SO.check(nlp, pushed).verdict == "minimum"
+
+
+@pytest.mark.parametrize("overrides", [("mesh.n=32",), ("mesh.n=16", "mesh.kind='fem-p1'")], ids=["fd", "fem-lumped"])
+def test_lanczos_start_is_not_in_the_volume_constraints_normal(overrides):
+    """ARPACK's shift-invert start is OPinv(M v0), which lies in the constraints' tangent space: v0 must
+    have a part there. With lumped mass M^-1 grad A = ones, so ones(n) (the former start) has none: its
+    start was round-off, set by the BLAS kernel and thread count (ARPACK "starting vector is zero" under
+    OMP_NUM_THREADS=1). The start's M-part off ones must be nearly all of it: a standard normal vector's
+    along ones is ~ 1/sqrt(n) of it (n = 1024, 256 here: <= 0.1 with margin)."""
+    nlp = build_nlp(load_scene("ellipse-2d", [*overrides, "solver.second_order=false"]))
+    w = np.asarray(nlp.disc.weights, float)
+    n = w.size
+    normal = np.ones(n)  # M^-1 grad A for A = w . phi, M = diag(w)
+    for v0, off in ((SO.start_vector(n), True), (np.ones(n), False)):
+        along = (w * v0) @ normal / ((w * normal) @ normal)
+        rest = v0 - along * normal
+        share = np.sqrt((w * rest) @ rest / ((w * v0) @ v0))
+        assert bool(share > 0.9) is off, share  # ones: exactly 0 (round-off 1e-16)
+    assert np.array_equal(SO.start_vector(n), SO.start_vector(n))  # deterministic

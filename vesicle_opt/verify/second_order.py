@@ -113,13 +113,21 @@ def _floor(reduced, Mphi, solve_mass, n: int, steps: int = POWER_STEPS) -> float
     return EPS * lam
 
 
+def start_vector(n: int) -> np.ndarray:
+    """The Lanczos start: deterministic (bitwise-reproducible summaries) with a part in every direction.
+    Not ones(n), which with lumped mass is M^-1 grad A: ARPACK's forced start OPinv(M v0) then lies in
+    the constraints' normal space and was round-off only, its sign and size set by the BLAS kernel and
+    the thread count ("starting vector is zero" under OMP_NUM_THREADS=1 on an FD ellipse, measured)."""
+    return np.random.default_rng(0).standard_normal(n)
+
+
 def _eigenpairs(H, B, J, Aop, Mphi, C_rows, mu_ref, n, nx, n_eig):
     """Shift-invert Lanczos (ARPACK) from sigma = -mu_ref / 2, moved below the least eigenvalue found
     until none lies below it (``check``); on lumped meshes the bordered solve by one factorisation of H - sigma M
     and the Schur complement (``shift_invert.factorise``; the bordered LU where that fails).
     Returns (mu, vectors)."""
     pad = np.zeros(J.shape[0] + nx - n)
-    v0 = np.ones(n)  # deterministic start vector: bitwise-reproducible summaries
+    v0 = start_vector(n)
     sigma = -0.5 * mu_ref
     for _ in range(MAX_SHIFTS):
         bordered = SI.factorise(H, Mphi, sigma, C_rows) if C_rows is not None else None
