@@ -165,3 +165,22 @@ def test_sphere_energy_is_scale_free():
     E = quad(lambda r: (1 - phi(r) ** 2) ** 2 * 4 / (2 * r**2) / (2 * eps) * 4 * np.pi * r**2,
              0, R + 40 * eps, points=[R], limit=400)[0]
     assert E == pytest.approx(F.sharp_energy_sphere(1.0, 3), rel=3 * eps**2)  # O(eps^2/R^2) correction
+
+
+def test_sparse_dm_is_casadis_own_conversion():
+    """``sparse_dm`` (built from the CSC arrays) against ``casadi.DM(csc)`` on a matrix with an explicit
+    zero, and on one whose row indices are unsorted: the same pattern and values, exactly."""
+    import casadi as ca
+    import scipy.sparse as sp
+
+    from vesicle_opt.model.functionals import sparse_dm
+
+    A = sp.random(50, 40, density=0.1, format="csc", random_state=1)
+    A.data[0] = 0.0  # an explicit zero kept in the pattern
+    B = sp.csc_matrix((A.data[::-1].copy(), A.indices.copy(), A.indptr.copy()), shape=A.shape)
+    B.indices = np.concatenate([B.indices[a:b][::-1] for a, b in zip(B.indptr[:-1], B.indptr[1:])])
+    B.has_sorted_indices = False
+    for M in (A, B):  # casadi's own conversion of the unsorted one: from its sorted copy
+        mine, ref = sparse_dm(M), ca.DM(M.sorted_indices())
+        assert mine.sparsity() == ref.sparsity() and float(ca.norm_inf(mine - ref)) == 0.0
+    assert sparse_dm(A).nnz() == A.nnz  # the explicit zero kept

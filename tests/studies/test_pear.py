@@ -184,7 +184,7 @@ def test_cases_put_the_sharp_case_and_the_longest_first():
     assert cs[0]["epsilon"] == 0.0 and len({c["case"] for c in cs}) == len(cs)
     # the pear one case a v, each an eps-continuation through every coarser eps with a row at each step
     pears = [c for c in cs if c["branch"] == "pear" and c["epsilon"] > 0]
-    assert cs[1:1 + len(pears)] == pears and [c["vs"] for c in pears] == [[v] for v in P.FULL["vs"]]
+    assert cs[1:1 + len(pears)] == pears and [c["vs"] for c in pears] == [[v] for v in P.FULL["pear_vs"]]
     assert all(c["epsilon"] == eps[0] and c["chain"] == eps[:0:-1] and c["chain_rows"] for c in pears)
     assert [c["epsilon"] for c in cs[1 + len(pears):]] == eps  # the prolate's, finest first
     # without pear_per_v: one pear case an eps, its first point through every coarser eps (descending)

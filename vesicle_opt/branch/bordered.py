@@ -108,7 +108,7 @@ class BorderedCorrector:
         eps, rig = scene.model.epsilon, scene.model.rigidity
         phi, lam_a, lam_b, p = (ca.MX.sym(name, k) for name, k in (("phi", n), ("lam_a", 1), ("lam_b", 1), ("p", 1)))
         ops = F.CasadiOps(disc)
-        lap = ca.mtimes(ca.DM(disc.laplacian.tocsc()), phi)
+        lap = ca.mtimes(F.sparse_dm(disc.laplacian), phi)
         C = affine.C[0] + affine.C[1] * p
         E = F.energy(ops, phi, lap, eps, C)
         A = F.volume_functional(ops, phi)

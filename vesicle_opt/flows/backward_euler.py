@@ -66,7 +66,7 @@ class BackwardEulerScheme(Scheme):
         phi, a, b = x[:n], x[n], x[n + 1]
         p = ca.MX.sym("p", n + 1)  # (phi^n, 1/(gamma k))
         phi_n, c = p[:n], p[n]
-        lap = ca.mtimes(ca.DM(disc.laplacian.tocsc()), phi)
+        lap = ca.mtimes(Fn.sparse_dm(disc.laplacian), phi)
         E_h = Fn.energy(ops, phi, lap, md.epsilon, md.C)
         A = Fn.volume_functional(ops, phi)
         B = Fn.area_functional(ops, phi, md.epsilon)

@@ -121,7 +121,7 @@ def build_exact(scene: Scene, disc: Discretization | None = None, check: bool = 
     if disc.consistent:
         lap = x[n:]
     else:
-        lap = ca.mtimes(ca.DM(disc.laplacian.tocsc()), phi)
+        lap = ca.mtimes(F.sparse_dm(disc.laplacian), phi)
     f_scale = objective_scale(disc, scene.model.rigidity, eps, alpha, beta)
     g_scale = np.array([disc.volume, beta])
     p = ca.MX.sym("p", 4 if parametric else 0)
@@ -131,7 +131,7 @@ def build_exact(scene: Scene, disc: Discretization | None = None, check: bool = 
     B = F.area_functional(ops, phi, eps)
     rows = [(A - a_) / g_scale[0], (B - b_) / b_]
     if disc.consistent:
-        rows.append(eps**2 / m_bar * (ca.mtimes(ca.DM(disc.M.tocsc()), lap) + ca.mtimes(ops.K, phi)))
+        rows.append(eps**2 / m_bar * (ca.mtimes(F.sparse_dm(disc.M), lap) + ca.mtimes(ops.K, phi)))
     g = ca.vertcat(*rows)
     ng = g.shape[0]
     inf = np.full(x.shape[0], np.inf)
