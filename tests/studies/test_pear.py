@@ -188,22 +188,19 @@ def test_cases_put_the_sharp_case_and_the_longest_first():
     assert all(c["epsilon"] == eps[0] and c["chain"] == eps[:0:-1] and c["chain_rows"] for c in pears)
     assert [c["epsilon"] for c in cs[1 + len(pears):]] == eps  # the prolate's, finest first
     # without pear_per_v: one pear case an eps, its first point through every coarser eps (descending)
-    cs = P.cases(cfg={**P.FULL, "pear_per_v": False, "start_v": 0.75})
+    cs = P.cases(cfg={**P.FULL, "pear_per_v": False})
     assert [c["epsilon"] for c in cs[1:3]] == [eps[0]] * 2 and {c["branch"] for c in cs} == set(P.BRANCHES)
     chains = {c["case"]: c.get("chain") for c in cs}
     assert chains["pear-eps0.015"] == [0.03, 0.02] and chains["pear-eps0.02"] == [0.03]
     assert chains["pear-eps0.01"] == [0.03, 0.02, 0.015, 0.0125]
     assert chains["pear-eps0.03"] is None and chains["prolate_c2.4-eps0.015"] is None
     assert all("chain" not in c for c in P.cases(cfg={**P.FULL, "pear_per_v": False, "chain": False}))
-    # the pear starts at start_v (both ways from it); the prolate from its highest v
-    assert {c.get("start_v") for c in cs if c["branch"] == "pear" and c["epsilon"] > 0} == {0.75}
-    assert all("start_v" not in c for c in cs if c["branch"] != "pear")
 
 
-def test_phase_case_walks_both_ways_from_its_first_point(monkeypatch):
+def test_phase_case_walks_from_its_first_point_and_records_the_chain(monkeypatch):
     """The walk's order and starts with the solves stubbed (each 'solution' records its v and its start):
-    up from start_v warm, then down from the first point (not from the last up point); an up point that
-    fails ends that direction only; a first point that fails ends the case."""
+    up from the lowest v, each warm from the last; a point that fails ends the walk; with
+    ``chain_rows`` the continuation's steps come first as rows at their own eps."""
     import types
 
     calls = []
@@ -230,22 +227,16 @@ def test_phase_case_walks_both_ways_from_its_first_point(monkeypatch):
     monkeypatch.setattr(P, "meridian_curves", lambda disc, phi: [])
     monkeypatch.setattr(P, "form", lambda curves, eps: ("pear", 4.0, 0.1))
     case = {"case": "pear-eps0.02", "branch": "pear", "epsilon": 0.02, "vs": [0.74, 0.75, 0.76, 0.77],
-            "n_modes": 24, "start_v": 0.75}
+            "n_modes": 24}
     fail = set()
     rows = P.phase_case(case)
-    assert calls == [(0.75, "seed"), (0.76, 0.75), (0.77, 0.76), (0.74, 0.75)]
-    assert [r["walk"] for r in rows] == ["up", "up", "up", "down"]
+    assert calls == [(0.74, "seed"), (0.75, 0.74), (0.76, 0.75), (0.77, 0.76)]
+    assert [r["walk"] for r in rows] == ["up"] * 4
     calls.clear()
     fail = {0.76}
-    P.phase_case(case)
-    assert calls == [(0.75, "seed"), (0.76, 0.75), (0.74, 0.75)]
-    calls.clear()
-    fail = {0.75}
-    assert len(P.phase_case(case)) == 1 and calls == [(0.75, "seed")]
+    assert len(P.phase_case(case)) == 3 and calls == [(0.74, "seed"), (0.75, 0.74), (0.76, 0.75)]
     calls.clear()
     fail = set()
-    P.phase_case({**case, "start_v": None})  # no start_v: up from the lowest v, as before
-    assert calls == [(0.74, "seed"), (0.75, 0.74), (0.76, 0.75), (0.77, 0.76)]
     rows = P.phase_case({**case, "vs": [0.75], "chain_rows": True})  # a per-v case: the chain's step, then the point
     assert [(r["epsilon"], r["target_v"]) for r in rows] == [(0.03, 0.75), (0.02, 0.75)]
     assert rows[0]["seed"].startswith("eps-continuation step") and rows[0]["converged"]

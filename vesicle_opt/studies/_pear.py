@@ -70,7 +70,7 @@ FULL = {"epsilons": (0.03, 0.02, 0.015, 0.0125, 0.01), "vs": (0.74, 0.75, 0.76),
 # pear_per_v: the pear one case a v, each an eps-continuation through every eps (a row at each step): walked in
 # v at eps 0.01 from its first point (v 0.75, 578 CPU s through the chain) the warm pears at 0.76 and 0.74 ran to
 # IPOPT's 500 iterations unconverged (630, 655 CPU s), measured; without it, one case a (branch, eps) as the
-# prolate's, the pear started at "start_v" (if given) and walked both ways
+# prolate's, the pear walked up from its lowest v
 # chain: the pear's first point through the coarser eps (at eps = 0.015 through 0.03, 0.02: pears at
 # v = 0.75, 0.76, 283-302 CPU-s in all, measured; docs/guide/axisymmetric.md)
 V_KICK, KICK = 0.72, 0.3  # the pear is reached here from the symmetric shape + KICK sin(3 s) (24 modes)
@@ -284,29 +284,20 @@ def phase_case(case: dict) -> list[dict]:
     grid = sorted({*vs, *case.get("ref_vs", ())})  # the sharp path: its SLSQP solves depend on the steps
     ref = dict(zip(grid, sharp_branches(grid, case["n_modes"], (which,))[which]))  # (ascending v)
     ref = [ref[v] for v in vs]
-    k0 = vs.index(case["start_v"]) if case.get("start_v") is not None else 0
-    if not ref[k0].converged:  # no seed (e.g. the kicked SLSQP left the shapes): said so, not meshed on NaN
-        raise SolverError(f"the sharp {which} seed at v = {vs[k0]:g} did not converge ({case['n_modes']} modes)")
+    if not ref[0].converged:  # no seed (e.g. the kicked SLSQP left the shapes): said so, not meshed on NaN
+        raise SolverError(f"the sharp {which} seed at v = {vs[0]:g} did not converge ({case['n_modes']} modes)")
     steps: list | None = [] if case.get("chain_rows") else None
-    box, n, levels, start, seed, chain = _first(case, which, vs[k0], *ref[k0].meridian(4096), keep=steps)
-    rows = [_point(which, vs[k0], e, res, ref[k0].f, m, f"eps-continuation step from the sharp {which} "
+    box, n, levels, start, seed, chain = _first(case, which, vs[0], *ref[0].meridian(4096), keep=steps)
+    rows = [_point(which, vs[0], e, res, ref[0].f, m, f"eps-continuation step from the sharp {which} "
                    f"({case['n_modes']} modes; a seed)", "up", cpu, chain) for e, res, m, cpu in steps or ()]
-    first = None
-    todo = list(range(k0, len(vs))) + list(range(k0 - 1, -1, -1))  # on from the first point, then back from it
-    while todo:
-        k = todo.pop(0)
-        v, s = vs[k], ref[k]
-        if k == k0 - 1:  # the walk back starts at the first point
-            start, seed, chain = first, "previous point", ""
+    for v, s in zip(vs, ref):
         sc = _scene(box, n, levels, eps, v, f"phase_diagram-{which}-v{v:g}-eps{eps:g}")
         c1 = time.process_time()
         res = _solve_quiet(sc, start)
-        rows.append(_point(which, v, eps, res, s.f, n, seed, "up" if (which == "pear") == (k >= k0) else "down",
+        rows.append(_point(which, v, eps, res, s.f, n, seed, "up" if which == "pear" else "down",
                            time.process_time() - c1, chain))
-        if not res.converged:  # this direction ends here; the other goes on from a converged first point
-            todo = [j for j in todo if j < k0] if k > k0 else []
-            continue
-        first = res if k == k0 else first
+        if not res.converged:
+            break
         start, seed, chain = res, "previous point", ""
     rows[0]["cpu_s"] = _num(rows[0]["cpu_s"]) + (time.process_time() - t0 - sum(_num(q["cpu_s"]) for q in rows))
     return rows
@@ -351,8 +342,6 @@ def cases(quick: bool = False, cfg: dict | None = None) -> list[dict]:
                  "n_modes": cfg["seed_modes"]} for b in BRANCHES if not (per_v and b == "pear")]
         if per_v:
             continue
-        if cfg.get("start_v") is not None:  # the pear's first point (both ways from it, ``phase_case``)
-            out[-2]["start_v"] = cfg["start_v"]
         coarser = sorted((e for e in cfg["epsilons"] if e > eps), reverse=True)
         if cfg.get("chain") and coarser:  # the pear's first point through the coarser eps (``_first``)
             out[-2]["chain"] = coarser

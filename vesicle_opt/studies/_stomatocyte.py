@@ -168,16 +168,17 @@ def _leg(case, leg, vs, lay, eps, name, first_shape, start, first, seed_pt, poin
     sharp_pts = {case["vs"][0]: seed_pt}
     mins: list = []  # (v, f, lambda) of the walk's cups so far, one a grid point of ``vs``
 
+    out: list = []
+
     def stop(res) -> bool:  # past the fold (no minimiser), or no stomatocyte any more (a torus, an oblate)
-        row = point_row(res, math.nan, eps, lay, math.nan, "", "", "")
-        if not res.converged or row["shape"] != "cup":
+        # the point's row, made by the loop below before the walk resumes and asks here: its shape
+        if not res.converged or out[-1][0]["shape"] != "cup":
             return True
         mins.append((_num(res.extra.get("reduced_volume")), _num(res.extra.get("f")), res.lambda_volume))
         fv = fold_of(*zip(*mins)) if leg == "up" and len(mins) >= 3 else None
         return bool(fv is not None and len(mins) < len(vs) and vs[len(mins)] > fv[0] + PAST_FOLD)
 
     cap = UP_MAX_ITER if leg == "up" else MAX_ITER
-    out = []
     for k, (v, res, label) in enumerate(walk(lay, eps, vs, first_shape, f"{name}-{leg}", stop, start,
                                              case.get("states"), case.get("case", name), max_iter=cap)):
         q = sharp_pts.get(v)
