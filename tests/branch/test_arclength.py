@@ -118,3 +118,41 @@ def test_a_corrector_with_p_free_passes_the_fold():
     assert x[0] > 0 and x[-1] < 0  # the other sheet
     assert any(st.corrector == "arclength" for st in acc)
     assert why == "left the range (turned back past the start)", why
+
+
+def circle_tangent(p, phi):
+    """dx/dp on x^2 + p^2 = 1: -p / x (the closed form)."""
+    return np.array([-p / phi[0], 0.0])
+
+
+def test_a_tangent_first_step_starts_next_to_a_fold_and_passes_it():
+    """From p0 = 0.95 (x0 = 0.312, the fold at p = 1) a natural first step of 0.06 lies past the fold
+    and fails; along the start's tangent with p free (``_first_tangent``) it is accepted at once, and
+    the walk passes the fold (turn = 2: p free at every step after the first, as on Newton-Krylov). A
+    resumed walk is the same computation (the first step's theta recorded)."""
+    s = arc.Settings(step=0.06, to=2.0, max_points=30, turn=2.0)
+    natural = []
+    arc.walk(s, 0.95, circle_corrector(), WEIGHTS, record=natural.append, free=circle_free_corrector())
+    assert natural[1].corrector == "natural" and not natural[1].accepted
+    recs = []
+    _, why = arc.walk(s, 0.95, circle_corrector(), WEIGHTS, record=recs.append, free=circle_free_corrector(),
+                      tangent=circle_tangent)
+    assert recs[1].accepted and recs[1].corrector == "arclength"
+    acc = [st for st in recs if st.accepted]
+    p = np.array([st.attempt.p for st in acc])
+    x = np.array([st.attempt.phi[0] for st in acc])
+    assert np.max(np.abs(x * x + p * p - 1)) < 1e-12  # on the curve (Newton to 1e-14)
+    top = int(np.argmax(p))
+    assert 0 < top < len(p) - 1 and x[0] > 0 and x[-1] < 0  # p rose, turned, fell: the other sheet
+    assert why == "left the range (turned back past the start)", why
+    part = []
+    arc.walk(arc.Settings(step=0.06, to=2.0, max_points=4, turn=2.0), 0.95, circle_corrector(), WEIGHTS, record=part.append,
+             free=circle_free_corrector(), tangent=circle_tangent)
+    rec = [{"p": st.attempt.p, "phi": st.attempt.phi if st.accepted else None, "accepted": st.accepted,
+            "arc_step": st.arc_step, "theta": st.theta} for st in part]
+    rest = []
+    arc.walk(s, 0.95, circle_corrector(), WEIGHTS, arc.replay(s.step, rec), record=rest.append,
+             free=circle_free_corrector(), tangent=circle_tangent)
+    assert len(part + rest) == len(recs)
+    for a, b in zip(part + rest, recs):  # bitwise
+        assert a.attempt.p == b.attempt.p and a.accepted == b.accepted and np.array_equal(a.attempt.phi, b.attempt.phi)

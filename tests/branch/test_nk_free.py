@@ -102,7 +102,7 @@ def test_the_nk_saddle_branch_of_the_circle_passes_nu_0_657():
 
 def test_the_branch_verb_on_newton_krylov_writes_the_gmres_counts(tmp_path, capsys):
     """``vesicle-opt branch`` with solver.backend = newton-krylov runs the p-free corrector (no new
-    flag): its rows are ``arclength`` between the first and the final step, and every point after the
+    flag): its rows are ``arclength`` from the first step to the final one, and every point after the
     start (those at fixed p too: Newton with p held) has the GMRES count of each bordered Newton step
     in ``krylov_iterations`` (as many as its Newton ``iterations``)."""
     import csv
@@ -124,8 +124,9 @@ def test_the_branch_verb_on_newton_krylov_writes_the_gmres_counts(tmp_path, caps
     assert code == 0
     with open(out / "branch.csv") as fh:
         rows = list(csv.DictReader(fh))
-    kinds = [r["corrector"] for r in rows]  # the final step to --to is at fixed p (Newton with p held)
-    assert kinds[:2] == ["start", "natural"] and set(kinds[2:-1]) == {"arclength"} and len(rows) >= 4
+    kinds = [r["corrector"] for r in rows]  # the final step to --to is at fixed p (Newton with p held);
+    # the first along the start's tangent with p free (``arclength._first_tangent``)
+    assert kinds[0] == "start" and set(kinds[1:-1]) == {"arclength"} and len(rows) >= 4
     for r in rows[1:]:
         counts = r["krylov_iterations"].split(";")
         assert r["converged"] == "true" and len(counts) == int(r["iterations"]) and all(int(c) > 0 for c in counts)
@@ -167,3 +168,37 @@ def test_a_3d_mirror_grid_branch_passes_its_turning_point():
     # at -1.9395) located it at -1.9827927 and -1.9827930
     assert abs(folds[0]["target"] + 1.982793) < 1e-5, folds[0]["target"]
     assert abs(folds[0]["critical_eigenvalue"]) <= folds[0]["critical_error"]  # measured 2.5e-5 <= 9.1e-5
+
+
+def test_the_start_tangent_is_the_derivative_of_the_branch():
+    """``nk_free.tangent`` (one bordered GMRES solve at the start) against central differences of
+    Newton-Krylov points at c0 -/+ delta on the FD 48^2 ellipse (c0 = 0.70, the fold at 0.734765; in c0
+    the stationarity's own p-derivative r_p enters): an independent derivative of the same branch. The
+    difference falls as delta^2 (the central difference's order) down to 4e-5: the tangent is the
+    derivative, not a nearby vector (whose difference would level off)."""
+    from vesicle_opt.branch.nk_free import free_newton, tangent
+    sc = ellipse_c0("newton-krylov")
+    problem = ves.VesicleProblem(sc, parameter(sc, "c0"), arc.Settings(step=0.02, to=0.9),
+                                 Store(None, {}, False), None, None, None, None)
+    p0 = parameter(sc, "c0").start
+    a = problem.correct(0)(p0, None)
+    assert a.converged
+    res = a.payload[0]
+    lam = (res.lambda_volume, res.lambda_area)
+    d = tangent(problem.kkt(), a.phi, lam, p0)
+    assert d is not None
+    w = problem.weights
+    deltas, rels = (2e-3, 1e-3, 5e-4), []
+    for delta in deltas:
+        side = []
+        for p in (p0 - delta, p0 + delta):
+            nw = free_newton(problem.kkt(), a.phi + (p - p0) * d, lam, p, np.zeros_like(d), 1.0, 0.0, 1e-8)
+            assert nw.converged
+            side.append(nw.phi)
+        fd = (side[1] - side[0]) / (2 * delta)
+        rels.append(np.sqrt(w @ (d - fd) ** 2) / np.sqrt(w @ fd**2))
+    order = np.polyfit(np.log(deltas), np.log(rels), 1)[0]
+    # measured 6.9e-4, 1.7e-4, 4.4e-5: order 1.99; the solves' own error (5e-10 relative / delta <= 1e-6)
+    # is far below, so the order is the central difference's 2, held to +-0.3
+    assert abs(order - 2) < 0.3, (order, rels)
+    assert rels[-1] < 1e-4, rels

@@ -23,6 +23,11 @@ its near-null mode (~1e-8 mu_ref) did not stall Newton (the circle's saddle: 3-4
 r_p, the stationarity's derivative in p: 0 for the reduced volume; for c0, rigidity sqrt(2) dE'/dC,
 dE' (the gradient) quadratic in C, so the central difference with step 1 is exact up to round-off.
 
+The start's tangent (``tangent``): dphi/dp from the same bordered system at fixed p with the
+right-hand side of a unit step in p, one GMRES solve to ``TANGENT_RTOL``; the walk's first step goes
+along it with p free (``branch.arclength``), where a natural first step (p fixed, the previous field)
+fails near a fold.
+
 Stop: the relative dual stationarity (P0's dual norm, as ``nk.solve`` measures it) <= ``STOP`` x tol
 and the relative constraint residual (IPOPT's scaling) 100x below it (``CONSTRAINT_WEIGHT``): the fixed-p Newton-Krylov
 solve at the p found (``branch.nk_corrector``), started there with these multipliers, then meets
@@ -39,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from vesicle_opt.branch.bordered import Affine, axial_pin
-from vesicle_opt.branch.krylov_bordered import Free, Linearization, newton
+from vesicle_opt.branch.krylov_bordered import Free, Linearization, bordered_solve, newton
 from vesicle_opt.model.lumped import PhaseField
 
 CERTIFY_MAX_ITER = 10  # the certifying fixed-p solve's Newton budget, a safeguard: from a point Newton
@@ -51,6 +56,14 @@ CONSTRAINT_WEIGHT = 100.0  # the constraints held 100x tighter than stationarity
 # 167, shifted the dual residual to 1.5e-8 > its inner 0.1 tol: 94 steps instead of 0); A is linear and B
 # converges quadratically, so this costs at most one more Newton step
 STOP = 0.05  # x tol: below the fixed-p solve's own tests (0.1 tol on both), so it takes the point as is
+TANGENT_RTOL = 1e-8  # GMRES's relative tolerance on the tangent. Its residual is the preconditioned one,
+# small long before the near-null direction (the one that matters near a fold) is resolved: measured on
+# a meridian cup 0.004 below its fold (eps 0.04, 11.5 k nodes), rtol 1e-4 / 1e-6 / 1e-8 / 1e-10 stopped
+# at 4 / 20 / 188 / 192 iterations with |dphi/dp|_w 5.6 / 6.4 / 28.0 / 28.4 and cosine 0.22 / 0.23 /
+# 0.99999 / 0.99999 to the finite difference of two certified points (|.|_w 28.1)
+TANGENT_MAX_KRYLOV = 2000  # its GMRES iterations (one solve a walk): 188 on that cup, 741 on the eps 0.03 cup
+# 0.006 below its fold (19.5 k nodes, 12 CPU-s); on the eps 0.03 saddle next to it 2000 did not reach 1e-8
+# (restarted GMRES stagnates on the indefinite system): the tangent is then None, the first step natural
 
 
 class VesicleKKT:
@@ -114,3 +127,27 @@ def free_newton(model: VesicleKKT, phi_pred, lam_pred, p_pred: float, t_phi, t_p
     return newton(model, phi_pred, lam_pred, p_pred, t_phi, t_p, theta, model.disc.weights, STOP * tol,
                   phase=model.phase(phi_pred), deflation=deflation,
                   **({} if max_newton is None else {"max_newton": max_newton}))
+
+
+def tangent(model: VesicleKKT, phi, lam, p: float) -> np.ndarray | None:
+    """dphi/dp at a KKT point (phi, lam, p) of the branch: the bordered system of ``newton`` at fixed
+    p (t_phi = 0, t_p = 1) with the right-hand side of a unit step in p and no residual, solved once
+    by GMRES (``krylov_bordered.bordered_solve``): H dphi - G dlam + r_p = 0, G^T dphi + c_p = 0, the
+    phase conditions held (T^T dphi = 0). None where GMRES did not converge. Near a fold H is nearly
+    singular on the tangent space and dphi/dp large: the first step then predicts mostly in phi,
+    and its corrector (p free, on the hyperplane orthogonal to the tangent) stays well posed."""
+    phi = np.asarray(phi, float)
+    lin = model.at(phi, np.asarray(lam, float), float(p))
+    T = model.phase(phi)
+    nc = len(lin.G)
+    zero = np.zeros_like(phi)
+    cols = [-g for g in lin.G] + [lin.r_p if lin.r_p is not None else zero] + [-t for t in T]
+    rows = list(lin.G) + [zero] + T
+    kk = nc + 1 + len(T)
+    D = np.zeros((kk, kk))
+    D[:nc, nc] = lin.c_p
+    D[nc, nc] = 1.0
+    g = np.zeros(kk)
+    g[nc] = 1.0
+    dx, _, _, ok = bordered_solve(lin.hvp, lin.pinv, cols, rows, D, zero, g, TANGENT_RTOL, TANGENT_MAX_KRYLOV)
+    return dx if ok and np.all(np.isfinite(dx)) else None

@@ -5,7 +5,7 @@ walk of one branch (``branch.arclength``, resumed from its rows), the accepted p
 ``events.Point`` (the fields from the snapshots, the least few eigenvalues from the row), and the
 rows of a located event and of a switched branch's start. A subclass gives the numerics:
 ``correct(k)`` and ``free_attempt(k)`` (the walk's correctors, ``arclength.Attempt`` with the
-solver's result as payload), ``row(k, step)`` -> (row, result), ``solve``, ``free``, ``mode``,
+solver's result as payload), optionally ``tangent(k)`` (the start's dphi/dp: a tangent first step), ``row(k, step)`` -> (row, result), ``solve``, ``free``, ``mode``,
 ``align`` and ``deflate`` (``branch.tree`` module docstring), and ``point_row(k, point, corrector)``:
 the row of a certified Point.
 """
@@ -87,8 +87,14 @@ class TreeProblem:
                  "accepted": r["accepted"], "arc_step": r["arc_step"], "theta": r["arc_theta"]} for r in mine]
         track = arc.replay(s.step, recs) if recs else None
         _, why = arc.walk(s, p0 if p_start is None else p_start, self.correct(k), self.weights, track,
-                          self.record(k), free=self.free_attempt(k), stop=stop)
+                          self.record(k), free=self.free_attempt(k), stop=stop, tangent=self.tangent(k))
         return why
+
+    def tangent(self, k: int) -> Callable | None:
+        """dphi/dp at branch k's start, ``(p, phi) -> array or None`` (``arclength.advance``: the first
+        step along it, p free), or None: the first step a natural one. None here; a subclass with a
+        p-free corrector may give it."""
+        return None
 
     def record(self, k: int) -> Callable:
         def rec(st: arc.Step):

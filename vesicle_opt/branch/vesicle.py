@@ -34,6 +34,7 @@ from vesicle_opt.branch.deflation import deflated_vesicle
 from vesicle_opt.branch.events import Point
 from vesicle_opt.branch.nk_corrector import NewtonKrylovCorrector
 from vesicle_opt.branch.nk_free import CERTIFY_MAX_ITER, VesicleKKT, free_newton
+from vesicle_opt.branch.nk_free import tangent as nk_tangent
 from vesicle_opt.branch.params import Parameter, explicit_derivative
 from vesicle_opt.branch.problem import TreeProblem
 from vesicle_opt.branch.store import Store
@@ -193,6 +194,22 @@ class VesicleProblem(TreeProblem):
 
     def free_attempt(self, branch: int) -> Callable | None:
         return self.free_corrector(branch)
+
+    def tangent(self, branch: int) -> Callable | None:
+        """On Newton-Krylov (numpy arrays) the start's dphi/dp (``branch.nk_free.tangent``, at the
+        start's multipliers): the first step along it with p free (``arclength._first_tangent``),
+        where a natural one failed near a fold and its fallback left a saddle branch. None on IPOPT
+        (its natural first step has IPOPT's globalisation; measured there to converge in 6-36
+        iterations at the same starts)."""
+        if self.nk is None:
+            return None
+
+        def tangent(p, phi):
+            lam = self.multipliers(branch, p)
+            if lam is None:
+                lam = least_squares_multipliers(self.par.scene_at(self.scene, p), self.disc, phi)
+            return nk_tangent(self.kkt(), phi, lam, p)
+        return tangent
 
     def corrector(self, seed: np.ndarray | None, branch: int = 0) -> Callable:
         def correct(p, phi_start):

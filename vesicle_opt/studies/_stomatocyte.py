@@ -35,8 +35,8 @@ pseudo-arclength walk (p free) had stalled below the fold (steps shrinking to dv
 IPOPT solves nor its bordered Newton. With the axial pin (``branch.bordered.axial_pin``) it passes a
 fold on IPOPT and on Newton-Krylov from this seed on uniform meshes at eps/h = 2, but at eps 0.1 and
 0.05 the states there are no stomatocytes (a shell round a pocket, then a torus; a torus: the
-meridian's topology, ``verify.topology``), and at eps 0.04 (cups) the walk had not reached the fold in
-31 points (docs/guide/bifurcation.md). The study's refined meshes are banded about a shape, which the
+meridian's topology, ``verify.topology``); at eps 0.04 (cups) both pass the stomatocyte's own fold
+(``tests/branch/test_stomatocyte_cup_fold.py``; docs/guide/bifurcation.md). The study's refined meshes are banded about a shape, which the
 branch package cannot yet take from a seed field, so its walks stay at fixed v. Every row carries the
 sharp lower side at its v (``sharp_f``: Newton at 24 modes from the previous sharp point).
 
