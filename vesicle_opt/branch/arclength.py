@@ -9,7 +9,8 @@ that this step's field change counts as much as its parameter change (theta |d p
 
 * Predictor: the first step is a parameter step from the start (zero-order: the previous field),
   or, given the start's tangent dphi/dp (``tangent``; Newton-Krylov, ``branch.nk_free.tangent``), a
-  step along it with p free (``_first_tangent``); afterwards the secant t = (phi_i - phi_{i-1}, p_i - p_{i-1}) / |.|, u_pred = u_i + ds t.
+  step along it with p free (``_first_tangent``); afterwards the secant
+  t = (phi_i - phi_{i-1}, p_i - p_{i-1}) / |.|, u_pred = u_i + ds t.
 * Corrector (``correct(p, phi_start)``: a solve with p fixed, e.g. the exact-constraint front door):
   natural, p = p_pred, while the branch is steep in p (|t_p| >= ``Settings.turn``); near a fold
   (|t_p| small) pseudo-arclength: p is the unknown of the scalar equation

@@ -198,9 +198,10 @@ class VesicleProblem(TreeProblem):
     def tangent(self, branch: int) -> Callable | None:
         """On Newton-Krylov (numpy arrays) the start's dphi/dp (``branch.nk_free.tangent``, at the
         start's multipliers): the first step along it with p free (``arclength._first_tangent``),
-        where a natural one failed near a fold and its fallback left a saddle branch. None on IPOPT
-        (its natural first step has IPOPT's globalisation; measured there to converge in 6-36
-        iterations at the same starts)."""
+        where a natural one failed near a fold. None on IPOPT, where the natural first step's warm
+        solve falls back to the sparse fixed-p Newton (``ipopt_point``); a tangent from the sparse
+        bordered system would serve there too (from the eps 0.03 seedless saddle cup the natural
+        first step failed down to dv = 1.25e-4, measured): not built."""
         if self.nk is None:
             return None
 
