@@ -3,14 +3,17 @@
 At eps = 0.04 (uniform meridian mesh, eps/h = 2, 11.5 k nodes, the box of ``studies._meridian.layout``)
 the states from the sharp stomatocyte's seed stay cups (sphere-like, one meridian curve from the axis
 to the axis with its mouth open: ``verify.updown.form`` "cup"), unlike eps = 0.1 and 0.05
-(``test_stomatocyte_fold``: a shell, then tori). Both walks start from one certified cup at v = 0.66
-(the seed solved by IPOPT); IPOPT walks with the p-free corrector at every step (``turn`` = 2, sparse
-LU), Newton-Krylov with its own (GMRES), its first step along the start's tangent
-(``branch.nk_free.tangent``). Independent checks: each walk's v rises to a turn and falls (the fold
-passed), the least eigenvalue changes sign there (minimum below, saddle past it), and the two
+(``test_stomatocyte_fold``: a shell, then tori). IPOPT walks from the seed at v = 0.65 with the p-free
+corrector at every step (``turn`` = 2, sparse LU) and passes the fold at its ~82nd point (its first
+points' 7-9 iterations shrink its step, and at the steady 6, the step control's target, it never grows
+back); Newton-Krylov starts from the IPOPT walk's last point below v = 0.662, with its own p-free
+corrector (GMRES), its first step along the start's tangent (``branch.nk_free.tangent``), and passes
+the fold at its ~22nd. (The seed at v = 0.66 itself lands on another state, f 1.8058, not a cup:
+measured.) Independent checks: each walk's v rises to a turn and falls (the fold passed), the least
+eigenvalue changes sign there (minimum below, saddle past it), every point is a cup, and the two
 backends' located folds (IPOPT on the chord with a solve, Newton-Krylov by the parabola's vertex: its
 matrix-free check's bounds leave the index undecided) agree; their linear algebra shares nothing.
-Slow: ~6 CPU min (IPOPT ~70 points at ~1.3 s, Newton-Krylov ~32 at ~7 s; measured).
+Slow: ~7 min (IPOPT ~95 points at ~1.5 s, Newton-Krylov 32 at ~7 s; 413 s measured at load 2).
 """
 
 import math
