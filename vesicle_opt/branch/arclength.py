@@ -202,9 +202,10 @@ def _first_tangent(track, s, free, weights, p0, phi0, dp, d):
     nd = norm_w(weights, d)
     theta_t = 1.0 / nd if nd > 0 else 1.0
     sign = math.copysign(1.0, dp)
-    t_phi, t_p = sign * np.asarray(d, float) / math.sqrt(2.0), sign / math.sqrt(2.0)
+    d = np.asarray(d, float)
+    t_phi, t_p = sign * d / math.sqrt(2.0), sign / math.sqrt(2.0)
     ds_t = math.sqrt(2.0) * abs(dp)
-    phi_pred, p_pred = phi0 + dp * np.asarray(d, float), p0 + dp
+    phi_pred, p_pred = phi0 + dp * d, p0 + dp
     a = free(phi_pred, p_pred, t_phi, t_p, theta_t)
     dev = _deviation(a, phi_pred, p_pred, theta_t, ds_t, weights) if a.converged else None
     if not a.converged or dev > s.max_deviation or a.p == p0:

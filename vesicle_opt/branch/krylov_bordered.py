@@ -128,6 +128,19 @@ def bordered_solve(hvp, pinv, cols, rows, corner, f, g, eta: float, max_iter: in
     return sol[:n], sol[n:], count[0], info == 0
 
 
+def border(lin: Linearization, T: list, arc_row: np.ndarray, t_p: float) -> tuple[list, list, np.ndarray]:
+    """The border of J at ``lin`` (module docstring): B's columns [-G, r_p, -T], C's rows [G^T, arc_row,
+    T^T] and the corner D, for ``bordered_solve``; the unknowns ordered (phi; lambda, p, mu)."""
+    nc = len(lin.G)
+    cols = [-g for g in lin.G] + [lin.r_p if lin.r_p is not None else np.zeros_like(lin.r)] + [-t for t in T]
+    rows = list(lin.G) + [arc_row] + list(T)
+    kk = nc + 1 + len(T)
+    D = np.zeros((kk, kk))
+    D[:nc, nc] = lin.c_p
+    D[nc, nc] = t_p
+    return cols, rows, D
+
+
 def forcing(err: float, tol: float) -> float:
     """GMRES's relative tolerance at a Newton step of error ``err``: Eisenstat-Walker's sqrt(err)
     (superlinear), capped at ``ETA_MAX``, never below ``OVERSOLVE`` tol / err (no more accuracy than
@@ -179,12 +192,7 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
         if err <= tol and held:
             return Free(phi, p, tuple(lam), True, k - 1, tuple(cnt.krylov), "", tuple(mu))
         nc = len(lin.G)
-        cols = [-g for g in lin.G] + [lin.r_p if lin.r_p is not None else np.zeros_like(phi)] + [-t for t in T]
-        rows = list(lin.G) + [arc_row] + T
-        kk = nc + 1 + len(T)
-        D = np.zeros((kk, kk))
-        D[:nc, nc] = lin.c_p
-        D[nc, nc] = t_p
+        cols, rows, D = border(lin, T, arc_row, t_p)
         g_rhs = -np.concatenate([lin.c, [N], ph])
         eta = forcing(err, tol)
         dx, dy, its, _ = bordered_solve(lin.hvp, lin.pinv, cols, rows, D, -r, g_rhs, eta)

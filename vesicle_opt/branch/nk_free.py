@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from vesicle_opt.branch.bordered import Affine, axial_pin
-from vesicle_opt.branch.krylov_bordered import Free, Linearization, bordered_solve, newton
+from vesicle_opt.branch.krylov_bordered import Free, Linearization, border, bordered_solve, newton
 from vesicle_opt.model.lumped import PhaseField
 
 CERTIFY_MAX_ITER = 10  # the certifying fixed-p solve's Newton budget, a safeguard: from a point Newton
@@ -139,15 +139,9 @@ def tangent(model: VesicleKKT, phi, lam, p: float) -> np.ndarray | None:
     phi = np.asarray(phi, float)
     lin = model.at(phi, np.asarray(lam, float), float(p))
     T = model.phase(phi)
-    nc = len(lin.G)
     zero = np.zeros_like(phi)
-    cols = [-g for g in lin.G] + [lin.r_p if lin.r_p is not None else zero] + [-t for t in T]
-    rows = list(lin.G) + [zero] + T
-    kk = nc + 1 + len(T)
-    D = np.zeros((kk, kk))
-    D[:nc, nc] = lin.c_p
-    D[nc, nc] = 1.0
-    g = np.zeros(kk)
-    g[nc] = 1.0
+    cols, rows, D = border(lin, T, zero, 1.0)  # p held: the hyperplane row is dp = 1
+    g = np.zeros(len(rows))
+    g[len(lin.G)] = 1.0
     dx, _, _, ok = bordered_solve(lin.hvp, lin.pinv, cols, rows, D, zero, g, TANGENT_RTOL, TANGENT_MAX_KRYLOV)
     return dx if ok and np.all(np.isfinite(dx)) else None

@@ -6,7 +6,8 @@ walk of one branch (``branch.arclength``, resumed from its rows), the accepted p
 rows of a located event and of a switched branch's start. A subclass gives the numerics:
 ``correct(k)`` and ``free_attempt(k)`` (the walk's correctors, ``arclength.Attempt`` with the
 solver's result as payload), optionally ``tangent(k)`` (the start's dphi/dp: a tangent first
-step), ``row(k, step)`` -> (row, result), ``solve``, ``free``, ``mode``, ``align`` and ``deflate`` (``branch.tree`` module docstring), and ``point_row(k, point, corrector)``:
+step), ``row(k, step)`` -> (row, result), ``solve``, ``free``, ``mode``, ``align`` and ``deflate``
+(``branch.tree`` module docstring), and ``point_row(k, point, corrector)``:
 the row of a certified Point.
 """
 

@@ -204,12 +204,15 @@ class VesicleProblem(TreeProblem):
         first step failed down to dv = 1.25e-4, measured): not built."""
         if self.nk is None:
             return None
+        found: dict = {}  # the walk asks again at the same start after each refused first step: one solve
 
         def tangent(p, phi):
-            lam = self.multipliers(branch, p)
-            if lam is None:
-                lam = least_squares_multipliers(self.par.scene_at(self.scene, p), self.disc, phi)
-            return nk_tangent(self.kkt(), phi, lam, p)
+            if p not in found:
+                lam = self.multipliers(branch, p)
+                if lam is None:
+                    lam = least_squares_multipliers(self.par.scene_at(self.scene, p), self.disc, phi)
+                found[p] = nk_tangent(self.kkt(), phi, lam, p)
+            return found[p]
         return tangent
 
     def corrector(self, seed: np.ndarray | None, branch: int = 0) -> Callable:

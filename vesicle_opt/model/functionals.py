@@ -47,15 +47,21 @@ class NumpyOps:
         return A @ v
 
 
+def sparsity_of(A):
+    """The CasADi Sparsity of a scipy CSC matrix with sorted indices (CasADi's CCS: rows ascending in a
+    column), from its arrays."""
+    import casadi as ca  # third-party, lazy: only the IPOPT path builds graphs (0.25 s at import)
+    return ca.Sparsity(A.shape[0], A.shape[1], A.indptr.astype(np.int64).tolist(), A.indices.astype(np.int64).tolist())
+
+
 def sparse_dm(A):
     """A scipy sparse matrix as a CasADi DM, built from its CSC arrays: ``ca.DM(csc)`` itself took 0.81 s
     against 0.13 s for a 40 k x 40 k matrix of 8 entries a row (measured; 0.17 s a call, 3.5 of a far
     phase-diagram case's 43.5 CPU s, in the NLP builds)."""
     import casadi as ca  # third-party, lazy: only the IPOPT path builds graphs (0.25 s at import)
     A = A.tocsc()
-    A = A if A.has_sorted_indices else A.sorted_indices()  # CasADi's CCS wants rows ascending in a column
-    sparsity = ca.Sparsity(A.shape[0], A.shape[1], A.indptr.astype(np.int64).tolist(), A.indices.astype(np.int64).tolist())
-    return ca.DM(sparsity, np.asarray(A.data, float))
+    A = A if A.has_sorted_indices else A.sorted_indices()
+    return ca.DM(sparsity_of(A), np.asarray(A.data, float))
 
 
 class CasadiOps:

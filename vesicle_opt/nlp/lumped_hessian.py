@@ -87,7 +87,7 @@ def hess_lag(nlp):
     eps, rigidity = scene.model.epsilon, scene.model.rigidity
     pattern = Assembled(disc)
     up = pattern.upper
-    sparsity = ca.Sparsity(pattern.n, pattern.n, up.indptr.astype(np.int64).tolist(), up.indices.astype(np.int64).tolist())
+    sparsity = F.sparsity_of(up)  # sorted CSC (``Assembled``): the callback's values in its order
     n, n_p, n_g = pattern.n, nlp.p.shape[0], nlp.g.shape[0]
 
     class _Hessian(ca.Callback):
