@@ -150,6 +150,22 @@ def test_a_mode_within_its_bound_of_zero_is_passed_over():
     assert loc.eigenvalue == pytest.approx(loc.p - 0.3, abs=0)
 
 
+def test_an_end_undecided_within_tol_rel_of_the_other_sign_is_located_past_it():
+    """g(p) = 0.65 (p - p*), bound 2e-11 (the symmetric fold line's odd eigenvalue, measured). The end
+    b sits 8e-10 below p*: g(b) = -5.2e-10, within ``TOL_REL`` so index 0, yet of a's sign. The zero is
+    found one secant step past b, to g's own bound (not to TOL_REL: a location stopped at |g| <= 1e-6
+    would be 1.5e-6 off in p); bisecting towards b, as before, left a 1.2e-7 bracket after 12 solves."""
+    p_star, slope, bound = 0.7376034, 0.65, 2e-11
+
+    def point(p):
+        return events.Point(p, np.zeros(2), 0.0, (slope * (p - p_star),), (bound,))
+    a, b = point(p_star - 1e-3), point(p_star - 8e-10)
+    assert (a.index, b.index) == (1, 0) and events.critical_values(a, b)[1] < 0
+    loc = events.locate_branch_point(lambda p, phi, lam: point(p), a, b, 1e-7)
+    assert loc.solves <= 3 and abs(loc.eigenvalue) <= loc.error == bound  # its own bound, not TOL_REL
+    assert abs(loc.p - p_star) <= 2 * bound / slope  # g's bound over its slope (+ round-off of p)
+
+
 def test_align_undoes_a_grid_rotation_and_a_translation():
     """A field rotated by 90 degrees, reflected and shifted on a periodic square grid is brought
     back exactly (grid symmetries: the image is a permutation of the values); a rectangle's grid

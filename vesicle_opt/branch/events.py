@@ -190,9 +190,29 @@ class Located:
 
 def _illinois(evaluate: Callable, lo: float, g_lo: float, hi: float, g_hi: float, tol: float,
               max_solves: int):
-    """Illinois iteration on [lo, hi] with g(lo) g(hi) < 0; ``evaluate(x)`` -> (g, err, point) or
+    """Illinois iteration on [lo, hi] with g(lo) g(hi) < 0 (or one end within ``TOL_REL`` of zero with
+    the other's sign: one secant step past it first); ``evaluate(x)`` -> (g, err, point) or
     None (a failed solve: the next trial is the midpoint). Returns (best point, g, err, width, solves)."""
     best, side, solves, failed = None, 0, 0, False
+    if g_lo * g_hi > 0 and g_lo != g_hi:
+        # one end's critical value is within TOL_REL of zero (undecided for ``index``) but of the other
+        # end's sign: the zero lies just beyond it. One secant step past that end (at most the bracket's
+        # width) restores a sign change (measured on the symmetric fold line: -5e-10, bound 2e-11, at the
+        # predicted turn; bisecting towards it instead took 12 solves to a 1.2e-7 bracket)
+        near, g_near, far, g_far = (hi, g_hi, lo, g_lo) if abs(g_hi) < abs(g_lo) else (lo, g_lo, hi, g_hi)
+        step = -g_near * (near - far) / (g_near - g_far)
+        x = near + math.copysign(min(abs(step), abs(hi - lo)), step)
+        r = evaluate(x)
+        solves += 1
+        if r is None:
+            return None, math.nan, math.nan, abs(hi - lo), solves
+        gx, err, pt = r
+        best = (pt, gx, err)
+        if abs(gx) <= err:  # zero to its own bound
+            return pt, gx, err, abs(x - near), solves
+        if gx * g_near > 0:  # still no sign change: no bracket (the width returned is the ends')
+            return pt, gx, err, abs(hi - lo), solves
+        lo, g_lo, hi, g_hi = near, g_near, x, gx
     while solves < max_solves and abs(hi - lo) > tol:
         x = (lo + hi) / 2 if failed else lo - g_lo * (hi - lo) / (g_hi - g_lo)
         if not min(lo, hi) < x < max(lo, hi):
@@ -246,8 +266,9 @@ def locate_branch_point(solve: Callable, a: Point, b: Point, p_tol: float,
 def _tracked(pt: Point | None, target: float):
     if pt is None or not pt.eigenvalues or not all(math.isfinite(x) for x in pt.eigenvalues):
         return None
-    i, mu, err = tracked(pt, target)
-    return mu, err, (pt, i)
+    i, mu, _ = tracked(pt, target)
+    e = pt.errors[i] if i < len(pt.errors) else 0.0
+    return mu, (abs(e) if math.isfinite(e) else 0.0), (pt, i)  # located to its own bound, not TOL_REL
 
 
 def _located(kind, found, a, b, how) -> Located:
