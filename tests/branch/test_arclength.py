@@ -156,3 +156,36 @@ def test_a_tangent_first_step_starts_next_to_a_fold_and_passes_it():
     assert len(part + rest) == len(recs)
     for a, b in zip(part + rest, recs):  # bitwise
         assert a.attempt.p == b.attempt.p and a.accepted == b.accepted and np.array_equal(a.attempt.phi, b.attempt.phi)
+
+
+def test_the_step_reads_the_control_count_not_a_fixed_extra_count():
+    """A corrector that spends a fixed count besides its Newton steps (IPOPT's certifying solve after
+    the bordered Newton point, ``VesicleProblem.free_corrector``: 3-4 iterations warm) reports the sum in
+    ``iterations`` and the step-dependent count in ``control``, which the step control reads. Here p is
+    free at every point (turn 2) and 3 is added to Newton's 4 steps: read as 7 (> the target 6) the
+    step shrinks at every point (0.071 -> 0.033 in ten), read as 4 it stays at its cap sqrt(2) |step|;
+    both walks pass the fold (measured 76 and 33 points)."""
+    def padded(control: bool):
+        inner = circle_free_corrector()
+
+        def free(*a):
+            at = inner(*a)
+            return arc.Attempt(at.p, at.phi, at.converged, at.iterations + 3, at.payload,
+                               control=at.iterations if control else None)
+        return free
+
+    runs = {}
+    for control in (False, True):
+        records = []
+        _, why = arc.walk(arc.Settings(step=0.05, to=2.0, max_points=200, turn=2.0), 0.6, circle_corrector(),
+                          WEIGHTS, record=records.append, free=padded(control))
+        acc = [st for st in records if st.accepted]
+        p = np.array([st.attempt.p for st in acc])
+        x = np.array([st.attempt.phi[0] for st in acc])
+        assert np.max(np.abs(x * x + p * p - 1)) < 1e-12 and x[-1] < 0  # on the curve, the fold passed
+        assert why == "left the range (turned back past the start)", why
+        runs[control] = (len(acc), [st.arc_step for st in records[2:12]])
+    cap = math.sqrt(2) * 0.05
+    assert all(b < a for a, b in zip(runs[False][1], runs[False][1][1:]))  # the sum: every step shorter
+    assert all(ds == cap for ds in runs[True][1])  # the control count: at the cap
+    assert runs[True][0] < runs[False][0] / 2, runs  # the walk in half the points or fewer

@@ -4,16 +4,17 @@ At eps = 0.04 (uniform meridian mesh, eps/h = 2, 11.5 k nodes, the box of ``stud
 the states from the sharp stomatocyte's seed stay cups (sphere-like, one meridian curve from the axis
 to the axis with its mouth open: ``verify.updown.form`` "cup"), unlike eps = 0.1 and 0.05
 (``test_stomatocyte_fold``: a shell, then tori). IPOPT walks from the seed at v = 0.65 with the p-free
-corrector at every step (``turn`` = 2, sparse LU) and passes the fold at its ~82nd point (its first
-points' 7-9 iterations shrink its step, and at the steady 6, the step control's target, it never grows
-back); Newton-Krylov starts from the IPOPT walk's last point below v = 0.662, with its own p-free
-corrector (GMRES), its first step along the start's tangent (``branch.nk_free.tangent``), and passes
-the fold at its ~22nd. (The seed at v = 0.66 itself lands on another state, f 1.8058, not a cup:
+corrector at every step (``turn`` = 2, sparse LU) and passes the fold at its ~36th point (the step
+control reads the larger of the bordered Newton's and the certifying IPOPT solve's counts; with their
+sum, 6 at the steady step, the control's target, it never grew and passed at the 82nd);
+Newton-Krylov starts from the IPOPT walk's last point below v = 0.662, with its own p-free corrector
+(GMRES), its first step along the start's tangent (``branch.nk_free.tangent``), and passes the fold
+(at its 22nd point from the cup at v 0.66161: docs/guide/bifurcation.md). (The seed at v = 0.66 itself lands on another state, f 1.8058, not a cup:
 measured.) Independent checks: each walk's v rises to a turn and falls (the fold passed), the least
 eigenvalue changes sign there (minimum below, saddle past it), every point is a cup, and the two
 backends' located folds (IPOPT on the chord with a solve, Newton-Krylov by the parabola's vertex: its
 matrix-free check's bounds leave the index undecided) agree; their linear algebra shares nothing.
-Slow: ~7 min (IPOPT ~95 points at ~1.5 s, Newton-Krylov 32 at ~7 s; 413 s measured at load 2).
+Slow: ~6 min (IPOPT ~50 points at ~2 s, Newton-Krylov 32 at ~7 s; 365 s measured at load 2).
 """
 
 import math
@@ -51,7 +52,7 @@ def walks(tmp_path_factory):
     disc = discretize(_scene(lay, V0, tmp / "none.npz"))
     np.savez(tmp / "seed.npz", phi=phase_field_of(r, z, disc.nodes, EPS), nodes=disc.nodes)
     ip = branch(_scene(lay, V0, tmp / "seed.npz"), "reduced_volume", to=0.70, step=0.01, turn=2.0,
-                switch=False, depth=0, max_points=100, out=tmp / "ipopt")
+                switch=False, depth=0, max_points=50, out=tmp / "ipopt")
     pts = ip.points(0)
     top = int(np.argmax([q["target"] for q in pts]))
     start = [q for q in pts[:top] if q["target"] < NEAR][-1]  # the lower sheet

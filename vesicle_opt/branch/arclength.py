@@ -28,7 +28,8 @@ that this step's field change counts as much as its parameter change (theta |d p
   another branch (measured on a smooth 2D branch, 48², step 0.05: 0.07-0.14): rejected like a
   failure.
 * Step: ds <- ds * clip(min(sqrt(target_iterations / iterations), sqrt(target_deviation /
-  deviation)), 0.5, 1.5), at most the first step's ds (the deviation |u - u_pred| / ds of the
+  deviation)), 0.5, 1.5) (iterations: the attempt's ``control`` count where it gives one, the part of
+  its work that grows with the step), at most the first step's ds (the deviation |u - u_pred| / ds of the
   secant grows like the branch's curvature times ds: where the branch bends the step shrinks); a failed corrector halves ds (and the attempt is recorded, never skipped); below
   ``min_step_factor`` times the first ds the branch stops.
 
@@ -72,6 +73,8 @@ class Attempt:
     converged: bool
     iterations: int
     payload: object = None  # the solver's result (a Result) and anything the caller needs
+    control: int | None = None  # the iterations the step control reads (None: ``iterations``): those
+    # that grow with the step, where a corrector also spends a fixed count (``VesicleProblem.free_corrector``)
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,10 @@ def finished(track: Track, s: Settings, p_start: float) -> str | None:
     return None
 
 
+def _work(a: Attempt) -> int:
+    return a.iterations if a.control is None else a.control
+
+
 def _controlled(ds: float, iterations: int, s: Settings, deviation: float | None = None) -> float:
     factor = math.sqrt(s.target_iterations / max(iterations, 1))
     if deviation is not None and deviation > 0:  # the secant's error is ~ curvature ds^2: its
@@ -164,7 +171,7 @@ def advance(track: Track, s: Settings, p_start: float, correct: Callable, weight
         dphi = norm_w(weights, a.phi - phi0)
         theta = abs(p1 - p0) / dphi if dphi > 0 else 1.0
         ds = math.hypot(theta * dphi, p1 - p0)
-        new = replace(track.push(p1, a.phi), theta=theta, ds=_controlled(ds, a.iterations, s))
+        new = replace(track.push(p1, a.phi), theta=theta, ds=_controlled(ds, _work(a), s))
         return new, [Step(a, True, "natural", 1, new.ds, theta)]
     (pa, phia), (pb, phib) = track.points
     theta, ds = track.theta, track.ds
@@ -181,7 +188,7 @@ def advance(track: Track, s: Settings, p_start: float, correct: Callable, weight
         dev = _deviation(a, phi_pred, p_pred, theta, ds, weights) if a.converged else None
         if not a.converged or dev > s.max_deviation:  # half the ds used (clipped at the end: no repeat)
             return replace(track, ds=ds / 2), [Step(a, False, "natural", 1, ds / 2, theta, deviation=dev)]
-        new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s, dev))
+        new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, _work(a), s, dev))
         return new, [Step(a, True, "natural", 1, new.ds, theta, deviation=dev)]
     if free is not None:
         return _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred)
@@ -215,7 +222,7 @@ def _first_tangent(track, s, free, weights, p0, phi0, dp, d):
     dphi = norm_w(weights, a.phi - phi0)
     theta = abs(a.p - p0) / dphi if dphi > 0 else 1.0
     ds = math.hypot(theta * dphi, a.p - p0)
-    new = replace(track.push(a.p, a.phi), theta=theta, ds=_controlled(ds, a.iterations, s))
+    new = replace(track.push(a.p, a.phi), theta=theta, ds=_controlled(ds, _work(a), s))
     return new, [Step(a, True, "arclength", 1, new.ds, theta, N / ds_t, dev)]
 
 
@@ -229,7 +236,7 @@ def _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred):
     dev = _deviation(a, phi_pred, p_pred, theta, ds, weights)
     if dev > s.max_deviation:
         return replace(track, ds=ds / 2), [Step(a, False, "arclength", 1, ds / 2, theta, N / ds, dev)]
-    new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s, dev))
+    new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, _work(a), s, dev))
     return new, [Step(a, True, "arclength", 1, new.ds, theta, N / ds, dev)]
 
 
@@ -258,7 +265,7 @@ def _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pr
     if abs(N_best) > 0.5 * ds or dev > s.max_deviation:  # the hyperplane not reached, or another branch
         return replace(track, ds=ds / 2), [Step(a, False, "arclength", len(trials), ds / 2, theta,
                                                 N_best / ds, dev)]
-    new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, a.iterations, s, dev))
+    new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, _work(a), s, dev))
     return new, [Step(a, True, "arclength", len(trials), new.ds, theta, N_best / ds, dev)]
 
 
