@@ -119,3 +119,38 @@ def test_3d_fem_periodic_tensor_box_goes_to_fft():
     p1 = discretize(fem)
     eps, C = fem.model.epsilon, fem.model.C
     assert abs(evaluate(p1, r_fft.phi, eps, C)["E"] / evaluate(disc, r_fft.phi, eps, C)["E"] - 1) <= 1e-10
+
+
+def test_gauss_newton_model_is_the_hessians_gauss_newton_part(monkeypatch):
+    """P_GN of ``SparsePreconditioner.gauss_newton`` (GN_DELTA = 0) plus the Hessian's two remaining
+    terms, cE diag(m r g''/eps) and cB (eps K + diag(m W''/eps)), is the matrix-free Hessian product
+    (``PhaseField.hvp_operator``, a separate code path) on a field with an interface and c0 != 0, to
+    round-off; its LU solve inverts it; and in the bulk (phi = -1, c0 = 0) it is the bulk model
+    (cE/eps) S M_L^-1 S."""
+    from vesicle_opt.model.lumped import LumpedOperators, PhaseField
+    monkeypatch.setattr(precond, "GN_DELTA", 0.0)
+    sc, d = _mesh(24)
+    eps, cE, cB = sc.model.epsilon, 1.3, -0.4
+    x, y = np.asarray(d.nodes, float).T
+    phi = np.tanh((1.0 - np.hypot(x / 1.2, y / 0.8)) / (np.sqrt(2) * eps))
+    pr = precond.SparsePreconditioner(d.K, d.weights, eps, d.dim, kind="lu")
+    pf = PhaseField(LumpedOperators(d), eps, 0.7)
+    st = pf.state(phi)
+    dE_diag, dB_diag = pf.hessian_parts(st)
+    H = pr.gauss_newton_matrix(st.s, cE) + sp.diags(cE * dE_diag) + cB * (eps * d.K + sp.diags(dB_diag))
+    hvp = pf.hvp_operator(st, (dE_diag, dB_diag), cE, cB)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        v = rng.standard_normal(d.n_nodes)
+        ref = hvp(v)
+        assert np.linalg.norm(H @ v - ref) <= 1e-13 * np.linalg.norm(ref)  # round-off (measured 2.4e-16)
+    P = pr.gauss_newton_matrix(st.s, cE, 0.5)
+    r = rng.standard_normal(d.n_nodes)
+    z = pr.gauss_newton(st.s, cE, 0.5)(r)
+    assert np.linalg.norm(P @ z - r) <= 1e-10 * np.linalg.norm(r)  # LU: round-off times cond(P) (measured 1.3e-15)
+    bulk = PhaseField(LumpedOperators(d), eps, 0.0)
+    s_bulk = bulk.state(-np.ones(d.n_nodes)).s
+    Mi = sp.diags(1 / np.asarray(d.weights, float))
+    S = sp.csc_matrix(pr.S)
+    diff = pr.gauss_newton_matrix(s_bulk, cE) - (cE / eps) * (S @ Mi @ S)
+    assert abs(diff).max() <= 1e-13 * abs((cE / eps) * (S @ Mi @ S)).max()  # g'(-1) = -2/eps: the bulk model

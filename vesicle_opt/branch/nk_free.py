@@ -4,7 +4,9 @@ The equations are those of ``branch.bordered`` (the KKT system (6)-(8) of one br
 C = sqrt(2) c0 affine in p, bordered by the arclength hyperplane and the phase conditions); here
 nothing is assembled: H, the Hessian of the Lagrangian rigidity H_E - lambda_B H_B (H_A = 0), is
 the matrix-free product of ``model.lumped.PhaseField.hvp_operator``, its model P^{-1} that of the
-fixed-p Newton-CG (``nk.precond``, cE = rigidity, cB = -lambda_B), and the bordered Newton steps are
+fixed-p Newton-CG (``nk.precond``, cE = rigidity, cB = -lambda_B; on 2D sparse meshes, where that
+model is factored by LU, the interface-aware Gauss-Newton model ``SparsePreconditioner.gauss_newton``
+at the state's own g'(phi): ``VesicleKKT.pinv``), and the bordered Newton steps are
 GMRES solves with the Schur-complement preconditioner of ``branch.krylov_bordered``. The operators
 are the branch's Newton-Krylov setup (``nk.setup.prepare``: Fourier, mirror and FD-by-FFT grids, or
 the sparse path); where the parameter is c0 only the pointwise part (PhaseField at C(p)) changes.
@@ -108,8 +110,15 @@ class VesicleKKT:
             dual = dn(r_) / max(scale, np.finfo(float).tiny)
             return max(dual, CONSTRAINT_WEIGHT * float(np.max(np.abs(c_) / cscale)))
         return Linearization(r=r, c=c, hvp=pf.hvp_operator(st, pf.hessian_parts(st), self.rig, -lam[1], 0.0),
-                             pinv=self.prec.inverse(self.rig, -lam[1], 0.0), G=[dA, dB], r_p=r_p,
+                             pinv=self.pinv(st, lam), G=[dA, dB], r_p=r_p,
                              c_p=np.array([-self.affine.alpha[1], -self.affine.beta[1]]), error=error)
+
+    def pinv(self, st, lam):
+        """The Krylov solves' preconditioner at one state: the interface-aware Gauss-Newton model where
+        the mesh's bulk model is factored by LU (2D sparse meshes: ``nk.precond``), else the bulk model."""
+        if getattr(self.prec, "kind", None) == "lu":
+            return self.prec.gauss_newton(st.s, self.rig, -lam[1])
+        return self.prec.inverse(self.rig, -lam[1], 0.0)
 
     def phase(self, phi_pred) -> list:
         """The phase conditions' vectors at the prediction (module docstring)."""
