@@ -106,7 +106,7 @@ class SparsePreconditioner:
         self.metric = SparseMetric(K, m, epsilon, dim, kind)
         self.m, self.eps, self.S = self.metric.m, self.metric.eps, self.metric.S
         self.steps, self.kind, self._S_inv = self.metric.steps, self.metric.kind, self.metric.S_inv
-        self.K = sp.csc_matrix(K)
+        self.K = K  # as given (no copy: only ``gauss_newton`` reads it, on 2D meshes)
         self._bulk = None  # (1/eps) S M_L^{-1} S, formed on first use (``gauss_newton``)
 
     def gauss_newton_matrix(self, g_prime: np.ndarray, cE: float, cB: float = 0.0) -> sp.csc_matrix:
