@@ -202,3 +202,30 @@ def test_the_start_tangent_is_the_derivative_of_the_branch():
     # is far below, so the order is the central difference's 2, held to +-0.3
     assert abs(order - 2) < 0.3, (order, rels)
     assert rels[-1] < 1e-4, rels
+
+
+def test_the_gauss_newton_factorization_is_reused_while_the_field_moves_little():
+    """``VesicleKKT.pinv`` on a 2D sparse mesh (the LU path): the Gauss-Newton model's solve is kept
+    while eps |g' - g'_factored| <= LAG_G and -lambda_B moves less than LAG_CB, refactored beyond;
+    either way it solves the model at the field it was factored at (to round-off: LU)."""
+    from vesicle_opt import load_scene
+    from vesicle_opt.branch.bordered import Affine
+    from vesicle_opt.branch.nk_free import LAG_G, VesicleKKT
+    from vesicle_opt.nk.setup import prepare
+    sc = load_scene("ellipse-2d", ["mesh.kind='fem-p1'", "mesh.n=24", "mesh.mass='lumped'", "domain.boundary='natural'"])
+    setup = prepare(sc, tensor_fft=False)
+    assert setup[2].kind == "lu"
+    kkt = VesicleKKT(setup, sc, Affine((1.0, 0.0), (1.0, 0.0), (0.0, 0.0)))
+    x, y = np.asarray(setup[0].nodes, float).T
+    phi = np.tanh((1.0 - np.hypot(x / 1.2, y / 0.8)) / (np.sqrt(2) * sc.model.epsilon))
+    pf = kkt.pf(0.0)
+    first = kkt.pinv(pf.state(phi), (0.0, -0.5))
+    near = phi + 0.2 * LAG_G / 6 * np.sign(phi)  # eps dg' = -6 phi dphi: within LAG_G / 5
+    assert kkt.pinv(pf.state(near), (0.0, -0.52)) is first
+    assert kkt.pinv(pf.state(near), (0.0, -0.6)) is not first  # -lambda_B 20 % away
+    far = phi + 0.2 * np.sign(phi)  # eps dg' up to 1.2 > LAG_G
+    again = kkt.pinv(pf.state(far), (0.0, -0.6))
+    assert again is not kkt.pinv(pf.state(phi), (0.0, -0.6))
+    r = np.random.default_rng(0).standard_normal(phi.size)
+    P = setup[2].gauss_newton_matrix(pf.state(far).s, kkt.rig, 0.6)
+    assert np.linalg.norm(P @ again(r) - r) <= 1e-10 * np.linalg.norm(r)  # LU: round-off times cond(P)

@@ -46,7 +46,8 @@ In the bulk phi = +-1, so g'(phi) = -2/eps (c0 = 0) and J = eps Delta_h + g' ~ e
   the identity holds to round-off, a test). In the interface band g' ranges over [-2/eps, 1/eps], where
   the bulk model takes -2/eps: P^{-1} H then has an outlier per resolved shape mode, whose number grows
   as eps falls (module docstring of ``branch.krylov_bordered``); P_GN holds J's near-null shape modes.
-  One sparse LU a Newton step (factored on first use). Measured on the bordered Newton-Krylov walk of
+  A sparse LU, factored on first use (``branch.nk_free.VesicleKKT.pinv`` keeps it while the field moves
+  little). Measured on the bordered Newton-Krylov walk of
   the eps 0.03 meridian cup (19.5 k nodes): the bulk model's GMRES hit its cap of 400 and the first
   point failed; with P_GN every point converged, at most 34 GMRES iterations a Newton step.
 
