@@ -168,11 +168,8 @@ def advance(track: Track, s: Settings, p_start: float, correct: Callable, weight
         if not a.converged:
             new = replace(track, first=first / 2)
             return new, [Step(a, False, "natural", 1, abs(first / 2), None)]
-        dphi = norm_w(weights, a.phi - phi0)
-        theta = abs(p1 - p0) / dphi if dphi > 0 else 1.0
-        ds = math.hypot(theta * dphi, p1 - p0)
-        new = replace(track.push(p1, a.phi), theta=theta, ds=_controlled(ds, _work(a), s))
-        return new, [Step(a, True, "natural", 1, new.ds, theta)]
+        new = _after_first(track, s, weights, p0, phi0, p1, a)
+        return new, [Step(a, True, "natural", 1, new.ds, new.theta)]
     (pa, phia), (pb, phib) = track.points
     theta, ds = track.theta, track.ds
     dphi, dp = phib - phia, pb - pa
@@ -219,11 +216,17 @@ def _first_tangent(track, s, free, weights, p0, phi0, dp, d):
         new = replace(track, first=track.first / 2)
         return new, [Step(a, False, "arclength", 1, abs(track.first / 2), None, deviation=dev)]
     N = theta_t**2 * float(np.dot(weights, (a.phi - phi_pred) * t_phi)) + (a.p - p_pred) * t_p
+    new = _after_first(track, s, weights, p0, phi0, a.p, a)
+    return new, [Step(a, True, "arclength", 1, new.ds, new.theta, N / ds_t, dev)]
+
+
+def _after_first(track, s, weights, p0, phi0, p1, a):
+    """The track once the first step's point (p1, a.phi) is accepted: theta with theta |dphi_1| =
+    |dp_1| (module docstring) and ds from it, under the step control."""
     dphi = norm_w(weights, a.phi - phi0)
-    theta = abs(a.p - p0) / dphi if dphi > 0 else 1.0
-    ds = math.hypot(theta * dphi, a.p - p0)
-    new = replace(track.push(a.p, a.phi), theta=theta, ds=_controlled(ds, _work(a), s))
-    return new, [Step(a, True, "arclength", 1, new.ds, theta, N / ds_t, dev)]
+    theta = abs(p1 - p0) / dphi if dphi > 0 else 1.0
+    ds = math.hypot(theta * dphi, p1 - p0)
+    return replace(track.push(p1, a.phi), theta=theta, ds=_controlled(ds, _work(a), s))
 
 
 def _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred):

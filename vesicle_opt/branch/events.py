@@ -73,9 +73,14 @@ def _floor(e: float) -> float:
     return max(abs(e) if math.isfinite(e) else 0.0, TOL_REL)
 
 
-def _err(point: Point, i: int) -> float:
+def _bound(point: Point, i: int) -> float:
+    """The error bound of the point's i-th eigenvalue as given (0 where none is)."""
     e = point.errors[i] if i < len(point.errors) else 0.0
-    return _floor(e)
+    return abs(e) if math.isfinite(e) else 0.0
+
+
+def _err(point: Point, i: int) -> float:
+    return max(_bound(point, i), TOL_REL)
 
 
 def critical_values(a: Point, b: Point) -> tuple[float, float]:
@@ -267,8 +272,7 @@ def _tracked(pt: Point | None, target: float):
     if pt is None or not pt.eigenvalues or not all(math.isfinite(x) for x in pt.eigenvalues):
         return None
     i, mu, _ = tracked(pt, target)
-    e = pt.errors[i] if i < len(pt.errors) else 0.0
-    return mu, (abs(e) if math.isfinite(e) else 0.0), (pt, i)  # located to its own bound, not TOL_REL
+    return mu, _bound(pt, i), (pt, i)  # located to its own bound, not TOL_REL
 
 
 def _located(kind, found, a, b, how) -> Located:
