@@ -6,7 +6,8 @@ nothing is assembled: H, the Hessian of the Lagrangian rigidity H_E - lambda_B H
 the matrix-free product of ``model.lumped.PhaseField.hvp_operator``, its model P^{-1} that of the
 fixed-p Newton-CG (``nk.precond``, cE = rigidity, cB = -lambda_B; on 2D sparse meshes, where that
 model is factored by LU, the interface-aware Gauss-Newton model ``SparsePreconditioner.gauss_newton``
-at the state's own g'(phi): ``VesicleKKT.pinv``), and the bordered Newton steps are
+at the state's own g'(phi); on mirror grids the bulk model plus the interface band's coarse space,
+``nk.band_coarse``: ``VesicleKKT.pinv``), and the bordered Newton steps are
 GMRES solves with the Schur-complement preconditioner of ``branch.krylov_bordered``. The operators
 are the branch's Newton-Krylov setup (``nk.setup.prepare``: Fourier, mirror and FD-by-FFT grids, or
 the sparse path); where the parameter is c0 only the pointwise part (PhaseField at C(p)) changes.
@@ -47,7 +48,9 @@ import numpy as np
 
 from vesicle_opt.branch.bordered import Affine, axial_pin
 from vesicle_opt.branch.krylov_bordered import Free, Linearization, border, bordered_solve, newton
+from vesicle_opt.mesh.cosine import KIND as COARSE_GRID_KIND
 from vesicle_opt.model.lumped import PhaseField
+from vesicle_opt.nk.band_coarse import BandCoarse
 
 CERTIFY_MAX_ITER = 10  # the certifying fixed-p solve's Newton budget, a safeguard: from a point Newton
 # converged it takes 0 steps; one that needs many is off, and on a saddle sheet the minimiser then drifts
@@ -121,21 +124,27 @@ class VesicleKKT:
                              c_p=np.array([-self.affine.alpha[1], -self.affine.beta[1]]), error=error)
 
     def pinv(self, st, lam):
-        """The Krylov solves' preconditioner at one state: the interface-aware Gauss-Newton model where
-        the mesh's bulk model is factored by LU (2D sparse meshes: ``nk.precond``), else the bulk model.
-        The model's factorization is reused while eps |g' - g'_factored| <= ``LAG_G`` everywhere and
-        -lambda_B is within ``LAG_CB`` of its factored value (it only preconditions: GMRES solves the
-        true system either way)."""
-        if getattr(self.prec, "kind", None) != "lu":
+        """The Krylov solves' preconditioner at one state: where the mesh's bulk model is factored by LU
+        (2D sparse meshes: ``nk.precond``) the interface-aware Gauss-Newton model; on mirror grids the
+        bulk model plus the band's coarse space (``nk.band_coarse``); else the bulk model. The
+        factorization (the Gauss-Newton LU, the coarse space and its Galerkin LU) is reused while
+        eps |g' - g'_factored| <= ``LAG_G`` everywhere and -lambda_B is within ``LAG_CB`` of its
+        factored value (it only preconditions: GMRES solves the true system either way)."""
+        lu = getattr(self.prec, "kind", None) == "lu"
+        grid = self.ops.fourier
+        coarse = grid is not None and getattr(grid, "kind", None) == COARSE_GRID_KIND
+        if not (lu or coarse):
             return self.prec.inverse(self.rig, -lam[1], 0.0)
         s, cB = np.asarray(st.s, float), -float(lam[1])
         lag = self._lag
-        if lag is not None and self.eps * float(np.max(np.abs(s - lag[0]))) <= LAG_G and \
-                abs(cB - lag[1]) <= LAG_CB * abs(lag[1]):
+        if lag is None or self.eps * float(np.max(np.abs(s - lag[0]))) > LAG_G or \
+                abs(cB - lag[1]) > LAG_CB * abs(lag[1]):
+            made = self.prec.gauss_newton(s, self.rig, cB) if lu else \
+                BandCoarse(grid, grid.cell, self.eps, st.phi, s, self.rig, cB)
+            self._lag = lag = (s.copy(), cB, made)
+        if lu:
             return lag[2]
-        solve = self.prec.gauss_newton(s, self.rig, cB)
-        self._lag = (s.copy(), cB, solve)
-        return solve
+        return lag[2].additive(self.prec.inverse(self.rig, cB, 0.0))
 
     def phase(self, phi_pred) -> list:
         """The phase conditions' vectors at the prediction (module docstring)."""

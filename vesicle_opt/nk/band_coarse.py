@@ -1,0 +1,168 @@
+"""A two-level preconditioner on mirror grids: the bulk model plus a coarse space on the interface band.
+
+The bending Hessian's Gauss-Newton part is (cE/eps) m L^2, L = eps Delta_h + diag(g'(phi)) the
+linearised chemical potential (``model.lumped.PhaseField.hvp_operator``; grids of one weight m). The
+bulk model of ``nk.precond`` takes g' = -2/eps everywhere. In the band, J's near-null shape modes
+psi(x) phi_0'(d/eps) (psi smooth along the interface; for the tanh profile phi_0' is proportional to
+1 - phi^2) have L ~ eps phi_0' Delta_s psi, while the bulk model sees ~3/eps there: P_bulk^{-1} H has
+one small eigenvalue per shape mode with eps |k_s| below ~1, (R/eps)^2 of them, and the Krylov counts
+grow as eps falls with h ~ eps (``docs/guide/large-3d.md``).
+
+The coarse space holds them: Z = diag(1 - phi^2) B, B the tensor-product quadratic B-splines (C^1:
+the shape modes' energy is fourth order along the interface; hats, C^0, took 147-3000 GMRES
+iterations against 49 on the 205 k-node octant) on a lattice of spacing H = ``SPACING`` eps anchored
+at the box's lower corner, each column even about that corner's mirror planes (the spline at J = -1
+is read as J = 1's image, ``bspline_1d``), the columns whose norm is at least ``KEEP`` of the largest
+(the band's). Its Galerkin matrix is that of the Gauss-Newton model
+
+    P_GN = (cE/eps) m L^2 + max(cB, 0) S + GN_DELTA (cE/eps) m (eps Delta_h - 2/eps)^2,
+    S = m (2/eps - eps Delta_h) = -m (eps Delta_h - 2/eps),
+
+as in ``nk.precond.SparsePreconditioner.gauss_newton`` (2D sparse meshes factor P_GN whole; here only
+its coarse block on the band: (area / H^2) x a few layers, 145 / 941 columns at 31 k / 205 k nodes).
+All of it follows from D = eps Delta_h Z (L Z = D + g' Z, the bulk factor D - (2/eps) Z), and D is
+probed: the columns of one colour (lattice indices equal mod ``STRIDE`` on every axis) are summed, one
+Laplacian of the sum (two transforms) is taken, and each node is read as the colour's column whose
+cell (the nearest lattice point of that colour, 3H wide) holds it. The cells hold the splines'
+supports (1.5 H either side); what is lost is the spectral Laplacian's tail beyond them (it only
+preconditions; with cells 5H wide, 250 transforms instead of 54, the counts were the same to 10 %).
+
+The preconditioner is the additive two-level one, P^{-1} r = P_bulk^{-1} r + Z Hc^{-1} Z^T r, symmetric
+positive definite; Hc by a sparse LU. Measured (the bordered tangent system of ``branch.nk_free`` at
+the octant prolate v = 0.71, eps / h = 2.5, GMRES to 1e-8): 39 / 81 / 133 iterations with the bulk
+model at 31 k / 98 k / 205 k nodes (eps 0.14 / 0.07 / 0.05), 29 / - / 32 with the coarse space; a
+random right-hand side 72 / 182 / 934 against 29 / - / 44.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+SPACING = 2.0  # H / eps: the shape modes the bulk model misses have eps |k_s| below ~1 (module docstring)
+STRIDE = 3  # colours per axis: the cells (3H) hold the splines' supports (1.5 H either side)
+KEEP = 1e-2  # columns with a norm below this share of the largest are dropped: they lie in the band's far
+# tails, where the shape modes have no weight, and would only add near-zero rows to Hc
+W_MIN = 1e-6  # 1 - phi^2 below this is the bulk: left out of Z's rows
+GN_DELTA = 1e-3  # as ``nk.precond.GN_DELTA``
+
+
+def bspline_1d(x: np.ndarray, lo: float, H: float, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The quadratic B-splines centred at lo + J H, J = 0 .. count - 1, at the points x: (cols, vals),
+    each (len(x), 3), the splines that can be nonzero at each point (0 where out of range). The spline at J = -1 is the mirror image of J = 1 about lo (the grids' mirror plane), so
+    it is read as column 1: the columns are even about lo, and they sum to 1 on [lo, lo + (count - 1.5) H]
+    (COO assembly adds the repeated column)."""
+    t = (x - lo) / H
+    centre = np.rint(t).astype(int)
+    cols = centre[:, None] + np.array([-1, 0, 1])[None, :]
+    d = np.abs(t[:, None] - cols)
+    vals = np.where(d < 0.5, 0.75 - d**2, np.where(d < 1.5, 0.5 * (1.5 - d) ** 2, 0.0))
+    cols = np.abs(cols)  # J = -1 -> 1 (the mirror image)
+    ok = cols < count
+    return np.where(ok, cols, 0), np.where(ok, vals, 0.0)
+
+
+class BandCoarse:
+    """The coarse space of one state (module docstring): ``Z`` (N x k sparse), ``factor`` (Hc's LU),
+    both formed on the first ``correction`` (a Newton step's trial points whose system is never solved
+    cost nothing)."""
+
+    def __init__(self, grid, m: float, eps: float, phi: np.ndarray, g_prime: np.ndarray, cE: float, cB: float):
+        self.grid, self.m, self.eps = grid, float(m), float(eps)
+        self.g_prime, self.cE, self.cB = np.asarray(g_prime, float), float(cE), max(float(cB), 0.0)
+        self._weight = 1.0 - np.asarray(phi, float) ** 2
+        self.Z = self.factor = None
+
+    def build(self) -> "BandCoarse":
+        if self.factor is None:
+            self.Z, self.lattice = self._space(self._weight)
+            self.factor = spla.splu(sp.csc_matrix(self._galerkin()))
+        return self
+
+    def _space(self, w: np.ndarray):
+        g = self.grid
+        H = SPACING * self.eps
+        counts = [int(np.ceil(L / H)) + 2 for L in g.lengths]
+        band = np.flatnonzero(w > W_MIN)
+        idx = np.unravel_index(band, g.shape)
+        per_axis = []
+        for a, ((lo, _), h, n) in enumerate(zip(g.box, g.h, g.shape)):
+            x = lo + h * (np.arange(n) + 0.5)
+            c, v = bspline_1d(x, lo, H, counts[a])
+            per_axis.append((c[idx[a]], v[idx[a]]))
+        cols, vals = np.zeros((band.size, 1), int), w[band][:, None]
+        for a, (c, v) in enumerate(per_axis):
+            cols = (cols[:, :, None] * counts[a] + c[:, None, :]).reshape(band.size, -1)
+            vals = (vals[:, :, None] * v[:, None, :]).reshape(band.size, -1)
+        rows = np.repeat(band, cols.shape[1])
+        Z = sp.csc_matrix((vals.ravel(), (rows, cols.ravel())), shape=(g.size, int(np.prod(counts))))
+        Z.eliminate_zeros()
+        norms = np.sqrt(np.asarray(Z.multiply(Z).sum(axis=0))).ravel()
+        keep = np.flatnonzero(norms >= KEEP * norms.max())
+        lattice = np.stack(np.unravel_index(keep, counts), axis=1)  # (k, d) lattice indices of the columns
+        self.counts = tuple(counts)
+        return sp.csc_matrix(Z[:, keep]), lattice
+
+    def gauss_newton(self, v: np.ndarray) -> np.ndarray:
+        """P_GN v (module docstring), matrix-free: three Laplacians, six transforms (the definition the
+        probed Galerkin matrix is tested against; the preconditioner does not call it)."""
+        g, eps, m, gp = self.grid, self.eps, self.m, self.g_prime
+        lap_v = g.laplacian(v)
+        Lv = eps * lap_v + gp * v
+        out = (self.cE / eps) * m * (eps * g.laplacian(Lv) + gp * Lv)
+        bulk = eps * lap_v - (2.0 / eps) * v  # -S v / m
+        if self.cB:
+            out -= self.cB * m * bulk
+        out += GN_DELTA * (self.cE / eps) * m * (eps * g.laplacian(bulk) - (2.0 / eps) * bulk)
+        return out
+
+    def _laplacians(self) -> sp.csr_matrix:
+        """eps Delta_h Z, probed: one Laplacian per colour (lattice indices equal mod ``STRIDE``), each
+        node read as the column of that colour whose cell (the nearest lattice point) holds it."""
+        g, eps = self.grid, self.eps
+        k, d = self.lattice.shape
+        where = -np.ones(self.counts, int)  # lattice index -> column (or -1)
+        where[tuple(self.lattice.T)] = np.arange(k)
+        code = np.ravel_multi_index((self.lattice % STRIDE).T, (STRIDE,) * d)
+        t = [((lo + h * (np.arange(n) + 0.5)) - lo) / (SPACING * eps) for (lo, _), h, n in zip(g.box, g.h, g.shape)]
+        rows, cols, vals = [], [], []
+        for c in range(STRIDE**d):
+            members = np.flatnonzero(code == c)
+            if members.size == 0:
+                continue
+            y = eps * g.laplacian(np.asarray(self.Z[:, members].sum(axis=1)).ravel())
+            cvec = np.unravel_index(c, (STRIDE,) * d)
+            near = [np.rint((ta - ca) / STRIDE).astype(int) * STRIDE + ca for ta, ca in zip(t, cvec)]
+            inside = [(j >= 0) & (j < nc) for j, nc in zip(near, self.counts)]  # per axis: the nearest colour-c
+            col = where[np.ix_(*[np.where(o, j, 0) for j, o in zip(near, inside)])]  # index, if on the lattice
+            ok = np.ones(col.shape, bool)
+            for a, o in enumerate(inside):  # (np.ix_ would read a boolean array as the indices of its Trues)
+                ok = ok & o.reshape([-1 if b == a else 1 for b in range(d)])
+            col = np.where(ok, col, -1).ravel()
+            hit = np.flatnonzero(col >= 0)
+            rows.append(hit)
+            cols.append(col[hit])
+            vals.append(y[hit])
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(g.size, k))
+
+    def _galerkin(self) -> sp.csr_matrix:
+        """Hc = Z^T P_GN Z from D = eps Delta_h Z (``_laplacians``): L Z = D + g' Z, S Z = -m (D - (2/eps) Z)."""
+        eps, m, cE = self.eps, self.m, self.cE
+        D = self._laplacians()
+        Z = sp.csr_matrix(self.Z)
+        LZ = D + sp.diags(self.g_prime) @ Z
+        bulk = D - (2.0 / eps) * Z
+        Hc = (cE / eps) * m * (LZ.T @ LZ) + GN_DELTA * (cE / eps) * m * (bulk.T @ bulk)
+        if self.cB:
+            Hc = Hc - self.cB * m * (Z.T @ bulk)
+        return 0.5 * (Hc + Hc.T)
+
+    def correction(self, r: np.ndarray) -> np.ndarray:
+        """Z Hc^{-1} Z^T r."""
+        self.build()
+        return self.Z @ self.factor.solve(self.Z.T @ np.asarray(r, float))
+
+    def additive(self, bulk_inv):
+        """r -> P_bulk^{-1} r + Z Hc^{-1} Z^T r."""
+        return lambda r: bulk_inv(r) + self.correction(r)
