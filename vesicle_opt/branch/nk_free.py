@@ -7,7 +7,7 @@ the matrix-free product of ``model.lumped.PhaseField.hvp_operator``, its model P
 fixed-p Newton-CG (``nk.precond``, cE = rigidity, cB = -lambda_B; on 2D sparse meshes, where that
 model is factored by LU, the interface-aware Gauss-Newton model ``SparsePreconditioner.gauss_newton``
 at the state's own g'(phi); on mirror grids the bulk model plus the interface band's coarse space,
-``nk.band_coarse``: ``VesicleKKT.pinv``), and the bordered Newton steps are
+``model.band_coarse``: ``VesicleKKT.pinv``), and the bordered Newton steps are
 GMRES solves with the Schur-complement preconditioner of ``branch.krylov_bordered``. The operators
 are the branch's Newton-Krylov setup (``nk.setup.prepare``: Fourier, mirror and FD-by-FFT grids, or
 the sparse path); where the parameter is c0 only the pointwise part (PhaseField at C(p)) changes.
@@ -50,7 +50,7 @@ from vesicle_opt.branch.bordered import Affine, axial_pin
 from vesicle_opt.branch.krylov_bordered import Free, Linearization, border, bordered_solve, newton
 from vesicle_opt.mesh.cosine import KIND as COARSE_GRID_KIND
 from vesicle_opt.model.lumped import PhaseField
-from vesicle_opt.nk.band_coarse import BandCoarse
+from vesicle_opt.model.band_coarse import BandCoarse
 
 CERTIFY_MAX_ITER = 10  # the certifying fixed-p solve's Newton budget, a safeguard: from a point Newton
 # converged it takes 0 steps; one that needs many is off, and on a saddle sheet the minimiser then drifts
@@ -126,7 +126,7 @@ class VesicleKKT:
     def pinv(self, st, lam):
         """The Krylov solves' preconditioner at one state: where the mesh's bulk model is factored by LU
         (2D sparse meshes: ``nk.precond``) the interface-aware Gauss-Newton model; on mirror grids the
-        bulk model plus the band's coarse space (``nk.band_coarse``); else the bulk model. The
+        bulk model plus the band's coarse space (``model.band_coarse``); else the bulk model. The
         factorization (the Gauss-Newton LU, the coarse space and its Galerkin LU) is reused while
         eps |g' - g'_factored| <= ``LAG_G`` everywhere and -lambda_B is within ``LAG_CB`` of its
         factored value (it only preconditions: GMRES solves the true system either way)."""

@@ -1,10 +1,10 @@
-"""``nk.band_coarse``: the interface band's coarse space on mirror grids, against independent products."""
+"""``model.band_coarse``: the interface band's coarse space on mirror grids, against independent products."""
 
 import numpy as np
 import pytest
 
 from vesicle_opt.mesh.cosine import CosineGrid
-from vesicle_opt.nk import band_coarse as bc
+from vesicle_opt.model import band_coarse as bc
 
 
 def _b(t):
