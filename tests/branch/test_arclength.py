@@ -189,3 +189,29 @@ def test_the_step_reads_the_control_count_not_a_fixed_extra_count():
     assert all(b < a for a, b in zip(runs[False][1], runs[False][1][1:]))  # the sum: every step shorter
     assert all(ds == cap for ds in runs[True][1])  # the control count: at the cap
     assert runs[True][0] < runs[False][0] / 2, runs  # the walk in half the points or fewer
+
+
+def test_the_predict_hook_starts_the_free_corrector_at_its_field_on_the_linear_hyperplane():
+    """``Settings.predict(phi_a, phi_b, k)`` gives the p-free corrector's start (``start=``) with k =
+    ds / |secant|: the linear secant b + k (b - a) is then exactly the linear prediction (k's
+    definition), and a walk with it accepts the same points as one without."""
+    starts, preds = [], []
+    inner = circle_free_corrector()
+
+    def free(phi_pred, p_pred, t_phi, t_p, theta, start=None):
+        starts.append(start)
+        preds.append(np.array(phi_pred))
+        return inner(phi_pred, p_pred, t_phi, t_p, theta)
+
+    def linear(a, b, k):
+        return b + k * (b - a)
+    runs = []
+    for predict, f in ((None, circle_free_corrector()), (linear, free)):
+        records = []
+        arc.walk(arc.Settings(step=0.1, to=2.0, max_points=40, predict=predict), 0.6, circle_corrector(), WEIGHTS,
+                 record=records.append, free=f)
+        runs.append([(st.attempt.p, st.attempt.phi[0]) for st in records if st.accepted])
+    assert starts and all(s is not None for s in starts)
+    # the hook's linear secant is the prediction to round-off
+    assert max(float(np.max(np.abs(s - p))) for s, p in zip(starts, preds)) < 1e-14
+    assert runs[0] == runs[1]

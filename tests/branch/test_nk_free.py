@@ -34,8 +34,8 @@ def test_the_nk_fold_corrector_passes_the_fold_on_the_ipopt_correctors_points(mo
     calls = []
     real = ves.VesicleProblem.nk_newton_point
 
-    def recording(self, branch_, phi0, p0, lam, t_phi, t_p, theta, t0):
-        a = real(self, branch_, phi0, p0, lam, t_phi, t_p, theta, t0)
+    def recording(self, branch_, phi0, p0, lam, t_phi, t_p, theta, t0, start=None):
+        a = real(self, branch_, phi0, p0, lam, t_phi, t_p, theta, t0, start)
         if t_p != 1.0 or theta != 0.0:  # a p-free call (not the fixed-p fallback)
             calls.append((np.array(phi0), p0, np.array(t_phi), t_p, theta, a))
         return a

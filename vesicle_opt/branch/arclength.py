@@ -62,6 +62,8 @@ class Settings:
     # lambda_area dips and the envelope residual / step^2 rose from ~0.4 to ~200 at a fixed step)
     max_deviation: float = 2.0  # |u - u_pred| / ds above which a converged corrector has left the
     # predicted branch (a jump to another branch): rejected as a failed attempt, the step halves
+    predict: Callable | None = None  # (phi_a, phi_b, k) -> the p-free corrector's start (``start=``), k =
+    # ds / |secant|; None: it starts at the linear prediction. The hyperplane stays the linear one's
 
 
 @dataclass(frozen=True)
@@ -188,7 +190,8 @@ def advance(track: Track, s: Settings, p_start: float, correct: Callable, weight
         new = replace(track.push(a.p, a.phi), ds=_controlled(track.ds, _work(a), s, dev))
         return new, [Step(a, True, "natural", 1, new.ds, theta, deviation=dev)]
     if free is not None:
-        return _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred)
+        start = None if s.predict is None else s.predict(phia, phib, ds / length)
+        return _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred, start)
     return _arclength(track, s, correct, weights, theta, ds, t_phi, t_p, phi_pred, p_pred)
 
 
@@ -229,10 +232,12 @@ def _after_first(track, s, weights, p0, phi0, p1, a):
     return replace(track.push(p1, a.phi), theta=theta, ds=_controlled(ds, _work(a), s))
 
 
-def _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred):
-    """The pseudo-arclength corrector with p free (module docstring): one call, then the same
-    acceptance as a natural step (converged, near the prediction), and the hyperplane residual."""
-    a = free(phi_pred, p_pred, t_phi, t_p, theta)
+def _free(track, s, free, weights, theta, ds, t_phi, t_p, phi_pred, p_pred, start=None):
+    """The pseudo-arclength corrector with p free (module docstring): one call (from ``start`` where
+    ``Settings.predict`` gives one, on the hyperplane through the linear prediction either way), then
+    the same acceptance as a natural step (converged, near the prediction), and the hyperplane residual."""
+    a = free(phi_pred, p_pred, t_phi, t_p, theta) if start is None else \
+        free(phi_pred, p_pred, t_phi, t_p, theta, start=start)
     if not a.converged:
         return replace(track, ds=ds / 2), [Step(a, False, "arclength", 1, ds / 2, theta)]
     N = theta**2 * float(np.dot(weights, (a.phi - phi_pred) * t_phi)) + (a.p - p_pred) * t_p

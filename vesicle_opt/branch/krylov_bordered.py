@@ -154,13 +154,17 @@ def _corner_product(corner, y):
 
 
 def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: float, weights,
-           tol: float, phase=(), max_newton: int = MAX_NEWTON, arc_tol: float = 1e-10, deflation=None) -> Free:
+           tol: float, phase=(), max_newton: int = MAX_NEWTON, arc_tol: float = 1e-10, deflation=None,
+           start=None) -> Free:
     """Newton from the prediction onto the hyperplane theta^2 <phi - phi_pred, t_phi>_w +
     (p - p_pred) t_p = 0 (t_phi = 0, t_p = 1: Newton at fixed p), with the phase conditions
     <T_i, phi - phi_pred> = 0 for the vectors ``phase`` (multipliers mu_i on -T_i in the
     stationarity). Stops where ``error`` <= tol and the hyperplane and phase rows hold to
     ``arc_tol`` (relative). ``deflation(phi, dphi)``: the factor of each step (``branch.deflation``:
-    Sherman-Morrison on the undeflated GMRES step, the deflated step is that step rescaled; None: 1)."""
+    Sherman-Morrison on the undeflated GMRES step, the deflated step is that step rescaled; None: 1).
+    ``start``: another candidate first iterate; Newton starts from whichever of it and phi_pred has
+    the smaller error (one residual more; the hyperplane and the phase rows stay anchored at phi_pred:
+    being linear, one step puts the iterate on them)."""
     w = np.asarray(weights, float)
     phi = np.array(phi_pred, float)
     lam, p = np.array(lam_pred, float), float(p_pred)
@@ -181,6 +185,13 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
     lin = model.at(phi, lam, p)
     r, N, ph = residual(lin, phi, p, mu)
     err = lin.error(r, lin.c)
+    if start is not None:  # the candidate start (``model.profile.interface_secant`` on the vesicle walks)
+        phi_s = np.array(start, float)
+        lin_s = model.at(phi_s, lam, p)
+        r_s, N_s, ph_s = residual(lin_s, phi_s, p, mu)
+        err_s = lin_s.error(r_s, lin_s.c)
+        if np.isfinite(err_s) and err_s < err:
+            phi, lin, r, N, ph, err = phi_s, lin_s, r_s, N_s, ph_s, err_s
     best: tuple = ()
     for k in range(1, max_newton + 1):
         cnt.errors.append(err)

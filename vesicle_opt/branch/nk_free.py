@@ -156,11 +156,12 @@ class VesicleKKT:
 
 
 def free_newton(model: VesicleKKT, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: float,
-                tol: float, deflation=None, max_newton: int | None = None) -> Free:
+                tol: float, deflation=None, max_newton: int | None = None, start=None) -> Free:
     """The bordered Newton-Krylov point on the hyperplane (``krylov_bordered.newton``; t_phi = 0,
-    t_p = 1: at fixed p; ``deflation``: the step factor of ``branch.deflation``)."""
+    t_p = 1: at fixed p; ``deflation``: the step factor of ``branch.deflation``; ``start``: Newton's
+    first iterate, if not phi_pred)."""
     return newton(model, phi_pred, lam_pred, p_pred, t_phi, t_p, theta, model.disc.weights, STOP * tol,
-                  phase=model.phase(phi_pred), deflation=deflation,
+                  phase=model.phase(phi_pred), deflation=deflation, start=start,
                   **({} if max_newton is None else {"max_newton": max_newton}))
 
 

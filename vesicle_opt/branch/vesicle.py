@@ -112,17 +112,18 @@ class VesicleProblem(TreeProblem):
         """p free on Newton-Krylov (``branch.nk_free``): the bordered Newton-GMRES point, then
         ``NewtonKrylovCorrector.solve`` at its own p from it (the certificate, the check); the
         iterations are Newton steps of both, the GMRES counts in the Result's extra."""
-        def free(phi_pred, p_pred, t_phi, t_p, theta):
+        def free(phi_pred, p_pred, t_phi, t_p, theta, start=None):
             t0 = time.perf_counter()
             lam = None if branch is None else self.multipliers(branch, p_pred)
-            return self.nk_newton_point(branch, phi_pred, p_pred, lam, t_phi, t_p, theta, t0)
+            return self.nk_newton_point(branch, phi_pred, p_pred, lam, t_phi, t_p, theta, t0, start)
         return free
 
-    def nk_newton_point(self, branch, phi0, p0, lam, t_phi, t_p, theta, t0) -> arc.Attempt:
-        """The bordered Newton-Krylov point from (phi0, p0, lam) on the hyperplane, certified at its p."""
+    def nk_newton_point(self, branch, phi0, p0, lam, t_phi, t_p, theta, t0, start=None) -> arc.Attempt:
+        """The bordered Newton-Krylov point from (phi0, p0, lam) on the hyperplane, certified at its p
+        (Newton from ``start`` where given: ``arclength.Settings.predict``)."""
         if lam is None:
             lam = least_squares_multipliers(self.par.scene_at(self.scene, p0), self.disc, phi0)
-        nw = free_newton(self.kkt(), phi0, lam, p0, t_phi, t_p, theta, self.nk.options.tol)
+        nw = free_newton(self.kkt(), phi0, lam, p0, t_phi, t_p, theta, self.nk.options.tol, start=start)
         if not nw.converged or (self.par.name == "reduced_volume" and not 0 < nw.p <= 1):
             why = nw.message or f"reduced_volume {nw.p:.6g} outside (0, 1]"
             return arc.Attempt(nw.p, phi0, False, nw.iterations,

@@ -11,8 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vesicle_opt.mesh.cosine import KIND as COSINE
-from vesicle_opt.model.band_coarse import BandCoarse
 from vesicle_opt.model.lumped import State
 from vesicle_opt.verify import block_eig
 from vesicle_opt.verify import verdict as V
@@ -165,10 +163,7 @@ def build(disc, pf, pinv, translations, phi, rig, cB, ref, rotations, inv_symbol
 
 def setup(disc, pf, prec, translations, scene, phi, cB, ref, rotations) -> Level:
     """The level of ``disc`` with the Newton solve's preconditioner ``prec`` (``nk.precond``): in
-    Fourier coordinates on one-weight Fourier grids, on nodal values elsewhere; on mirror grids plus the
-    interface band's coarse space (``model.band_coarse``, the branch corrector's: measured on the
-    octant prolate walk at 205 k nodes, warm checks, the coarse levels' LOBPCG iterations 64-116 and
-    125-204 fell to 15-68 and 20-30, the check's transforms a point 4935 -> ~1460, its CPU 4.8 -> 3.8 s)."""
+    Fourier coordinates on one-weight Fourier grids, on nodal values elsewhere."""
     rig = scene.model.rigidity
     fourier = getattr(disc, "fourier", None)
     if fourier is not None:
@@ -178,9 +173,6 @@ def setup(disc, pf, prec, translations, scene, phi, cB, ref, rotations) -> Level
             return build(disc, pf, None, translations, phi, rig, cB, ref, rotations, inv)
         inv = fourier.multiplier(1.0 / prec.symbol(rig, cB))
         pinv = lambda r: fourier.apply_symbol(r, inv)  # noqa: E731
-        if getattr(fourier, "kind", None) == COSINE:  # mirror grids: plus the band's coarse space
-            coarse = BandCoarse(fourier, float(pf.m[0]), scene.model.epsilon, phi, pf.state(phi).s, rig, cB)
-            pinv = coarse.additive(pinv)
     else:
         pinv = prec.inverse(rig)
     return build(disc, pf, pinv, translations, phi, rig, cB, ref, rotations)
