@@ -97,7 +97,7 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
             return np.column_stack(rows) if rows else None
         cphi = resample(phi, disc.grid_shape, shape, disc.kind)
         cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels)
-        clev = level.setup(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations)
+        clev = level.setup(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations, band=True)
         settled = rules.settled(COARSE_EIG_TOL)
         own = None if cX is not None or warm is None else warm.get(tuple(shape))
         if cX is not None:

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vesicle_opt.mesh.cosine import KIND as COSINE
+from vesicle_opt.model.band_coarse import BandCoarse
 from vesicle_opt.model.lumped import State
 from vesicle_opt.verify import block_eig
 from vesicle_opt.verify import verdict as V
@@ -161,9 +163,12 @@ def build(disc, pf, pinv, translations, phi, rig, cB, ref, rotations, inv_symbol
     return Level(disc, a_u, t_u, s, Q, Qall, modes, excluded, h_u, coords)
 
 
-def setup(disc, pf, prec, translations, scene, phi, cB, ref, rotations) -> Level:
+def setup(disc, pf, prec, translations, scene, phi, cB, ref, rotations, band: bool = False) -> Level:
     """The level of ``disc`` with the Newton solve's preconditioner ``prec`` (``nk.precond``): in
-    Fourier coordinates on one-weight Fourier grids, on nodal values elsewhere."""
+    Fourier coordinates on one-weight Fourier grids, on nodal values elsewhere. ``band``: on mirror
+    grids plus the interface band's coarse space (``model.band_coarse``; ``verify.lobpcg`` asks for it
+    on the coarse levels, whose vectors only start the next level: the fine level, which decides the
+    verdict, keeps the bulk model)."""
     rig = scene.model.rigidity
     fourier = getattr(disc, "fourier", None)
     if fourier is not None:
@@ -173,6 +178,9 @@ def setup(disc, pf, prec, translations, scene, phi, cB, ref, rotations) -> Level
             return build(disc, pf, None, translations, phi, rig, cB, ref, rotations, inv)
         inv = fourier.multiplier(1.0 / prec.symbol(rig, cB))
         pinv = lambda r: fourier.apply_symbol(r, inv)  # noqa: E731
+        if band and getattr(fourier, "kind", None) == COSINE:
+            coarse = BandCoarse(fourier, float(pf.m[0]), scene.model.epsilon, phi, pf.state(phi).s, rig, cB)
+            pinv = coarse.additive(pinv)
     else:
         pinv = prec.inverse(rig)
     return build(disc, pf, pinv, translations, phi, rig, cB, ref, rotations)
