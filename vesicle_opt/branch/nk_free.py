@@ -48,7 +48,7 @@ import numpy as np
 
 from vesicle_opt.branch.bordered import Affine, axial_pin
 from vesicle_opt.branch.krylov_bordered import Free, Linearization, border, bordered_solve, newton
-from vesicle_opt.mesh.cosine import KIND as COARSE_GRID_KIND
+from vesicle_opt.mesh.cosine import KIND as MIRROR_KIND
 from vesicle_opt.model.lumped import PhaseField
 from vesicle_opt.model.band_coarse import BandCoarse
 
@@ -132,7 +132,7 @@ class VesicleKKT:
         factored value (it only preconditions: GMRES solves the true system either way)."""
         lu = getattr(self.prec, "kind", None) == "lu"
         grid = self.ops.fourier
-        coarse = grid is not None and getattr(grid, "kind", None) == COARSE_GRID_KIND
+        coarse = grid is not None and getattr(grid, "kind", None) == MIRROR_KIND
         if not (lu or coarse):
             return self.prec.inverse(self.rig, -lam[1], 0.0)
         s, cB = np.asarray(st.s, float), -float(lam[1])
@@ -158,8 +158,8 @@ class VesicleKKT:
 def free_newton(model: VesicleKKT, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: float,
                 tol: float, deflation=None, max_newton: int | None = None, start=None) -> Free:
     """The bordered Newton-Krylov point on the hyperplane (``krylov_bordered.newton``; t_phi = 0,
-    t_p = 1: at fixed p; ``deflation``: the step factor of ``branch.deflation``; ``start``: Newton's
-    first iterate, if not phi_pred)."""
+    t_p = 1: at fixed p; ``deflation``: the step factor of ``branch.deflation``; ``start``: a candidate
+    first iterate, taken where its error is the smaller, ``krylov_bordered.newton``)."""
     return newton(model, phi_pred, lam_pred, p_pred, t_phi, t_p, theta, model.disc.weights, STOP * tol,
                   phase=model.phase(phi_pred), deflation=deflation, start=start,
                   **({} if max_newton is None else {"max_newton": max_newton}))

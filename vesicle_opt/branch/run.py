@@ -206,7 +206,8 @@ def branch(scene: Scene, param: str = "reduced_volume", to: float | None = None,
     # the step control's target in the corrector's own iterations (Newton steps on Newton-Krylov)
     target = NK_TARGET_ITERATIONS if nk else arc.Settings.target_iterations
     # on Newton-Krylov the p-free corrector starts from the secant in the profile's coordinate, which moves
-    # the interface (``model.profile``; octant prolate, 205 k nodes: Newton steps a point 10/8/7/7 -> 8/7/6/5)
+    # the interface, where that start has the smaller error (``model.profile``; octant prolate, 205 k nodes:
+    # Newton steps a point 10/8/7/7 -> 8/7/5/5)
     settings = arc.Settings(step=step, to=float(to), max_points=max_points, turn=float(turn),
                             target_iterations=target,
                             predict=interface_secant if nk and scene.solver.array != "jax" else None)
