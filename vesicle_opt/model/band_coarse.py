@@ -45,14 +45,16 @@ STRIDE = 3  # colours per axis: the cells (3H) hold the splines' supports (1.5 H
 KEEP = 1e-2  # columns with a norm below this share of the largest are dropped: they lie in the band's far
 # tails, where the shape modes have no weight, and would only add near-zero rows to Hc
 W_MIN = 1e-6  # 1 - phi^2 below this is the bulk: left out of Z's rows
-GN_DELTA = 1e-3  # as ``nk.precond.GN_DELTA``
+GN_DELTA = 1e-3  # the bulk model's share in P_GN (here and in ``nk.precond``): keeps it nonsingular where J
+# has a null vector (a translation of the interface, the meridian's axial slide: J d_z phi ~ 0), 1e-3 of the bulk scale
 
 
 def bspline_1d(x: np.ndarray, lo: float, H: float, count: int) -> tuple[np.ndarray, np.ndarray]:
     """The quadratic B-splines centred at lo + J H, J = 0 .. count - 1, at the points x: (cols, vals),
-    each (len(x), 3), the splines that can be nonzero at each point (0 where out of range). The spline at J = -1 is the mirror image of J = 1 about lo (the grids' mirror plane), so
-    it is read as column 1: the columns are even about lo, and they sum to 1 on [lo, lo + (count - 1.5) H]
-    (COO assembly adds the repeated column)."""
+    each (len(x), 3), the splines that can be nonzero at each point (0 where out of range). The spline
+    at J = -1 is the mirror image of J = 1 about lo (the grids' mirror plane), so it is read as column 1:
+    the columns are even about lo, and they sum to 1 on [lo, lo + (count - 1.5) H] (COO assembly adds
+    the repeated column)."""
     t = (x - lo) / H
     centre = np.rint(t).astype(int)
     cols = centre[:, None] + np.array([-1, 0, 1])[None, :]
@@ -80,16 +82,19 @@ class BandCoarse:
             self.factor = spla.splu(sp.csc_matrix(self._galerkin()))
         return self
 
+    def _axes(self) -> list[np.ndarray]:
+        """The nodes' coordinates along each axis in lattice units, (x - lo) / H (cell-centred nodes)."""
+        g = self.grid
+        return [h * (np.arange(n) + 0.5) / (SPACING * self.eps) for h, n in zip(g.h, g.shape)]
+
     def _space(self, w: np.ndarray):
         g = self.grid
-        H = SPACING * self.eps
-        counts = [int(np.ceil(L / H)) + 2 for L in g.lengths]
+        counts = [int(np.ceil(L / (SPACING * self.eps))) + 2 for L in g.lengths]
         band = np.flatnonzero(w > W_MIN)
         idx = np.unravel_index(band, g.shape)
         per_axis = []
-        for a, ((lo, _), h, n) in enumerate(zip(g.box, g.h, g.shape)):
-            x = lo + h * (np.arange(n) + 0.5)
-            c, v = bspline_1d(x, lo, H, counts[a])
+        for a, t in enumerate(self._axes()):
+            c, v = bspline_1d(t, 0.0, 1.0, counts[a])
             per_axis.append((c[idx[a]], v[idx[a]]))
         cols, vals = np.zeros((band.size, 1), int), w[band][:, None]
         for a, (c, v) in enumerate(per_axis):
@@ -125,7 +130,7 @@ class BandCoarse:
         where = -np.ones(self.counts, int)  # lattice index -> column (or -1)
         where[tuple(self.lattice.T)] = np.arange(k)
         code = np.ravel_multi_index((self.lattice % STRIDE).T, (STRIDE,) * d)
-        t = [((lo + h * (np.arange(n) + 0.5)) - lo) / (SPACING * eps) for (lo, _), h, n in zip(g.box, g.h, g.shape)]
+        t = self._axes()
         rows, cols, vals = [], [], []
         for c in range(STRIDE**d):
             members = np.flatnonzero(code == c)

@@ -65,13 +65,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from vesicle_opt.model.band_coarse import GN_DELTA  # the bulk model's share in P_GN (defined there)
 from vesicle_opt.model.metric import (AMG_MAXITER, AMG_TOL, CHEB_MAX_STEPS, CHEB_TOL, LU_MAX_NODES,  # noqa: F401
                                       FourierMetric, SparseMetric, amg_solver, chebyshev_bounds,
                                       chebyshev_inverse, chebyshev_steps)
 
 FLOOR = 0.1  # the model never drops below 10% of its (positive) bending part
-GN_DELTA = 1e-3  # the bulk model's share in P_GN: keeps it nonsingular where J has a null vector (a
-# translation of the interface, the meridian's axial slide: J d_z phi ~ 0), 1e-3 of the bulk scale
 
 
 class FourierPreconditioner:
