@@ -277,3 +277,31 @@ def test_the_check_holds_its_blocks_and_little_else(library):
     # (with the rotations excluded, q = 8: 38.3 and 39.6; nodal rows: 37.2 = 7k + q + 8.2; the
     # loop-name leak and the held start block made that 56.7)
     assert fields <= (7 * lobpcg.K + q) * row + 10 + 3, f"the check held {fields:.1f} fields"
+
+def test_the_levels_below_the_one_that_starts_the_fine_level_only_cost(monkeypatch):
+    """The levels below the coarse level that starts the fine one settle to ``LOWER_EIG_TOL``: on the
+    ellipse at 128^2 (levels 40^2, 64^2, fine; the rotation excluded, so that the least pair is a
+    shape mode) the coarsest level's iteration sequence is the same as at ``COARSE_EIG_TOL`` and the
+    looser rule stops it no later; with no tolerance at all it stops at the rule's earliest, and the
+    fine level still finds the same eigenvalues and verdict (the coarse levels only start the next one)."""
+    sc = S.load("ellipse-2d", ["mesh.n=128", "mesh.kind='spectral'", "solver.backend='newton-krylov'"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = solve(sc, throw=True)
+    setup = prepare(sc)
+    runs = {}
+    for name, tol in (("strict", lobpcg.COARSE_EIG_TOL), ("default", lobpcg.LOWER_EIG_TOL), ("none", 1e300)):
+        monkeypatch.setattr(lobpcg, "LOWER_EIG_TOL", tol)
+        runs[name] = lobpcg.spectrum(sc, r, setup, rotations=True)
+    assert [s for s, _ in runs["default"]["coarse_iterations"]] == [(40, 40), (64, 64)]  # the coarsest is below
+    lowest = {k: v["coarse_iterations"][0][1] for k, v in runs.items()}
+    assert lobpcg.LOWER_EIG_TOL > lobpcg.COARSE_EIG_TOL and lowest["default"] <= lowest["strict"], lowest
+    assert lowest["none"] <= lobpcg.SETTLED_RUN + 2 < lowest["strict"], lowest  # two steps, then two held
+    assert runs["none"]["coarse_iterations"][1][1] > lobpcg.SETTLED_RUN + 2  # the 64^2 level keeps COARSE_EIG_TOL
+    ref = runs["strict"]
+    verdict = classify(ref["eigenvalues"][0], ref["errors"][0], ref["excluded_rayleigh"])[0]
+    assert verdict == "minimum"
+    for k in ("default", "none"):
+        mu, err = runs[k]["eigenvalues"], runs[k]["errors"]
+        assert np.all(np.abs(mu - ref["eigenvalues"]) <= err + ref["errors"]), k  # within the two error bounds
+        assert classify(mu[0], err[0], runs[k]["excluded_rayleigh"])[0] == verdict

@@ -102,8 +102,9 @@ class BandCoarse:
             vals = (vals[:, :, None] * v[:, None, :]).reshape(band.size, -1)
         rows = np.repeat(band, cols.shape[1])
         Z = sp.csc_matrix((vals.ravel(), (rows, cols.ravel())), shape=(g.size, int(np.prod(counts))))
-        Z.eliminate_zeros()
-        norms = np.sqrt(np.asarray(Z.multiply(Z).sum(axis=0))).ravel()
+        Z.eliminate_zeros()  # (the conversion summed the mirror-image duplicates: column norms from its data)
+        norms = np.sqrt(np.add.reduceat(np.r_[Z.data**2, 0.0], np.minimum(Z.indptr[:-1], Z.data.size)))
+        norms[np.diff(Z.indptr) == 0] = 0.0
         keep = np.flatnonzero(norms >= KEEP * norms.max())
         lattice = np.stack(np.unravel_index(keep, counts), axis=1)  # (k, d) lattice indices of the columns
         self.counts = tuple(counts)
@@ -158,9 +159,8 @@ class BandCoarse:
         Z = sp.csr_matrix(self.Z)
         LZ = D + sp.diags(self.g_prime) @ Z
         bulk = D - (2.0 / eps) * Z
-        Hc = (cE / eps) * m * (LZ.T @ LZ) + GN_DELTA * (cE / eps) * m * (bulk.T @ bulk)
-        if self.cB:
-            Hc = Hc - self.cB * m * (Z.T @ bulk)
+        a = (cE / eps) * m  # two products, not three: bulk^T (delta a bulk - cB m Z), symmetrised below
+        Hc = a * (LZ.T @ LZ) + bulk.T @ (GN_DELTA * a * bulk - self.cB * m * Z)
         return 0.5 * (Hc + Hc.T)
 
     def correction(self, r: np.ndarray) -> np.ndarray:

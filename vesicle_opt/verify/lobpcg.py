@@ -21,7 +21,8 @@ Rayleigh-Ritz selection from interface modulations p(x) (1 - phi^2) (p of degree
 shape modes; plus the rotation modes where they are not excluded), each column mixed with a random
 one of equal norm (so that no symmetry class is missing: with a tenth of that norm the P1 48^3 box
 ended at 0.137 and missed its least pair 0.0039). Each level stops when its Ritz values but the
-guard have settled (``lobpcg_rules.settled``: to ``COARSE_EIG_TOL`` on coarse levels, to ``EIG_TOL`` on the fine
+guard have settled (``lobpcg_rules.settled``: to ``COARSE_EIG_TOL`` on the coarse level that starts the
+fine one, ``LOWER_EIG_TOL`` on those below it, to ``EIG_TOL`` on the fine
 one, which also needs a decided verdict and stops at the latest ``DECIDED_EXTRA`` iterations after
 it), when every error bound is below ``TOL``, or at ``MAX_ITER``. Warm start (``warm``, a branch's
 next point, ``branch.nk_corrector``): the coarsest level from the previous point's eigenvectors
@@ -63,7 +64,7 @@ from vesicle_opt.model.problem import constraint_data
 from vesicle_opt.verify import axial, block_eig
 from vesicle_opt.verify import lobpcg_level as level
 from vesicle_opt.verify import lobpcg_rules as rules
-from vesicle_opt.verify.lobpcg_rules import COARSE_EIG_TOL, DECIDED_EXTRA, EIG_TOL, SETTLED_RUN, TOL
+from vesicle_opt.verify.lobpcg_rules import COARSE_EIG_TOL, DECIDED_EXTRA, EIG_TOL, LOWER_EIG_TOL, SETTLED_RUN, TOL
 from vesicle_opt.verify import verdict as V
 from vesicle_opt.verify.verdict import SecondOrder
 
@@ -78,12 +79,14 @@ MAX_ITER = 300  # per level; a cap, not the usual end: the levels stop on EIG_TO
 # fine iterations against 6; 2.5 -> 4.1 s at v = 0.75)
 
 
-def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_iter, warm=None, levels=None):
+def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_iter, warm=None, levels=None,
+           feeds_fine=True):
     """Nodal start block for this level: the coarse eigenvectors interpolated, or None where there
     is no coarse level (the caller then starts from the interface block mixed with random columns).
     ``warm``: {coarse shape: nodal rows} of a nearby point's check (a branch's previous point): the
     coarsest level starts from its rows instead of the random-mixed interface block (module
-    docstring, warm start); ``levels``: filled with {coarse shape: the nodal rows found there}."""
+    docstring, warm start); ``levels``: filled with {coarse shape: the nodal rows found there};
+    ``feeds_fine``: this level's eigenvectors start the fine level (its settling tolerance, ``lobpcg_rules``)."""
     shape = rules.coarse_shape(disc, scene.model.epsilon)
     if shape is not None:
         cdisc = fourier_grid(disc.box, shape, disc.kind)
@@ -96,9 +99,10 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
             rows = f.derivatives(p)
             return np.column_stack(rows) if rows else None
         cphi = resample(phi, disc.grid_shape, shape, disc.kind)
-        cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels)
+        cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels,
+                    False)
         clev = level.setup(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations, band=True)
-        settled = rules.settled(COARSE_EIG_TOL)
+        settled = rules.settled(COARSE_EIG_TOL if feeds_fine else LOWER_EIG_TOL)
         own = None if cX is not None or warm is None else warm.get(tuple(shape))
         if cX is not None:
             U0 = level.start_block(clev, clev.rows_to_u(cX, owned=True), k)  # the finer rows resampled here: its own
