@@ -305,3 +305,26 @@ def test_the_levels_below_the_one_that_starts_the_fine_level_only_cost(monkeypat
         mu, err = runs[k]["eigenvalues"], runs[k]["errors"]
         assert np.all(np.abs(mu - ref["eigenvalues"]) <= err + ref["errors"]), k  # within the two error bounds
         assert classify(mu[0], err[0], runs[k]["excluded_rayleigh"])[0] == verdict
+
+
+def test_a_warm_check_starts_the_level_that_starts_the_fine_one_and_skips_those_below():
+    """A nearby point's levels (here the same point's cold check, on the 128^2 ellipse: 40^2, 64^2,
+    fine): the warm check runs the 64^2 level only, from those rows, and finds the cold check's
+    eigenvalues (within the two error bounds) and verdict; given the coarsest level's rows only, it
+    runs both coarse levels, as before."""
+    sc = S.load("ellipse-2d", ["mesh.n=128", "mesh.kind='spectral'", "solver.backend='newton-krylov'"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = solve(sc, throw=True)
+    setup = prepare(sc)
+    cold = lobpcg.spectrum(sc, r, setup, rotations=True)
+    assert set(cold["levels"]) == {(40, 40), (64, 64)}
+    warm = lobpcg.spectrum(sc, r, setup, rotations=True, warm=cold["levels"])
+    assert [s for s, _ in warm["coarse_iterations"]] == [(64, 64)] and set(warm["levels"]) == {(64, 64)}
+    # from its own converged rows the level settles as soon as the rule can see it (two steps, then two held)
+    assert warm["coarse_iterations"][0][1] <= lobpcg.SETTLED_RUN + 2 < cold["coarse_iterations"][1][1]
+    lower = lobpcg.spectrum(sc, r, setup, rotations=True, warm={(40, 40): cold["levels"][(40, 40)]})
+    assert [s for s, _ in lower["coarse_iterations"]] == [(40, 40), (64, 64)]
+    for run in (warm, lower):
+        assert np.all(np.abs(run["eigenvalues"] - cold["eigenvalues"]) <= run["errors"] + cold["errors"])
+        assert classify(run["eigenvalues"][0], run["errors"][0], run["excluded_rayleigh"])[0] == "minimum"

@@ -25,8 +25,14 @@ guard have settled (``lobpcg_rules.settled``: to ``COARSE_EIG_TOL`` on the coars
 fine one, ``LOWER_EIG_TOL`` on those below it, to ``EIG_TOL`` on the fine
 one, which also needs a decided verdict and stops at the latest ``DECIDED_EXTRA`` iterations after
 it), when every error bound is below ``TOL``, or at ``MAX_ITER``. Warm start (``warm``, a branch's
-next point, ``branch.nk_corrector``): the coarsest level from the previous point's eigenvectors
-there, the finer ones as above (measured, 108 x 48 x 48 prolate: 26 against 300 coarsest iterations). Measured on the Table-1 torus
+next point, ``branch.nk_corrector``): the coarse level that starts the fine one from the previous
+point's eigenvectors there, the levels below it skipped (where the previous check ran it; else the
+coarsest level from its eigenvectors, the finer ones as above: measured, 108 x 48 x 48 prolate, 26
+against 300 coarsest iterations). Measured on the octant prolate's walk, the same points' checks
+replayed (check CPU s, coarsest warm -> the level that starts the fine one warm, fine iterations 5
+either way, the eigenvalues within their error bounds): 205 k nodes 1.54 / 1.63 / 2.15 / 1.73 ->
+1.40 / 1.33 / 1.37 / 1.10 (the coarsest level's 16-70 iterations gone, the 80 x 24 x 24 level's
+22-28 -> 19-30). Measured on the Table-1 torus
 (load ~6-9, one process): 64^3 26^3/40^3/64^3 levels 68/22/4 iterations, 3.0 s (from 32^3, the
 level before this one: 62/19, 4.2 s; from random-mixed 48^3 for 96^3: 238-300 iterations);
 mu_min within 3e-7 of its converged value 0.14520727. scipy's lobpcg (random start, 150 iterations
@@ -84,8 +90,9 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
     """Nodal start block for this level: the coarse eigenvectors interpolated, or None where there
     is no coarse level (the caller then starts from the interface block mixed with random columns).
     ``warm``: {coarse shape: nodal rows} of a nearby point's check (a branch's previous point): the
-    coarsest level starts from its rows instead of the random-mixed interface block (module
-    docstring, warm start); ``levels``: filled with {coarse shape: the nodal rows found there};
+    level that starts the fine one starts from its rows where it holds them, and the levels below it
+    are not run; else the coarsest level starts from its rows instead of the random-mixed interface
+    block (module docstring, warm start); ``levels``: filled with {coarse shape: the nodal rows found there};
     ``feeds_fine``: this level's eigenvectors start the fine level (its settling tolerance, ``lobpcg_rules``)."""
     shape = rules.coarse_shape(disc, scene.model.epsilon)
     if shape is not None:
@@ -99,8 +106,12 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
             rows = f.derivatives(p)
             return np.column_stack(rows) if rows else None
         cphi = resample(phi, disc.grid_shape, shape, disc.kind)
-        cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels,
-                    False)
+        here = None if warm is None else warm.get(tuple(shape))
+        if feeds_fine and here is not None and np.shape(here) == (k, cphi.size):
+            cX = None  # warm: this level starts from the nearby point's rows, the levels below are not run
+        else:
+            cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels,
+                        False)
         clev = level.setup(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations, band=True)
         settled = rules.settled(COARSE_EIG_TOL if feeds_fine else LOWER_EIG_TOL)
         own = None if cX is not None or warm is None else warm.get(tuple(shape))
