@@ -278,17 +278,23 @@ def test_the_check_holds_its_blocks_and_little_else(library):
     # loop-name leak and the held start block made that 56.7)
     assert fields <= (7 * lobpcg.K + q) * row + 10 + 3, f"the check held {fields:.1f} fields"
 
-def test_the_levels_below_the_one_that_starts_the_fine_level_only_cost(monkeypatch):
+@pytest.fixture(scope="module")
+def ellipse_128():
+    """The ellipse's certified point on the 128^2 spectral grid: its check has two coarse levels (40^2, 64^2)."""
+    sc = S.load("ellipse-2d", ["mesh.n=128", "mesh.kind='spectral'", "solver.backend='newton-krylov'"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = solve(sc, throw=True)
+    return sc, r, prepare(sc)
+
+
+def test_the_levels_below_the_one_that_starts_the_fine_level_only_cost(monkeypatch, ellipse_128):
     """The levels below the coarse level that starts the fine one settle to ``LOWER_EIG_TOL``: on the
     ellipse at 128^2 (levels 40^2, 64^2, fine; the rotation excluded, so that the least pair is a
     shape mode) the coarsest level's iteration sequence is the same as at ``COARSE_EIG_TOL`` and the
     looser rule stops it no later; with no tolerance at all it stops at the rule's earliest, and the
     fine level still finds the same eigenvalues and verdict (the coarse levels only start the next one)."""
-    sc = S.load("ellipse-2d", ["mesh.n=128", "mesh.kind='spectral'", "solver.backend='newton-krylov'"])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = solve(sc, throw=True)
-    setup = prepare(sc)
+    sc, r, setup = ellipse_128
     runs = {}
     for name, tol in (("strict", lobpcg.COARSE_EIG_TOL), ("default", lobpcg.LOWER_EIG_TOL), ("none", 1e300)):
         monkeypatch.setattr(lobpcg, "LOWER_EIG_TOL", tol)
@@ -307,16 +313,12 @@ def test_the_levels_below_the_one_that_starts_the_fine_level_only_cost(monkeypat
         assert classify(mu[0], err[0], runs[k]["excluded_rayleigh"])[0] == verdict
 
 
-def test_a_warm_check_starts_the_level_that_starts_the_fine_one_and_skips_those_below():
+def test_a_warm_check_starts_the_level_that_starts_the_fine_one_and_skips_those_below(ellipse_128):
     """A nearby point's levels (here the same point's cold check, on the 128^2 ellipse: 40^2, 64^2,
     fine): the warm check runs the 64^2 level only, from those rows, and finds the cold check's
     eigenvalues (within the two error bounds) and verdict; given the coarsest level's rows only, it
     runs both coarse levels, as before."""
-    sc = S.load("ellipse-2d", ["mesh.n=128", "mesh.kind='spectral'", "solver.backend='newton-krylov'"])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        r = solve(sc, throw=True)
-    setup = prepare(sc)
+    sc, r, setup = ellipse_128
     cold = lobpcg.spectrum(sc, r, setup, rotations=True)
     assert set(cold["levels"]) == {(40, 40), (64, 64)}
     warm = lobpcg.spectrum(sc, r, setup, rotations=True, warm=cold["levels"])
