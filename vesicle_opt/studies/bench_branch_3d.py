@@ -19,9 +19,9 @@ is the cold start, the second the fixed-step natural point), and the exponent of
 the node count, ``np.polyfit`` of log(quantity) on log(nodes) through all levels (and through the
 two largest). ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25,
 0.2 (9 k and 13 k nodes, 4 points each; ~2 min). Measured figures: ``docs/guide/large-3d.md``
-(warm point 0.58, 2.24, 5.19, 20.9 CPU s at 31 k, 98 k, 205 k, 525 k nodes: nodes^1.25, with the
-interface band's coarse space; 0.89, 5.0, 22.7 s, nodes^1.70, before it; the whole study ~8 min at load
-~1.5, the 525 k level's cold start 132 CPU s of it).
+(warm point 0.59, 2.13, 5.30, 16.7 CPU s at 31 k, 98 k, 205 k, 525 k nodes: nodes^1.18, with the
+interface band's coarse space and the check's warm level; 0.89, 5.0, 22.7 s, nodes^1.70, before both;
+the whole study ~10 min at load ~1, the 525 k level's cold start 146 CPU s of it).
 """
 
 from __future__ import annotations
