@@ -32,11 +32,11 @@ against 300 coarsest iterations). Measured on the octant prolate's walk, the sam
 replayed (check CPU s, coarsest warm -> the level that starts the fine one warm, fine iterations 5
 either way, the eigenvalues within their error bounds): 205 k nodes 1.54 / 1.63 / 2.15 / 1.73 ->
 1.40 / 1.33 / 1.37 / 1.10 (the coarsest level's 16-70 iterations gone, the 80 x 24 x 24 level's
-22-28 -> 19-30). Measured on the Table-1 torus
-(load ~6-9, one process): 64^3 26^3/40^3/64^3 levels 68/22/4 iterations, 3.0 s (from 32^3, the
-level before this one: 62/19, 4.2 s; from random-mixed 48^3 for 96^3: 238-300 iterations);
-mu_min within 3e-7 of its converged value 0.14520727. scipy's lobpcg (random start, 150 iterations
-at 64^3) ended with error bound 0.32 against mu_min 0.145, no verdict.
+22-28 -> 19-30). Measured on the Table-1 torus (load ~6-9, one process, every coarse level then
+to 1e-6): 64^3 26^3/40^3/64^3 levels 68/22/4 iterations, 3.0 s (from 32^3, the level before this
+one: 62/19, 4.2 s; from random-mixed 48^3 for 96^3: 238-300 iterations); mu_min within 3e-7 of its
+converged value 0.14520727. scipy's lobpcg (random start, 150 iterations at 64^3) ended with error
+bound 0.32 against mu_min 0.145, no verdict.
 
 It runs in the variables u = M^{1/2} v on the operator Pi M^{-1/2} H_L M^{-1/2} Pi / mu_ref (Pi the
 orthogonal projector onto T there), which is the same iteration (every trial vector maps one to one,
@@ -114,7 +114,7 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
                         False)
         clev = level.setup(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations, band=True)
         settled = rules.settled(COARSE_EIG_TOL if feeds_fine else LOWER_EIG_TOL)
-        own = None if cX is not None or warm is None else warm.get(tuple(shape))
+        own = here if cX is None else None
         if cX is not None:
             U0 = level.start_block(clev, clev.rows_to_u(cX, owned=True), k)  # the finer rows resampled here: its own
         elif own is not None and np.shape(own) == (k, cphi.size):

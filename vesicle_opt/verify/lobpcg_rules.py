@@ -13,7 +13,7 @@ from vesicle_opt.mesh.spectral import even_fft_size
 TOL = 1e-4  # every pair's error bound (mu_ref units) below this also ends a level
 EIG_TOL = 1e-6  # the fine level stops once the verdict is decided and the Ritz values but the guard have
 # settled to EIG_TOL max(1, |mu|) (``settled``): a tenth of the 1e-5 agreement with the assembled check
-COARSE_EIG_TOL = 1e-6  # a coarse level settles to 1e-6 too: its eigenvectors only start the next level
+COARSE_EIG_TOL = 1e-6  # the coarse level that starts the fine one settles to 1e-6 too (its vectors only start it)
 LOWER_EIG_TOL = 1e-5  # a level below that one (it starts a coarse level, not the fine one) settles to 1e-5.
 # Measured (check CPU s, 1e-6 -> 1e-5 here, the level that starts the fine one at 1e-6 either way, fine
 # iterations unchanged, 4-5): Table-1 torus 64^3 1.97 -> 1.72 (26^3 level 79 -> 50 iterations); octant
