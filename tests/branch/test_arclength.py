@@ -4,6 +4,7 @@ state is a function of its records (resume), failures halve the step and are rec
 import math
 
 import numpy as np
+import pytest
 
 from vesicle_opt.branch import arclength as arc
 
@@ -194,7 +195,8 @@ def test_the_step_reads_the_control_count_not_a_fixed_extra_count():
 def test_the_predict_hook_starts_the_free_corrector_at_its_field_on_the_linear_hyperplane():
     """``Settings.predict(phi_a, phi_b, k)`` gives the p-free corrector's start (``start=``) with k =
     ds / |secant|: the linear secant b + k (b - a) is then exactly the linear prediction (k's
-    definition), and a walk with it accepts the same points as one without."""
+    definition), and a walk with it accepts the same points as one without (to round-off: the step
+    control reads the nearer of the start and the prediction, here round-off apart)."""
     starts, preds = [], []
     inner = circle_free_corrector()
 
@@ -214,4 +216,34 @@ def test_the_predict_hook_starts_the_free_corrector_at_its_field_on_the_linear_h
     assert starts and all(s is not None for s in starts)
     # the hook's linear secant is the prediction to round-off
     assert max(float(np.max(np.abs(s - p))) for s, p in zip(starts, preds)) < 1e-14
-    assert runs[0] == runs[1]
+    assert len(runs[0]) == len(runs[1]) and np.allclose(runs[0], runs[1], rtol=0.0, atol=1e-12)
+
+
+def test_the_step_control_reads_the_deviation_from_the_nearer_start():
+    """``_free`` with a start from ``Settings.predict``: the step control reads the deviation of the
+    corrector's point from the nearer of the start and the linear prediction (the start the corrector
+    may have used), the jump test and the record the linear prediction's. The point here is 0.3 ds
+    from the prediction (above the target 0.08): without a start, or with one farther off, the step
+    shrinks by sqrt(0.08 / 0.3); from a start at the point itself only the iteration count reads
+    (4 against the target 6: it grows by sqrt(6 / 4)); a point past ``max_deviation`` is refused
+    whatever the start."""
+    s = arc.Settings(step=0.1, to=2.0)
+    track = arc.Track(points=((0.5, np.array([0.0, 0.0])), (0.6, np.array([0.1, 0.0]))), ds=0.1, theta=1.0,
+                      accepted=2, started=True)
+    phi_pred, p_pred, ds = np.array([0.2, 0.0]), 0.7, 0.1
+
+    def run(point, start):
+        def free(phi_pred, p_pred, t_phi, t_p, theta, start=None):
+            return point
+        return arc._free(track, s, free, WEIGHTS, 1.0, ds, np.array([1.0, 0.0]), 0.0, phi_pred, p_pred, start)
+    near = arc.Attempt(0.7, np.array([0.23, 0.0]), True, 4)
+    steps = {}
+    for name, start in (("none", None), ("far", np.array([0.5, 0.0])), ("at the point", near.phi.copy())):
+        new, (rec,) = run(near, start)
+        assert rec.accepted and rec.deviation == pytest.approx(0.3)  # the record: the linear prediction's
+        steps[name] = new.ds
+    assert steps["none"] == pytest.approx(0.1 * math.sqrt(0.08 / 0.3)) and steps["far"] == steps["none"]
+    assert steps["at the point"] == pytest.approx(0.1 * math.sqrt(6 / 4))
+    jump = arc.Attempt(0.7, np.array([0.45, 0.0]), True, 4)  # 2.5 ds off the prediction
+    new, (rec,) = run(jump, jump.phi.copy())
+    assert not rec.accepted and new.ds == ds / 2
