@@ -15,13 +15,14 @@ Newton-Krylov steps of ``branch.nk_free`` plus the certifying fixed-p solve's), 
 levels, ``check_iterations``, ``check_coarse_iterations``).
 
 ``summary``: per level the median over the warm points (the points after the first two: the first
-is the cold start, the second the fixed-step natural point), and the exponent of each quantity in
+is the cold start, the second the fixed-step natural point) and their CPU seconds over the stretch of
+v they walk (``cpu_s_per_v``: the step control sets how far a point goes), and the exponent of each quantity in
 the node count, ``np.polyfit`` of log(quantity) on log(nodes) through all levels (and through the
 two largest). ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25,
 0.2 (9 k and 13 k nodes, 4 points each; ~2 min). Measured figures: ``docs/guide/large-3d.md``
-(warm point 0.59, 2.13, 5.30, 16.7 CPU s at 31 k, 98 k, 205 k, 525 k nodes: nodes^1.18, with the
-interface band's coarse space and the check's warm level; 0.89, 5.0, 22.7 s, nodes^1.70, before both;
-the whole study ~10 min at load ~1, the 525 k level's cold start 146 CPU s of it).
+(warm point 0.59, 2.19, 5.17, 19.2 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.23; a unit of v
+58, 215, 542, 2676 s, nodes^1.35; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface band's
+coarse space; the whole study ~10 min at load ~1, the 525 k level's cold start 134 CPU s of it).
 """
 
 from __future__ import annotations
@@ -157,6 +158,17 @@ def exponents(nodes, values) -> float:
     return float(np.polyfit(x[ok], y[ok], 1)[0]) if ok.sum() >= 2 else math.nan
 
 
+def _per_v(rows: list[dict], epsilon: float, warm: list[dict]) -> float:
+    """The warm points' CPU seconds over the stretch of v they walk (from the point before the first
+    warm one to the last): the cost of a unit of branch, which the step sizes enter (NaN without it)."""
+    by_point = {int(_num(r.get("point"))): r for r in rows if _num(r.get("epsilon")) == epsilon}
+    first, last = min(int(_num(r["point"])) for r in warm), max(int(_num(r["point"])) for r in warm)
+    if first - 1 not in by_point:
+        return math.nan
+    span = abs(_num(by_point[last].get("target")) - _num(by_point[first - 1].get("target")))
+    return sum(_num(r.get("cpu_s")) for r in warm) / span if span > 0 else math.nan
+
+
 def summary(rows: list[dict], case_list: list[dict]) -> dict:
     """Per level the medians over the warm points; the exponents in the node count (docstring)."""
     levels = {}
@@ -167,11 +179,13 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
             continue
         levels[c["epsilon"]] = {"nodes": int(_num(warm[0]["nodes"])), "warm_points": len(warm),
                                 **{q: statistics.median(_num(r.get(q)) for r in warm) for q in QUANTITIES},
+                                "cpu_s_per_v": _per_v(rows, c["epsilon"], warm),
                                 "load_average": statistics.median(_num(r.get("load_average")) for r in warm)}
     out: dict = {"levels": {f"{e:g}": v for e, v in levels.items()}}
     if len(levels) >= 2:
         nodes = [v["nodes"] for v in levels.values()]
         out["exponents"] = {q: exponents(nodes, [v[q] for v in levels.values()]) for q in QUANTITIES}
+        out["exponents"]["cpu_s_per_v"] = exponents(nodes, [v["cpu_s_per_v"] for v in levels.values()])
         top = sorted(levels.values(), key=lambda v: v["nodes"])[-2:]
         out["exponents_two_largest"] = {q: exponents([v["nodes"] for v in top], [v[q] for v in top])
                                         for q in QUANTITIES}
@@ -191,7 +205,7 @@ def main(out: Path, quick: bool = False) -> int:
     for e, v in info.get("levels", {}).items():
         log.info(f"{NAME}: eps={e} nodes={v['nodes']} median warm point: cpu {v['cpu_s']:.2f}s, "
                  f"DCT {v['transforms']:.0f}, newton {v['newton']:.0f}, gmres {v['krylov']:.0f}, "
-                 f"check {v['check_cpu_s']:.2f}s")
+                 f"check {v['check_cpu_s']:.2f}s; cpu per unit of v {v['cpu_s_per_v']:.0f}s")
     if "exponents" in info:
         log.info(f"{NAME}: exponents in the node count: " +
                  ", ".join(f"{q} {x:.2f}" for q, x in info["exponents"].items()))
