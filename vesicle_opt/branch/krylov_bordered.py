@@ -174,24 +174,22 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
     cnt = Counts()
     scale = max(1.0, float(np.sqrt(w @ (phi * phi))))
 
-    def residual(lin, phi, p, mu):
+    def evaluate(phi, lam, p, mu):
+        """The linearisation at z, the residual rows (stationarity, hyperplane, phases) and the error."""
+        lin = model.at(phi, lam, p)
         r = lin.r.copy()
         for m, t in zip(mu, T):
             r -= m * t
         N = float(arc_row @ (phi - phi_pred)) + (p - p_pred) * t_p
         ph = np.array([float(t @ (phi - phi_pred)) for t in T])
-        return r, N, ph
+        return lin, r, N, ph, lin.error(r, lin.c)
 
-    lin = model.at(phi, lam, p)
-    r, N, ph = residual(lin, phi, p, mu)
-    err = lin.error(r, lin.c)
+    lin, r, N, ph, err = evaluate(phi, lam, p, mu)
     if start is not None:  # the candidate start (``model.profile.interface_secant`` on the vesicle walks)
         phi_s = np.array(start, float)
-        lin_s = model.at(phi_s, lam, p)
-        r_s, N_s, ph_s = residual(lin_s, phi_s, p, mu)
-        err_s = lin_s.error(r_s, lin_s.c)
-        if np.isfinite(err_s) and err_s < err:
-            phi, lin, r, N, ph, err = phi_s, lin_s, r_s, N_s, ph_s, err_s
+        at_start = evaluate(phi_s, lam, p, mu)
+        if np.isfinite(at_start[-1]) and at_start[-1] < err:
+            phi, (lin, r, N, ph, err) = phi_s, at_start
     best: tuple = ()
     for k in range(1, max_newton + 1):
         cnt.errors.append(err)
@@ -217,9 +215,7 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
         for _ in range(HALVINGS + 1):
             phi_t, lam_t = phi + s * dx, lam + s * dy[:nc]
             p_t, mu_t = p + s * dy[nc], mu + s * dy[nc + 1:]
-            lin_t = model.at(phi_t, lam_t, p_t)
-            r_t, N_t, ph_t = residual(lin_t, phi_t, p_t, mu_t)
-            err_t = lin_t.error(r_t, lin_t.c)
+            lin_t, r_t, N_t, ph_t, err_t = evaluate(phi_t, lam_t, p_t, mu_t)
             if np.isfinite(err_t) and err_t <= GROWTH * err:
                 break
             s *= 0.5

@@ -106,19 +106,20 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
             rows = f.derivatives(p)
             return np.column_stack(rows) if rows else None
         cphi = resample(phi, disc.grid_shape, shape, disc.kind)
-        here = None if warm is None else warm.get(tuple(shape))
-        if feeds_fine and here is not None and np.shape(here) == (k, cphi.size):
+        here = None if warm is None else warm.get(tuple(shape))  # a nearby point's rows on this level
+        if here is not None and np.shape(here) != (k, cphi.size):
+            here = None
+        if feeds_fine and here is not None:
             cX = None  # warm: this level starts from the nearby point's rows, the levels below are not run
         else:
             cX = _start(scene, cdisc, cpf, cprec, cphi, cB, ref, rotations, k, seed, counts, max_iter, warm, levels,
                         False)
         clev = level.setup(cdisc, cpf, cprec, ctrans, scene, cphi, cB, ref, rotations, band=True)
         settled = rules.settled(COARSE_EIG_TOL if feeds_fine else LOWER_EIG_TOL)
-        own = here if cX is None else None
         if cX is not None:
             U0 = level.start_block(clev, clev.rows_to_u(cX, owned=True), k)  # the finer rows resampled here: its own
-        elif own is not None and np.shape(own) == (k, cphi.size):
-            U0 = level.start_block(clev, clev.rows_to_u(own), k)
+        elif here is not None:
+            U0 = level.start_block(clev, clev.rows_to_u(here), k)
         else:
             U0 = level.start_block(clev, level.interface_block(clev, cphi, not rotations), k, seed)
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
