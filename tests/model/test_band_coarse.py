@@ -95,7 +95,7 @@ def test_the_coarse_space_cuts_the_bordered_gmres_count_to_the_same_solution(oct
     cols, rows, D = border(lin, kkt.phase(res.phi), zero, 1.0)
     g = np.zeros(len(rows))
     g[len(lin.G)] = 1.0
-    assert isinstance(kkt._lag[2], bc.BandCoarse)  # the mirror grid's pinv is the two-level one
+    assert isinstance(kkt._lag.held[2], bc.BandCoarse)  # the mirror grid's pinv is the two-level one
     bulk = kkt.prec.inverse(kkt.rig, -lam[1], 0.0)
     x_bulk, _, n_bulk, ok_bulk = bordered_solve(lin.hvp, bulk, cols, rows, D, zero, g, 1e-8, 2000)
     x_two, _, n_two, ok_two = bordered_solve(lin.hvp, lin.pinv, cols, rows, D, zero, g, 1e-8, 2000)
@@ -105,3 +105,38 @@ def test_the_coarse_space_cuts_the_bordered_gmres_count_to_the_same_solution(oct
     assert np.sqrt(w @ (x_two - x_bulk) ** 2) <= 1e-6 * np.sqrt(w @ x_bulk**2)
     # measured 24 against 39 here; the gap widens with the grid (205 k nodes, eps 0.05: 32 against 133)
     assert n_two <= 0.8 * n_bulk, (n_two, n_bulk)
+
+
+def test_a_new_tension_refactors_the_same_space_to_the_galerkin_matrix_made_fresh():
+    """Hc is affine in cB: ``with_tension`` shares the space and the products and re-factors, and its
+    Hc equals a coarse space made from scratch at that cB (the same sums: round-off)."""
+    eps = 0.3
+    grid = CosineGrid(((0.0, 2.4), (0.0, 1.5), (0.0, 1.5)), (16, 10, 10))
+    phi = _prolate_field(grid, eps)
+    g_prime = -(3 * phi**2 - 1) / eps
+    first = bc.BandCoarse(grid, grid.cell, eps, phi, g_prime, cE=1.3, cB=0.7).build()
+    moved = first.with_tension(2.1)
+    assert moved.Z is first.Z and moved.factor is None and first.cB == 0.7
+    fresh = bc.BandCoarse(grid, grid.cell, eps, phi, g_prime, cE=1.3, cB=2.1)
+    a, b = moved._galerkin().toarray(), fresh._galerkin().toarray()
+    assert np.max(np.abs(a - b)) <= 1e-13 * np.max(np.abs(b))  # the same products and sums: round-off
+    r = np.random.default_rng(2).standard_normal(grid.size)
+    assert np.allclose(moved.correction(r), fresh.correction(r), rtol=1e-10, atol=1e-12 * np.abs(fresh.correction(r)).max())
+    assert bc.BandCoarse(grid, grid.cell, eps, phi, g_prime, 1.3, -4.0).with_tension(-1.0).cB == 0.0  # floored
+
+
+def test_the_lagged_factorization_is_kept_retensioned_or_made_by_the_rules():
+    made, lag = [], bc.Lagged(eps=0.1, lag_g=0.3, lag_cb=0.1)
+    g = np.linspace(-20.0, 10.0, 50)
+
+    def make():
+        made.append(object())
+        return made[-1]
+
+    first = lag.get(g, 1.0, make, lambda held, cB: (held, cB))
+    assert first is made[0] and lag.made == 1
+    assert lag.get(g + 2.9, 1.05, make, lambda held, cB: (held, cB)) is first  # eps |dg'| 0.29, cB 5 %
+    moved = lag.get(g + 2.9, 1.2, make, lambda held, cB: (held, cB))  # cB 20 %: re-tensioned, not made
+    assert moved == (first, 1.2) and lag.made == 1
+    assert lag.get(g, 1.5, make) is made[1] and lag.made == 2  # no re-tensioning offered: made anew
+    assert lag.get(g + 3.1, 1.5, make) is made[2]  # eps |dg'| 0.31 > 0.3

@@ -50,7 +50,7 @@ from vesicle_opt.branch.bordered import Affine, axial_pin
 from vesicle_opt.branch.krylov_bordered import Free, Linearization, border, bordered_solve, newton
 from vesicle_opt.mesh.cosine import KIND as MIRROR_KIND
 from vesicle_opt.model.lumped import PhaseField
-from vesicle_opt.model.band_coarse import BandCoarse
+from vesicle_opt.model.band_coarse import BandCoarse, Lagged
 
 CERTIFY_MAX_ITER = 10  # the certifying fixed-p solve's Newton budget, a safeguard: from a point Newton
 # converged it takes 0 steps; one that needs many is off, and on a saddle sheet the minimiser then drifts
@@ -86,7 +86,7 @@ class VesicleKKT:
         self.affine = affine
         self._pf: dict = {}
         self.volume = self.disc.volume
-        self._lag = None  # (g', -lambda_B, solve) of the last Gauss-Newton factorization (``pinv``)
+        self._lag = Lagged(self.eps, LAG_G, LAG_CB)  # the last Gauss-Newton factorization (``pinv``)
 
     def pf(self, C: float) -> PhaseField:
         if C not in self._pf:
@@ -129,22 +129,20 @@ class VesicleKKT:
         bulk model plus the band's coarse space (``model.band_coarse``); else the bulk model. The
         factorization (the Gauss-Newton LU, the coarse space and its Galerkin LU) is reused while
         eps |g' - g'_factored| <= ``LAG_G`` everywhere and -lambda_B is within ``LAG_CB`` of its
-        factored value (it only preconditions: GMRES solves the true system either way)."""
+        factored value (it only preconditions: GMRES solves the true system either way); where only
+        -lambda_B moved, the coarse space's Galerkin matrix is re-factored at the new value, its space
+        kept (``band_coarse.Lagged``)."""
         lu = getattr(self.prec, "kind", None) == "lu"
         grid = self.ops.fourier
         coarse = grid is not None and getattr(grid, "kind", None) == MIRROR_KIND
         if not (lu or coarse):
             return self.prec.inverse(self.rig, -lam[1], 0.0)
         s, cB = np.asarray(st.s, float), -float(lam[1])
-        lag = self._lag
-        if lag is None or self.eps * float(np.max(np.abs(s - lag[0]))) > LAG_G or \
-                abs(cB - lag[1]) > LAG_CB * abs(lag[1]):
-            made = self.prec.gauss_newton(s, self.rig, cB) if lu else \
-                BandCoarse(grid, grid.cell, self.eps, st.phi, s, self.rig, cB)
-            self._lag = lag = (s.copy(), cB, made)
         if lu:
-            return lag[2]
-        return lag[2].additive(self.prec.inverse(self.rig, cB, 0.0))
+            return self._lag.get(s, cB, lambda: self.prec.gauss_newton(s, self.rig, cB))
+        made = self._lag.get(s, cB, lambda: BandCoarse(grid, grid.cell, self.eps, st.phi, s, self.rig, cB),
+                             BandCoarse.with_tension)
+        return made.additive(self.prec.inverse(self.rig, cB, 0.0))
 
     def phase(self, phi_pred) -> list:
         """The phase conditions' vectors at the prediction (module docstring)."""

@@ -36,6 +36,8 @@ random right-hand side 72 / 182 / 934 against 29 / - / 44.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -74,13 +76,20 @@ class BandCoarse:
         self.grid, self.m, self.eps = grid, float(m), float(eps)
         self.g_prime, self.cE, self.cB = np.asarray(g_prime, float), float(cE), max(float(cB), 0.0)
         self._weight = 1.0 - np.asarray(phi, float) ** 2
-        self.Z = self.factor = None
+        self.Z = self.factor = self._parts = None
 
     def build(self) -> "BandCoarse":
         if self.factor is None:
-            self.Z, self.lattice = self._space(self._weight)
             self.factor = spla.splu(sp.csc_matrix(self._galerkin()))
         return self
+
+    def with_tension(self, cB: float) -> "BandCoarse":
+        """The same space and g' with another cB: Hc is affine in cB (``_galerkin``), so only its LU is
+        redone (the space, the probed Laplacians and the products are shared)."""
+        self._split()
+        other = copy.copy(self)
+        other.cB, other.factor = max(float(cB), 0.0), None
+        return other
 
     def _axes(self) -> list[np.ndarray]:
         """The nodes' coordinates along each axis in lattice units, (x - lo) / H (cell-centred nodes)."""
@@ -152,16 +161,27 @@ class BandCoarse:
             vals.append(y[hit])
         return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(g.size, k))
 
+    def _split(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """Hc's two parts, Z^T ((cE/eps) m L^2 + GN_DELTA ...) Z and Z^T S Z (symmetrised), from
+        D = eps Delta_h Z (``_laplacians``): L Z = D + g' Z, S Z = -m (D - (2/eps) Z). Formed once."""
+        if self._parts is None:
+            if self.Z is None:
+                self.Z, self.lattice = self._space(self._weight)
+            eps, m = self.eps, self.m
+            D = self._laplacians()
+            Z = sp.csr_matrix(self.Z)
+            LZ = D + sp.diags(self.g_prime) @ Z
+            bulk = D - (2.0 / eps) * Z
+            a = (self.cE / eps) * m
+            E = a * (LZ.T @ LZ) + (GN_DELTA * a) * (bulk.T @ bulk)
+            S = -m * (bulk.T @ Z)
+            self._parts = (0.5 * (E + E.T), 0.5 * (S + S.T))
+        return self._parts
+
     def _galerkin(self) -> sp.csr_matrix:
-        """Hc = Z^T P_GN Z from D = eps Delta_h Z (``_laplacians``): L Z = D + g' Z, S Z = -m (D - (2/eps) Z)."""
-        eps, m, cE = self.eps, self.m, self.cE
-        D = self._laplacians()
-        Z = sp.csr_matrix(self.Z)
-        LZ = D + sp.diags(self.g_prime) @ Z
-        bulk = D - (2.0 / eps) * Z
-        a = (cE / eps) * m  # two products, not three: bulk^T (delta a bulk - cB m Z), symmetrised below
-        Hc = a * (LZ.T @ LZ) + bulk.T @ (GN_DELTA * a * bulk - self.cB * m * Z)
-        return 0.5 * (Hc + Hc.T)
+        """Hc = Z^T P_GN Z = (``_split``'s first part) + cB (its second)."""
+        E, S = self._split()
+        return E + self.cB * S if self.cB else E
 
     def correction(self, r: np.ndarray) -> np.ndarray:
         """Z Hc^{-1} Z^T r."""
@@ -171,3 +191,28 @@ class BandCoarse:
     def additive(self, bulk_inv):
         """r -> P_bulk^{-1} r + Z Hc^{-1} Z^T r."""
         return lambda r: bulk_inv(r) + self.correction(r)
+
+
+class Lagged:
+    """One factorization of a preconditioner, reused while the state moves little (it only
+    preconditions: the Krylov solve is of the true system either way). ``get`` makes a new one where
+    eps |g' - g'_held| > ``lag_g`` anywhere; where only cB = -lambda_B moved by more than ``lag_cb``
+    (relative) it re-tensions the held one if it can (``BandCoarse.with_tension``), else makes a new
+    one. ``held``: (g', cB, the factorization)."""
+
+    def __init__(self, eps: float, lag_g: float, lag_cb: float):
+        self.eps, self.lag_g, self.lag_cb = float(eps), float(lag_g), float(lag_cb)
+        self.held = None
+        self.made = 0  # factorizations made (benchmarks and tests)
+
+    def get(self, g_prime: np.ndarray, cB: float, make, retension=None):
+        """The held factorization, or ``make()``'s, or ``retension(held, cB)``'s (rules above)."""
+        held, cB = self.held, float(cB)
+        moved_g = held is None or self.eps * float(np.max(np.abs(g_prime - held[0]))) > self.lag_g
+        moved_c = held is not None and abs(cB - held[1]) > self.lag_cb * abs(held[1])
+        if moved_g or (moved_c and retension is None):
+            self.held = (np.array(g_prime, float), cB, make())
+            self.made += 1
+        elif moved_c:
+            self.held = (held[0], cB, retension(held[2], cB))
+        return self.held[2]

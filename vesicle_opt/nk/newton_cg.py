@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vesicle_opt.blas import axpy
+from vesicle_opt.model.band_coarse import BandCoarse
 from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.nk.krylov import SubspacePreconditioner
 from vesicle_opt.nk.system import FourierSystem, NodalSystem
@@ -102,8 +103,9 @@ class Point:
 
 class Objective:
     def __init__(self, pf, prec, translations, rig: float, alpha: float, beta: float,
-                 lam, rho, counters: Counters, coordinates: bool = True):
+                 lam, rho, counters: Counters, coordinates: bool = True, coarse=None):
         self.pf, self.prec, self.translations = pf, prec, translations
+        self.coarse = coarse  # mirror grids: the band's coarse space (``model.band_coarse.Lagged``), or None
         self.rig, self.target = float(rig), np.array([alpha, beta], float)
         self.lam, self.rho = np.asarray(lam, float), np.asarray(rho, float)
         self.cnt = counters
@@ -219,7 +221,15 @@ class Objective:
         return 0.0
 
     def preconditioner(self, pt: Point) -> SubspacePreconditioner:
+        """The bulk model P of ``precond`` (cE = rig, cB = -mu_B, rho_A), on mirror grids with the
+        interface band's coarse space added (``coarse``: P^{-1} + Z Hc^{-1} Z^T, SPD, so CG keeps it;
+        ``model.band_coarse``), reused while the state moves little (``band_coarse.Lagged``)."""
         pinv = self.prec.inverse(self.rig, -pt.mu[1], self.rho[0])
+        if self.coarse is not None:
+            grid, st, cB = self.pf.ops.fourier, pt.st, -float(pt.mu[1])
+            made = self.coarse.get(st.s, cB, lambda: BandCoarse(grid, grid.cell, self.pf.eps, st.phi, st.s, self.rig, cB),
+                                   BandCoarse.with_tension)
+            pinv = made.additive(pinv)
         w = self.pf.uniform_weight  # grids: one weight, folded into the spectral derivatives
         if w is not None:
             C = self.translations(pt.phi, w)

@@ -27,6 +27,8 @@ class NewtonKrylovOptions:
     fourier_coordinates: bool = True  # periodic Fourier grids: each Newton system's CG runs in the
     # orthonormal Fourier coordinates (``nk.system.FourierSystem``: four transforms a CG step, not six);
     # False runs it on nodal values (``NodalSystem``), the same iteration in exact arithmetic
+    band_coarse: bool = True  # mirror grids: the interface band's coarse space in the Newton-CG preconditioner
+    # (``model.band_coarse``, ``nk.solve.band_coarse_of``)
     tensor_fft: bool = True  # lumped P1 on a periodic tensor box runs on the FFT path it equals (the FD
     # stencil, ``nk.setup.fft_equivalent``); False keeps it on the sparse (Chebyshev) path of unstructured meshes
 
