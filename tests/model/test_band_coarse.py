@@ -140,3 +140,17 @@ def test_the_lagged_factorization_is_kept_retensioned_or_made_by_the_rules():
     assert moved == (first, 1.2) and lag.made == 1
     assert lag.get(g, 1.5, make) is made[1] and lag.made == 2  # no re-tensioning offered: made anew
     assert lag.get(g + 3.1, 1.5, make) is made[2]  # eps |dg'| 0.31 > 0.3
+
+
+def test_the_tensor_form_applies_z_and_its_transpose_as_the_sparse_matrix():
+    """``restrict`` / ``extend`` (d one-axis contractions) against the assembled sparse Z: the same
+    sums in other orders, round-off of their size."""
+    eps = 0.3
+    grid = CosineGrid(((0.0, 2.4), (0.0, 1.5), (0.0, 1.5)), (16, 10, 10))
+    coarse = bc.BandCoarse(grid, grid.cell, eps, _prolate_field(grid, eps), np.zeros(grid.size), 1.0, 0.0).build()
+    rng = np.random.default_rng(3)
+    r, y = rng.standard_normal(grid.size), rng.standard_normal(coarse.Z.shape[1])
+    ref_t, ref = coarse.Z.T @ r, coarse.Z @ y
+    assert np.max(np.abs(coarse.restrict(r) - ref_t)) <= 1e-13 * np.max(np.abs(ref_t))
+    assert np.max(np.abs(coarse.extend(y) - ref)) <= 1e-13 * np.max(np.abs(ref))
+    assert np.isclose(coarse.restrict(r) @ y, r @ coarse.extend(y), rtol=1e-12)  # adjoint pair

@@ -116,7 +116,14 @@ class BandCoarse:
         norms[np.diff(Z.indptr) == 0] = 0.0
         keep = np.flatnonzero(norms >= KEEP * norms.max())
         lattice = np.stack(np.unravel_index(keep, counts), axis=1)  # (k, d) lattice indices of the columns
-        self.counts = tuple(counts)
+        self.counts, self._keep = tuple(counts), keep
+        self._factors = []  # Z's tensor form: per axis the dense (n_a x count_a) spline matrix (``correction``)
+        for a, t in enumerate(self._axes()):
+            c, v = bspline_1d(t, 0.0, 1.0, counts[a])
+            dense = np.zeros((t.size, counts[a]))
+            np.add.at(dense, (np.repeat(np.arange(t.size), 3), c.ravel()), v.ravel())
+            self._factors.append(dense)
+        self._band_weight = np.where(w > W_MIN, w, 0.0).reshape(g.shape)
         return sp.csc_matrix(Z[:, keep]), lattice
 
     def gauss_newton(self, v: np.ndarray) -> np.ndarray:
@@ -184,9 +191,27 @@ class BandCoarse:
         return E + self.cB * S if self.cB else E
 
     def correction(self, r: np.ndarray) -> np.ndarray:
-        """Z Hc^{-1} Z^T r."""
+        """Z Hc^{-1} Z^T r, Z applied in its tensor form (``restrict``, ``extend``)."""
         self.build()
-        return self.Z @ self.factor.solve(self.Z.T @ np.asarray(r, float))
+        return self.extend(self.factor.solve(self.restrict(r)))
+
+    def restrict(self, r: np.ndarray) -> np.ndarray:
+        """Z^T r as d one-axis contractions with the spline matrices (Z = diag(w) (B_0 x B_1 x ...) on the
+        kept columns): a few passes over the grid instead of a sparse product with ~3^d entries a band
+        node (525 k nodes: 2.8 against 4.7 ms)."""
+        u = self._band_weight * np.reshape(r, self.grid.shape)
+        for B in self._factors:  # contracts the leading grid axis, appends its lattice axis
+            u = np.tensordot(u, B, axes=(0, 0))
+        return u.ravel()[self._keep]
+
+    def extend(self, y: np.ndarray) -> np.ndarray:
+        """Z y, the transpose of ``restrict`` (525 k nodes: 2.3 against 5.2 ms)."""
+        u = np.zeros(int(np.prod(self.counts)))
+        u[self._keep] = y
+        u = u.reshape(self.counts)
+        for B in self._factors:
+            u = np.tensordot(u, B, axes=(0, 1))
+        return (self._band_weight * u).ravel()
 
     def additive(self, bulk_inv):
         """r -> P_bulk^{-1} r + Z Hc^{-1} Z^T r."""
