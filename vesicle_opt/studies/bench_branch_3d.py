@@ -20,9 +20,9 @@ v they walk (``cpu_s_per_v``: the step control sets how far a point goes), and t
 the node count, ``np.polyfit`` of log(quantity) on log(nodes) through all levels (and through the
 two largest). ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25,
 0.2 (9 k and 13 k nodes, 4 points each; ~2 min). Measured figures: ``docs/guide/large-3d.md``
-(warm point 0.59, 2.19, 5.17, 19.2 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.23; a unit of v
-58, 215, 542, 2676 s, nodes^1.35; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface band's
-coarse space; the whole study ~10 min at load ~1, the 525 k level's cold start 134 CPU s of it).
+(warm point 0.54, 2.07, 4.79, 19.4 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.25; a unit of v
+53, 202, 499, 2726 s, nodes^1.37; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface band's
+coarse space; the whole study ~4 min at load ~1, the 525 k level's cold start 78 CPU s of it).
 """
 
 from __future__ import annotations
