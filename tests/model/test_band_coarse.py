@@ -121,7 +121,9 @@ def test_a_new_tension_refactors_the_same_space_to_the_galerkin_matrix_made_fres
     a, b = moved._galerkin().toarray(), fresh._galerkin().toarray()
     assert np.max(np.abs(a - b)) <= 1e-13 * np.max(np.abs(b))  # the same products and sums: round-off
     r = np.random.default_rng(2).standard_normal(grid.size)
-    assert np.allclose(moved.correction(r), fresh.correction(r), rtol=1e-10, atol=1e-12 * np.abs(fresh.correction(r)).max())
+    ref = fresh.correction(r)
+    # two LU factorizations of equal matrices: round-off times cond(Hc)
+    assert np.allclose(moved.correction(r), ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
     assert bc.BandCoarse(grid, grid.cell, eps, phi, g_prime, 1.3, -4.0).with_tension(-1.0).cB == 0.0  # floored
 
 

@@ -28,12 +28,13 @@ supports (1.5 H either side); what is lost is the spectral Laplacian's tail beyo
 preconditions; with cells 5H wide, 250 transforms instead of 54, the counts were the same to 10 %).
 
 The preconditioner is the additive two-level one, P^{-1} r = P_bulk^{-1} r + Z Hc^{-1} Z^T r, symmetric
-positive definite; Hc by a sparse LU, Z and Z^T applied in their tensor form (``restrict``, ``extend``).
-Hc is affine in cB, so a new tension re-factors it on the same space (``with_tension``); ``Lagged``
-is the reuse policy of the p-free corrector (``branch.nk_free``) and the Newton-CG solve (``nk.solve``). Measured (the bordered tangent system of ``branch.nk_free`` at
-the octant prolate v = 0.71, eps / h = 2.5, GMRES to 1e-8): 39 / 81 / 133 iterations with the bulk
-model at 31 k / 98 k / 205 k nodes (eps 0.14 / 0.07 / 0.05), 29 / - / 32 with the coarse space; a
-random right-hand side 72 / 182 / 934 against 29 / - / 44.
+positive definite; Hc by a sparse LU, Z and Z^T applied in their tensor form (``restrict``,
+``extend``). Hc is affine in cB, so a new tension re-factors it on the same space (``with_tension``);
+``Lagged`` is the reuse policy of the p-free corrector (``branch.nk_free``) and of the Newton-CG solve
+(``nk.solve``). Measured (the bordered tangent system of ``branch.nk_free`` at the octant prolate
+v = 0.71, eps / h = 2.5, GMRES to 1e-8): 39 / 81 / 133 iterations with the bulk model at 31 k / 98 k /
+205 k nodes (eps 0.14 / 0.07 / 0.05), 29 / - / 32 with the coarse space; a random right-hand side
+72 / 182 / 934 against 29 / - / 44.
 """
 
 from __future__ import annotations

@@ -227,8 +227,9 @@ class Objective:
         pinv = self.prec.inverse(self.rig, -pt.mu[1], self.rho[0])
         if self.coarse is not None:
             grid, st, cB = self.pf.ops.fourier, pt.st, -float(pt.mu[1])
-            made = self.coarse.get(st.s, cB, lambda: BandCoarse(grid, grid.cell, self.pf.eps, st.phi, st.s, self.rig, cB),
-                                   BandCoarse.with_tension)
+            made = self.coarse.get(
+                st.s, cB, lambda: BandCoarse(grid, grid.cell, self.pf.eps, st.phi, st.s, self.rig, cB),
+                BandCoarse.with_tension)
             pinv = made.additive(pinv)
         w = self.pf.uniform_weight  # grids: one weight, folded into the spectral derivatives
         if w is not None:

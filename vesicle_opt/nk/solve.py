@@ -70,7 +70,7 @@ from vesicle_opt.scene.shapes import phase_field
 from vesicle_opt.verify.certify import build_result, dual_floor_of
 
 
-SOLVE_LAG_G = 1.2  # a solve's coarse space is remade where eps |g' - g'_held| > 1.2 (of eps g''s span 3):
+SOLVE_LAG_G = 1.2  # a solve's coarse space is remade where eps |g' - g'_held| > 1.2 (eps g' = 1 - 3 phi^2 spans 3):
 # octant prolate eps 0.05 (205 k nodes), cold: 14 spaces made, 14.5 CPU s; at 0.6, 21 made, 14.7 s
 SOLVE_LAG_CB = 0.1  # ... and re-factored (the space kept) where -mu_B moves by more than 10 %
 ROUNDOFF_STALL = "roundoff_stall"  # 'exact': the constraints held, the inner solves stalled at round-off
