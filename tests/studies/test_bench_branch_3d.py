@@ -39,3 +39,23 @@ def test_summary_fits_the_exponent_of_a_power_law_over_the_warm_points():
 def test_exponents_need_two_levels():
     assert math.isnan(bb.exponents([1000], [1.0]))
     assert bb.exponents([1e3, 1e4], [1.0, 10.0**1.15]) == pytest.approx(1.15)
+
+
+def test_the_steady_window_takes_the_points_after_the_warm_ones():
+    """Points 2-5 make ``levels``, points 6 on ``steady`` (each level's own power law: 1.3 in the warm
+    window, 1.1 after it), so the two fits recover their own exponents."""
+    cases = [{"epsilon": e} for e in (0.14, 0.05)]
+    rows = []
+    for c, n in zip(cases, (31104, 204800)):
+        for point in range(10):
+            cpu = (2e-5 * n**1.3 if point < bb.STEADY_FROM else 3e-5 * n**1.1) * (100.0 if point < 2 else 1.0)
+            rows.append({"epsilon": str(c["epsilon"]), "nodes": str(n), "point": str(point), "accepted": "True",
+                         "target": str(0.71 - 0.01 * point), **{q: str(cpu) for q in bb.QUANTITIES},
+                         "load_average": "1.0"})
+    info = bb.summary(rows, cases)
+    assert info["levels"]["0.05"]["warm_points"] == bb.WARM
+    assert info["steady"]["0.05"]["warm_points"] == 10 - bb.STEADY_FROM
+    assert info["exponents"]["cpu_s"] == pytest.approx(1.3, abs=1e-9)
+    assert info["exponents_steady"]["cpu_s"] == pytest.approx(1.1, abs=1e-9)
+    # a unit of v after the warm window: the steady points' CPU over v from point 5 to point 9 (0.04)
+    assert info["steady"]["0.14"]["cpu_s_per_v"] == pytest.approx(4 * 3e-5 * 31104**1.1 / 0.04)

@@ -14,15 +14,16 @@ Newton-Krylov steps of ``branch.nk_free`` plus the certifying fixed-p solve's), 
 (``pinv``), the second-order check's CPU seconds and its LOBPCG iterations (fine level and the coarse
 levels, ``check_iterations``, ``check_coarse_iterations``).
 
-``summary``: per level the median over the warm points (the points after the first two: the first
+``summary``: per level the median over the warm points (``WARM`` points after the first two: the first
 is the cold start, the second the fixed-step natural point) and their CPU seconds over the stretch of
-v they walk (``cpu_s_per_v``: the step control sets how far a point goes), and the exponent of each quantity in
-the node count, ``np.polyfit`` of log(quantity) on log(nodes) through all levels (and through the
-two largest). ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25,
+v they walk (``cpu_s_per_v``: the step control sets how far a point goes), and the exponent of each
+quantity in the node count, ``np.polyfit`` of log(quantity) on log(nodes) through all levels (and
+through the two largest); ``steady`` and ``exponents_steady``: the same over the points after those
+(``STEADY_FROM`` on), past the step control's transient at the largest level. ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25,
 0.2 (9 k and 13 k nodes, 4 points each; ~2 min). Measured figures: ``docs/guide/large-3d.md``
-(warm point 0.54, 2.07, 4.79, 19.4 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.25; a unit of v
-53, 202, 499, 2726 s, nodes^1.37; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface band's
-coarse space; the whole study ~4 min at load ~1, the 525 k level's cold start 78 CPU s of it).
+(points 2-5: 0.64, 2.12, 5.21, 17.1 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.17, in three runs
+1.06-1.25; points 6-9: nodes^1.01-1.12; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface
+band's coarse space; the whole study ~6 min at load ~1, the 525 k level's cold start 76 CPU s of it).
 """
 
 from __future__ import annotations
@@ -51,11 +52,14 @@ log = logging.getLogger(__name__)
 NAME = "bench_branch_3d"
 LEVELS = (0.14, 0.07, 0.05, 0.035)
 QUICK_LEVELS = (0.25, 0.2)
-POINTS = 6  # a cold start, a natural step and four arclength points, at every level: the medians are then
-# over the same warm points (with two at 525 k nodes, as once, they sat in the step control's transient:
-# Newton 12 / 8 at points 2 / 3 against 6 / 6 at points 4 / 5)
+POINTS = 10  # a cold start, a natural step and eight arclength points, at every level: the medians are
+# then over the same points at every level
 V_START, V_STEP = 0.71, -0.01
 WARM_FROM = 2  # the first warm arclength point (0: the cold start, 1: the natural step)
+WARM = 4  # the warm points the summary's medians take (points 2-5, as in earlier releases)
+STEADY_FROM = WARM_FROM + WARM  # ``steady``: the points after them (6-9). At 525 k nodes points 2-5 are
+# still the step control's transient, adapting the natural step's dv 0.01 (Newton 12 / 10 / 9 / 8, then
+# 7-8); at 31 k-205 k nodes the two windows agree
 QUANTITIES = ("cpu_s", "transforms", "newton", "krylov", "pinv", "check_cpu_s", "check_transforms")
 
 
@@ -169,26 +173,44 @@ def _per_v(rows: list[dict], epsilon: float, warm: list[dict]) -> float:
     return sum(_num(r.get("cpu_s")) for r in warm) / span if span > 0 else math.nan
 
 
+def _window(rows: list[dict], epsilon: float, first: int, last: float) -> dict | None:
+    """The medians over a level's accepted points first <= point < last, their CPU seconds a unit of v
+    and the load (None without such points)."""
+    pts = [r for r in rows if _num(r.get("epsilon")) == epsilon and first <= _num(r.get("point")) < last
+           and str(r.get("accepted")) in ("True", "true")]
+    if not pts:
+        return None
+    return {"nodes": int(_num(pts[0]["nodes"])), "warm_points": len(pts),
+            **{q: statistics.median(_num(r.get(q)) for r in pts) for q in QUANTITIES},
+            "cpu_s_per_v": _per_v(rows, epsilon, pts),
+            "load_average": statistics.median(_num(r.get("load_average")) for r in pts)}
+
+
+def _fits(levels: dict) -> dict:
+    nodes = [v["nodes"] for v in levels.values()]
+    return {q: exponents(nodes, [v[q] for v in levels.values()]) for q in (*QUANTITIES, "cpu_s_per_v")}
+
+
 def summary(rows: list[dict], case_list: list[dict]) -> dict:
-    """Per level the medians over the warm points; the exponents in the node count (docstring)."""
-    levels = {}
+    """Per level the medians over the warm points (``WARM`` of them from ``WARM_FROM``) and, in
+    ``steady``, over the points after them; the exponents in the node count (docstring)."""
+    levels, steady = {}, {}
     for c in case_list:
-        warm = [r for r in rows if _num(r.get("epsilon")) == c["epsilon"] and _num(r.get("point")) >= WARM_FROM
-                and str(r.get("accepted")) in ("True", "true")]
-        if not warm:
-            continue
-        levels[c["epsilon"]] = {"nodes": int(_num(warm[0]["nodes"])), "warm_points": len(warm),
-                                **{q: statistics.median(_num(r.get(q)) for r in warm) for q in QUANTITIES},
-                                "cpu_s_per_v": _per_v(rows, c["epsilon"], warm),
-                                "load_average": statistics.median(_num(r.get("load_average")) for r in warm)}
+        e = c["epsilon"]
+        if (w := _window(rows, e, WARM_FROM, STEADY_FROM)) is not None:
+            levels[e] = w
+        if (w := _window(rows, e, STEADY_FROM, math.inf)) is not None:
+            steady[e] = w
     out: dict = {"levels": {f"{e:g}": v for e, v in levels.items()}}
     if len(levels) >= 2:
-        nodes = [v["nodes"] for v in levels.values()]
-        out["exponents"] = {q: exponents(nodes, [v[q] for v in levels.values()]) for q in QUANTITIES}
-        out["exponents"]["cpu_s_per_v"] = exponents(nodes, [v["cpu_s_per_v"] for v in levels.values()])
+        out["exponents"] = _fits(levels)
         top = sorted(levels.values(), key=lambda v: v["nodes"])[-2:]
         out["exponents_two_largest"] = {q: exponents([v["nodes"] for v in top], [v[q] for v in top])
                                         for q in QUANTITIES}
+    if steady:
+        out["steady"] = {f"{e:g}": v for e, v in steady.items()}
+    if len(steady) >= 2:
+        out["exponents_steady"] = _fits(steady)
     return out
 
 
@@ -206,7 +228,10 @@ def main(out: Path, quick: bool = False) -> int:
         log.info(f"{NAME}: eps={e} nodes={v['nodes']} median warm point: cpu {v['cpu_s']:.2f}s, "
                  f"DCT {v['transforms']:.0f}, newton {v['newton']:.0f}, gmres {v['krylov']:.0f}, "
                  f"check {v['check_cpu_s']:.2f}s; cpu per unit of v {v['cpu_s_per_v']:.0f}s")
-    if "exponents" in info:
-        log.info(f"{NAME}: exponents in the node count: " +
-                 ", ".join(f"{q} {x:.2f}" for q, x in info["exponents"].items()))
+    for e, v in info.get("steady", {}).items():
+        log.info(f"{NAME}: eps={e} median point after them: cpu {v['cpu_s']:.2f}s, newton {v['newton']:.0f}, "
+                 f"gmres {v['krylov']:.0f}, check {v['check_cpu_s']:.2f}s; cpu per unit of v {v['cpu_s_per_v']:.0f}s")
+    for key in ("exponents", "exponents_steady"):
+        if key in info:
+            log.info(f"{NAME}: {key} in the node count: " + ", ".join(f"{q} {x:.2f}" for q, x in info[key].items()))
     return 0 if all(str(r.get("converged")) in ("True", "true") for r in rows) and rows else 1
