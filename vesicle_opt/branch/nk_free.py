@@ -50,7 +50,7 @@ from vesicle_opt.branch.bordered import Affine, axial_pin
 from vesicle_opt.branch.krylov_bordered import Free, Linearization, border, bordered_solve, newton
 from vesicle_opt.mesh.cosine import KIND as MIRROR_KIND
 from vesicle_opt.model.lumped import PhaseField
-from vesicle_opt.model.band_coarse import BandCoarse, Lagged
+from vesicle_opt.model.band_coarse import Lagged
 
 CERTIFY_MAX_ITER = 10  # the certifying fixed-p solve's Newton budget, a safeguard: from a point Newton
 # converged it takes 0 steps; one that needs many is off, and on a saddle sheet the minimiser then drifts
@@ -140,9 +140,7 @@ class VesicleKKT:
         s, cB = np.asarray(st.s, float), -float(lam[1])
         if lu:
             return self._lag.get(s, cB, lambda: self.prec.gauss_newton(s, self.rig, cB))
-        made = self._lag.get(s, cB, lambda: BandCoarse(grid, grid.cell, self.eps, st.phi, s, self.rig, cB),
-                             BandCoarse.with_tension)
-        return made.additive(self.prec.inverse(self.rig, cB, 0.0))
+        return self._lag.band_coarse(grid, st.phi, s, self.rig, cB).additive(self.prec.inverse(self.rig, cB, 0.0))
 
     def phase(self, phi_pred) -> list:
         """The phase conditions' vectors at the prediction (module docstring)."""

@@ -104,12 +104,10 @@ class BandCoarse:
         counts = [int(np.ceil(L / (SPACING * self.eps))) + 2 for L in g.lengths]
         band = np.flatnonzero(w > W_MIN)
         idx = np.unravel_index(band, g.shape)
-        per_axis = []
-        for a, t in enumerate(self._axes()):
-            c, v = bspline_1d(t, 0.0, 1.0, counts[a])
-            per_axis.append((c[idx[a]], v[idx[a]]))
+        splines = [bspline_1d(t, 0.0, 1.0, counts[a]) for a, t in enumerate(self._axes())]  # (cols, vals) an axis
         cols, vals = np.zeros((band.size, 1), int), w[band][:, None]
-        for a, (c, v) in enumerate(per_axis):
+        for a, (c, v) in enumerate(splines):
+            c, v = c[idx[a]], v[idx[a]]
             cols = (cols[:, :, None] * counts[a] + c[:, None, :]).reshape(band.size, -1)
             vals = (vals[:, :, None] * v[:, None, :]).reshape(band.size, -1)
         rows = np.repeat(band, cols.shape[1])
@@ -121,10 +119,9 @@ class BandCoarse:
         lattice = np.stack(np.unravel_index(keep, counts), axis=1)  # (k, d) lattice indices of the columns
         self.counts, self._keep = tuple(counts), keep
         self._factors = []  # Z's tensor form: per axis the dense (n_a x count_a) spline matrix (``correction``)
-        for a, t in enumerate(self._axes()):
-            c, v = bspline_1d(t, 0.0, 1.0, counts[a])
-            dense = np.zeros((t.size, counts[a]))
-            np.add.at(dense, (np.repeat(np.arange(t.size), 3), c.ravel()), v.ravel())
+        for (c, v), count in zip(splines, counts):
+            dense = np.zeros((c.shape[0], count))
+            np.add.at(dense, (np.repeat(np.arange(c.shape[0]), 3), c.ravel()), v.ravel())
             self._factors.append(dense)
         self._band_weight = np.where(w > W_MIN, w, 0.0).reshape(g.shape)
         return sp.csc_matrix(Z[:, keep]), lattice
@@ -232,6 +229,12 @@ class Lagged:
         self.eps, self.lag_g, self.lag_cb = float(eps), float(lag_g), float(lag_cb)
         self.held = None
         self.made = 0  # factorizations made (benchmarks and tests)
+
+    def band_coarse(self, grid, phi: np.ndarray, g_prime: np.ndarray, cE: float, cB: float) -> BandCoarse:
+        """The mirror grid's coarse space at one state (``BandCoarse``, node weight ``grid.cell``) under
+        these rules, re-tensioned where only cB moved."""
+        return self.get(g_prime, cB, lambda: BandCoarse(grid, grid.cell, self.eps, phi, g_prime, cE, cB),
+                        BandCoarse.with_tension)
 
     def get(self, g_prime: np.ndarray, cB: float, make, retension=None):
         """The held factorization, or ``make()``'s, or ``retension(held, cB)``'s (rules above)."""

@@ -35,7 +35,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vesicle_opt.blas import axpy
-from vesicle_opt.model.band_coarse import BandCoarse
 from vesicle_opt.model.penalty import penalised_energy
 from vesicle_opt.nk.krylov import SubspacePreconditioner
 from vesicle_opt.nk.system import FourierSystem, NodalSystem
@@ -226,10 +225,7 @@ class Objective:
         ``model.band_coarse``), reused while the state moves little (``band_coarse.Lagged``)."""
         pinv = self.prec.inverse(self.rig, -pt.mu[1], self.rho[0])
         if self.coarse is not None:
-            grid, st, cB = self.pf.ops.fourier, pt.st, -float(pt.mu[1])
-            made = self.coarse.get(
-                st.s, cB, lambda: BandCoarse(grid, grid.cell, self.pf.eps, st.phi, st.s, self.rig, cB),
-                BandCoarse.with_tension)
+            made = self.coarse.band_coarse(self.pf.ops.fourier, pt.st.phi, pt.st.s, self.rig, -float(pt.mu[1]))
             pinv = made.additive(pinv)
         w = self.pf.uniform_weight  # grids: one weight, folded into the spectral derivatives
         if w is not None:

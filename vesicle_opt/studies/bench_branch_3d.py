@@ -19,8 +19,9 @@ is the cold start, the second the fixed-step natural point) and their CPU second
 v they walk (``cpu_s_per_v``: the step control sets how far a point goes), and the exponent of each
 quantity in the node count, ``np.polyfit`` of log(quantity) on log(nodes) through all levels (and
 through the two largest); ``steady`` and ``exponents_steady``: the same over the points after those
-(``STEADY_FROM`` on), past the step control's transient at the largest level. ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25,
-0.2 (9 k and 13 k nodes, 4 points each; ~2 min). Measured figures: ``docs/guide/large-3d.md``
+(``STEADY_FROM`` on), past the step control's transient at the largest level. ``main(out, quick)``
+writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25, 0.2 (9 k and 13 k nodes, 4 points
+each; ~2 min). Measured figures: ``docs/guide/large-3d.md``
 (points 2-5: 0.64, 2.12, 5.21, 17.1 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.17, in three runs
 1.06-1.25; points 6-9: nodes^1.01-1.12; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface
 band's coarse space; the whole study ~6 min at load ~1, the 525 k level's cold start 76 CPU s of it).
@@ -230,8 +231,10 @@ def main(out: Path, quick: bool = False) -> int:
                  f"check {v['check_cpu_s']:.2f}s; cpu per unit of v {v['cpu_s_per_v']:.0f}s")
     for e, v in info.get("steady", {}).items():
         log.info(f"{NAME}: eps={e} median point after them: cpu {v['cpu_s']:.2f}s, newton {v['newton']:.0f}, "
-                 f"gmres {v['krylov']:.0f}, check {v['check_cpu_s']:.2f}s; cpu per unit of v {v['cpu_s_per_v']:.0f}s")
+                 f"gmres {v['krylov']:.0f}, check {v['check_cpu_s']:.2f}s; "
+                 f"cpu per unit of v {v['cpu_s_per_v']:.0f}s")
     for key in ("exponents", "exponents_steady"):
         if key in info:
-            log.info(f"{NAME}: {key} in the node count: " + ", ".join(f"{q} {x:.2f}" for q, x in info[key].items()))
+            log.info(f"{NAME}: {key} in the node count: " +
+                     ", ".join(f"{q} {x:.2f}" for q, x in info[key].items()))
     return 0 if all(str(r.get("converged")) in ("True", "true") for r in rows) and rows else 1
