@@ -31,6 +31,24 @@ def test_bordered_gmres_matches_dense_lu():
     assert np.linalg.norm(np.concatenate([x, y]) - ref) <= 1e-9 * np.linalg.norm(ref)
 
 
+def test_a_zero_column_costs_no_preconditioner_application():
+    """r_p = 0 (a walk in a constraint's target): the same solution as LU's, and P^{-1} never applied
+    to the zero column (it is linear: that column's P^{-1} b is zero), the nonzero ones once each."""
+    H, cols, rows, D, J, rng = _bordered(2)
+    cols[1] = np.zeros(60)
+    J[:60, 61] = 0.0
+    b = rng.standard_normal(63)
+    d = np.abs(np.diag(H)) + 1.0
+    seen = []
+
+    def pinv(r):
+        seen.append(r)
+        return r / d
+    x, y, its, ok = kb.bordered_solve(lambda v: H @ v, pinv, cols, rows, D, b[:60], b[60:], 1e-12)
+    assert ok and np.linalg.norm(np.concatenate([x, y]) - np.linalg.solve(J, b)) <= 1e-9 * np.linalg.norm(b)
+    assert [sum(r is c for r in seen) for c in cols] == [1, 0, 1]
+
+
 def test_bordering_preconditioner_is_exact_where_p_is_h():
     """With P = H the Schur-complement preconditioner is J^{-1}: one GMRES iteration."""
     H, cols, rows, D, J, rng = _bordered(1)

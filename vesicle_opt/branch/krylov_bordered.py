@@ -97,7 +97,8 @@ def bordered_solve(hvp, pinv, cols, rows, corner, f, g, eta: float, max_iter: in
     the k columns of B and rows of C as N-arrays; ``corner``: D (k x k). Returns (x, y, iterations,
     converged)."""
     n, k = f.size, len(cols)
-    U = [pinv(b) for b in cols]
+    # P^{-1} is linear: a zero column (r_p where p is a constraint target) maps to zero without an application
+    U = [pinv(b) if np.any(b) else np.zeros(n) for b in cols]
     S = np.asarray(corner, float) - np.array([[float(rw @ u) for u in U] for rw in rows]).reshape(k, k)
     S_inv = np.linalg.inv(S) if k else np.zeros((0, 0))
 
