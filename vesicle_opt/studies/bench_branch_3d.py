@@ -19,12 +19,15 @@ is the cold start, the second the fixed-step natural point) and their CPU second
 v they walk (``cpu_s_per_v``: the step control sets how far a point goes), and the exponent of each
 quantity in the node count, ``np.polyfit`` of log(quantity) on log(nodes) through all levels (and
 through the two largest); ``steady`` and ``exponents_steady``: the same over the points after those
-(``STEADY_FROM`` on), past the step control's transient at the largest level. ``main(out, quick)``
-writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25, 0.2 (9 k and 13 k nodes, 4 points
-each; ~2 min). Measured figures: ``docs/guide/large-3d.md``
-(points 2-5: 0.64, 2.12, 5.21, 17.1 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.17, in three runs
-1.06-1.25; points 6-9: nodes^1.01-1.12; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface
-band's coarse space; the whole study ~6 min at load ~1, the 525 k level's cold start 76 CPU s of it).
+(``STEADY_FROM`` on), past the step control's transient at the largest level; ``all_warm`` and
+``exponents_all_warm``: over both. Each level is walked ``REPEATS`` times, interleaved (``cases``);
+the medians pool the repeats, and ``by_repeat`` / ``exponent_spread`` give each round's own CPU
+exponents. ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25, 0.2
+(9 k and 13 k nodes, 4 points each, one round; ~2 min). Measured figures: ``docs/guide/large-3d.md``
+(three rounds, points 2-9: 0.66, 2.20, 5.08, 18.1 CPU s at 31 k, 98 k, 205 k, 525 k nodes,
+nodes^1.17, a round's own 1.09-1.22; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface
+band's coarse space; the whole study 17.5 min at load ~1, the 525 k level's cold starts 71-76 CPU s
+each).
 """
 
 from __future__ import annotations
@@ -61,6 +64,10 @@ WARM = 4  # the warm points the summary's medians take (points 2-5, as in earlie
 STEADY_FROM = WARM_FROM + WARM  # ``steady``: the points after them (6-9). At 525 k nodes points 2-5 are
 # still the step control's transient, adapting the natural step's dv 0.01 (Newton 12 / 10 / 9 / 8, then
 # 7-8); at 31 k-205 k nodes the two windows agree
+REPEATS = 3  # each level walked three times, interleaved (``cases``): the CPU seconds of one walk vary
+# by up to 1.8x between runs at low load with the same DCT counts (31 k nodes, 0.55-0.99 ms a DCT), which
+# moved one run's exponent by ~0.1 (1.06-1.25 over points 2-5 in three runs); the medians pool the repeats
+# and ``by_repeat`` gives each round's own exponents, their spread
 QUANTITIES = ("cpu_s", "transforms", "newton", "krylov", "pinv", "check_cpu_s", "check_transforms")
 
 
@@ -147,13 +154,15 @@ def walk(epsilon: float, points: int) -> list[dict]:
 
 def case_rows(case: dict) -> list[dict]:
     os.environ.setdefault("OMP_NUM_THREADS", "1")  # the child's BLAS (as bench_3d)
-    return in_fresh_process(walk, case["epsilon"], case["points"])
+    return [{**r, "repeat": case.get("repeat", 0)} for r in in_fresh_process(walk, case["epsilon"], case["points"])]
 
 
-def cases(quick: bool) -> list[dict]:
+def cases(quick: bool, repeats: int = REPEATS) -> list[dict]:
+    """Every level's walk ``repeats`` times, interleaved (round r walks every level before round r + 1:
+    a slow spell of the shared machine then falls on all levels of a round, not on one level)."""
     levels = QUICK_LEVELS if quick else LEVELS
-    return [{"case": f"eps{e:g}", "epsilon": e,
-             "points": 4 if quick else POINTS} for e in levels]
+    return [{"case": f"eps{e:g}" + (f"-r{r}" if r else ""), "epsilon": e, "repeat": r,
+             "points": 4 if quick else POINTS} for r in range(1 if quick else repeats) for e in levels]
 
 
 def exponents(nodes, values) -> float:
@@ -166,17 +175,28 @@ def exponents(nodes, values) -> float:
 def _per_v(rows: list[dict], epsilon: float, warm: list[dict]) -> float:
     """The warm points' CPU seconds over the stretch of v they walk (from the point before the first
     warm one to the last): the cost of a unit of branch, which the step sizes enter (NaN without it)."""
-    by_point = {int(_num(r.get("point"))): r for r in rows if _num(r.get("epsilon")) == epsilon}
-    first, last = min(int(_num(r["point"])) for r in warm), max(int(_num(r["point"])) for r in warm)
-    if first - 1 not in by_point:
-        return math.nan
-    span = abs(_num(by_point[last].get("target")) - _num(by_point[first - 1].get("target")))
-    return sum(_num(r.get("cpu_s")) for r in warm) / span if span > 0 else math.nan
+    cpu = span = 0.0
+    for rep in {_repeat(r) for r in warm}:  # each repeat's stretch of v (the repeats walk the same v)
+        mine = [r for r in warm if _repeat(r) == rep]
+        by_point = {int(_num(r.get("point"))): r for r in rows
+                    if _num(r.get("epsilon")) == epsilon and _repeat(r) == rep}
+        first, last = min(int(_num(r["point"])) for r in mine), max(int(_num(r["point"])) for r in mine)
+        if first - 1 not in by_point:
+            return math.nan
+        span += abs(_num(by_point[last].get("target")) - _num(by_point[first - 1].get("target")))
+        cpu += sum(_num(r.get("cpu_s")) for r in mine)
+    return cpu / span if span > 0 else math.nan
+
+
+def _repeat(row: dict) -> int:
+    """The row's repeat (0 where the CSV has no such column: rows of earlier releases)."""
+    x = _num(row.get("repeat"))
+    return 0 if not math.isfinite(x) else int(x)
 
 
 def _window(rows: list[dict], epsilon: float, first: int, last: float) -> dict | None:
-    """The medians over a level's accepted points first <= point < last, their CPU seconds a unit of v
-    and the load (None without such points)."""
+    """The medians over a level's accepted points first <= point < last (of every repeat), their CPU
+    seconds a unit of v and the load (None without such points)."""
     pts = [r for r in rows if _num(r.get("epsilon")) == epsilon and first <= _num(r.get("point")) < last
            and str(r.get("accepted")) in ("True", "true")]
     if not pts:
@@ -194,14 +214,16 @@ def _fits(levels: dict) -> dict:
 
 def summary(rows: list[dict], case_list: list[dict]) -> dict:
     """Per level the medians over the warm points (``WARM`` of them from ``WARM_FROM``) and, in
-    ``steady``, over the points after them; the exponents in the node count (docstring)."""
-    levels, steady = {}, {}
-    for c in case_list:
-        e = c["epsilon"]
+    ``steady``, over the points after them, in ``all_warm`` over both; the repeats pooled; the
+    exponents in the node count (docstring), and each repeat's own (``_by_repeat``)."""
+    levels, steady, every = {}, {}, {}
+    for e in dict.fromkeys(c["epsilon"] for c in case_list):  # the levels, once each (cases repeat them)
         if (w := _window(rows, e, WARM_FROM, STEADY_FROM)) is not None:
             levels[e] = w
         if (w := _window(rows, e, STEADY_FROM, math.inf)) is not None:
             steady[e] = w
+        if (w := _window(rows, e, WARM_FROM, math.inf)) is not None:
+            every[e] = w
     out: dict = {"levels": {f"{e:g}": v for e, v in levels.items()}}
     if len(levels) >= 2:
         out["exponents"] = _fits(levels)
@@ -212,10 +234,42 @@ def summary(rows: list[dict], case_list: list[dict]) -> dict:
         out["steady"] = {f"{e:g}": v for e, v in steady.items()}
     if len(steady) >= 2:
         out["exponents_steady"] = _fits(steady)
+    if every:
+        out["all_warm"] = {f"{e:g}": v for e, v in every.items()}
+    if len(every) >= 2:
+        out["exponents_all_warm"] = _fits(every)
+    out.update(_by_repeat(rows, case_list))
     return out
 
 
-EXTRA = ["epsilon", "nodes", "point", "target", "corrector", "accepted", "converged", "second_order",
+WINDOWS = {"warm": (WARM_FROM, STEADY_FROM), "steady": (STEADY_FROM, math.inf), "all_warm": (WARM_FROM, math.inf)}
+
+
+def _by_repeat(rows: list[dict], case_list: list[dict]) -> dict:
+    """Each repeat's own CPU exponent in each window (``WINDOWS``) and, over the repeats, their least,
+    median and largest (``exponent_spread``): how far one run's exponent can be trusted. Empty with
+    fewer than two repeats."""
+    reps = sorted({_repeat(r) for r in rows})
+    if len(reps) < 2:
+        return {}
+    levels = sorted({c["epsilon"] for c in case_list}, reverse=True)
+    each: dict = {}
+    for rep in reps:
+        mine = [r for r in rows if _repeat(r) == rep]
+        fits = {}
+        for name, (first, last) in WINDOWS.items():
+            ws = [w for e in levels if (w := _window(mine, e, first, last)) is not None]
+            fits[name] = exponents([w["nodes"] for w in ws], [w["cpu_s"] for w in ws]) if len(ws) >= 2 else math.nan
+        each[str(rep)] = fits
+    spread = {}
+    for name in WINDOWS:
+        xs = sorted(x for f in each.values() if math.isfinite(x := f[name]))
+        if xs:
+            spread[name] = {"min": xs[0], "median": statistics.median(xs), "max": xs[-1], "repeats": len(xs)}
+    return {"by_repeat": each, "exponent_spread": spread}
+
+
+EXTRA = ["repeat", "epsilon", "nodes", "point", "target", "corrector", "accepted", "converged", "second_order",
          "reduced_energy", "cpu_s", "transforms", "newton", "krylov", "krylov_iterations", "pinv", "check_cpu_s",
          "check_transforms", "check_iterations", "check_coarse_iterations", "load_average"]
 
@@ -233,7 +287,10 @@ def main(out: Path, quick: bool = False) -> int:
         log.info(f"{NAME}: eps={e} median point after them: cpu {v['cpu_s']:.2f}s, newton {v['newton']:.0f}, "
                  f"gmres {v['krylov']:.0f}, check {v['check_cpu_s']:.2f}s; "
                  f"cpu per unit of v {v['cpu_s_per_v']:.0f}s")
-    for key in ("exponents", "exponents_steady"):
+    for name, v in info.get("exponent_spread", {}).items():
+        log.info(f"{NAME}: cpu exponent over the {v['repeats']} repeats, {name} window: min {v['min']:.2f}, "
+                 f"median {v['median']:.2f}, max {v['max']:.2f}")
+    for key in ("exponents", "exponents_steady", "exponents_all_warm"):
         if key in info:
             log.info(f"{NAME}: {key} in the node count: " +
                      ", ".join(f"{q} {x:.2f}" for q, x in info[key].items()))
