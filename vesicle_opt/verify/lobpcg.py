@@ -32,7 +32,15 @@ against 300 coarsest iterations). Measured on the octant prolate's walk, the sam
 replayed (check CPU s, coarsest warm -> the level that starts the fine one warm, fine iterations 5
 either way, the eigenvalues within their error bounds): 205 k nodes 1.54 / 1.63 / 2.15 / 1.73 ->
 1.40 / 1.33 / 1.37 / 1.10 (the coarsest level's 16-70 iterations gone, the 80 x 24 x 24 level's
-22-28 -> 19-30). Measured on the Table-1 torus (load ~6-9, one process, every coarse level then
+22-28 -> 19-30). The warm level starts from the Rayleigh-Ritz best k of the previous rows and the same
+rows carried to this point's interface (``lobpcg_level.transported``, with the previous point's coarse
+phi that ``levels`` keeps): where the interface moved by a sizeable part of eps the previous rows
+sit beside it (Rayleigh quotient 14-38 against mu_min 0.032-0.036 at 525 k nodes, 9-12 against
+0.069-0.083 at 205 k), the carried ones on it (0.042-0.046, 0.090-0.106); where it barely moved
+(31 k nodes: 1.1-1.3 against 0.66-0.69) the previous rows are the better and Rayleigh-Ritz keeps
+them. Replayed (the same checks, CPU s): 525 k nodes 35-38 -> 21-26 coarse iterations, 4.5-5.0 ->
+3.3-4.6 s; 31 k 14-20 -> 17-21, 0.18-0.23 -> 0.23-0.26 s; fine iterations and eigenvalues unchanged
+within their error bounds. Measured on the Table-1 torus (load ~6-9, one process, every coarse level then
 to 1e-6): 64^3 26^3/40^3/64^3 levels 68/22/4 iterations, 3.0 s (from 32^3, the level before this
 one: 62/19, 4.2 s; from random-mixed 48^3 for 96^3: 238-300 iterations); mu_min within 3e-7 of its
 converged value 0.14520727. scipy's lobpcg (random start, 150 iterations at 64^3) ended with error
@@ -89,10 +97,12 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
            feeds_fine=True):
     """Nodal start block for this level: the coarse eigenvectors interpolated, or None where there
     is no coarse level (the caller then starts from the interface block mixed with random columns).
-    ``warm``: {coarse shape: nodal rows} of a nearby point's check (a branch's previous point): the
-    level that starts the fine one starts from its rows where it holds them, and the levels below it
-    are not run; else the coarsest level starts from its rows instead of the random-mixed interface
-    block (module docstring, warm start); ``levels``: filled with {coarse shape: the nodal rows found there};
+    ``warm``: {coarse shape: nodal rows, ("phi", coarse shape): the phi they were found at} of a nearby
+    point's check (a branch's previous point): the level that starts the fine one starts from its rows
+    (and those rows carried to this phi, ``lobpcg_level.transported``, where warm holds that phi) where it
+    holds them, and the levels below it are not run; else the coarsest level starts from its rows
+    instead of the random-mixed interface block (module docstring, warm start); ``levels``: filled
+    with {coarse shape: the nodal rows found there, ("phi", coarse shape): phi there};
     ``feeds_fine``: this level's eigenvectors start the fine level (its settling tolerance, ``lobpcg_rules``)."""
     shape = rules.coarse_shape(disc, scene.model.epsilon)
     if shape is not None:
@@ -118,8 +128,12 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         settled = rules.settled(COARSE_EIG_TOL if feeds_fine else LOWER_EIG_TOL)
         if cX is not None:
             U0 = level.start_block(clev, clev.rows_to_u(cX, owned=True), k)  # the finer rows resampled here: its own
-        elif here is not None:
-            U0 = level.start_block(clev, clev.rows_to_u(here), k)
+        elif here is not None:  # the nearby point's rows, and the same carried to this point's interface
+            U = clev.rows_to_u(here)
+            then = warm.get(("phi", tuple(shape)))
+            if then is not None and np.shape(then) == cphi.shape:
+                U = np.vstack([U, clev.rows_to_u(level.transported(here, then, cphi))])
+            U0 = level.start_block(clev, U, k)
         else:
             U0 = level.start_block(clev, level.interface_block(clev, cphi, not rotations), k, seed)
         out = block_eig.lobpcg(clev.a_u, clev.t_u, U0, clev.Qall, max_iter,
@@ -128,6 +142,7 @@ def _start(scene, disc, pf, prec, phi, cB, ref, rotations, k, seed, counts, max_
         rows = clev.rows_to_nodal(out.vectors)
         if levels is not None:
             levels[tuple(shape)] = rows
+            levels[("phi", tuple(shape))] = cphi  # where they were found (``level.transported``)
         return np.stack([resample(v, shape, disc.grid_shape, disc.kind) for v in rows])
     return None
 
@@ -137,7 +152,8 @@ def spectrum(scene, result, setup, k: int = K, rotations: bool = False, max_iter
     """Everything the check computes: eigenvalues mu/mu_ref (ascending), their error bounds, the
     M-normalised eigenvectors (columns), the excluded modes' label and Rayleigh quotients on T
     (mu_ref units), mu_ref, the fine level's iteration count and each coarse level's, and
-    ``levels``: {coarse shape: the nodal eigenvector rows found there}, which a nearby point's check
+    ``levels``: {coarse shape: the nodal eigenvector rows found there, ("phi", coarse shape): the
+    coarse phi}, which a nearby point's check
     takes as ``warm`` (``_start``). ``X0``: a nodal start block (columns) instead of the
     coarse-level / interface start. ``max_iter``: the LOBPCG cap per level, by default the scene's
     ``solver.second_order_max_iter`` (``MAX_ITER`` unless the scene raises it)."""
