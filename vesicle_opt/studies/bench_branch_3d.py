@@ -24,10 +24,10 @@ through the two largest); ``steady`` and ``exponents_steady``: the same over the
 the medians pool the repeats, and ``by_repeat`` / ``exponent_spread`` give each round's own CPU
 exponents. ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25, 0.2
 (9 k and 13 k nodes, 4 points each, one round; ~2 min). Measured figures: ``docs/guide/large-3d.md``
-(three rounds, points 2-9: 0.66, 2.20, 5.08, 18.1 CPU s at 31 k, 98 k, 205 k, 525 k nodes,
-nodes^1.17, a round's own 1.09-1.22; 0.89, 5.0, 22.7 s a point, nodes^1.70, before the interface
-band's coarse space; the whole study 17.5 min at load ~1, the 525 k level's cold starts 71-76 CPU s
-each).
+(three rounds, points 2-9: 0.71, 2.40, 5.76, 18.8 CPU s at 31 k, 98 k, 205 k, 525 k nodes,
+nodes^1.16, a round's own 1.12-1.21, in a second run 1.18; the DCTs a point nodes^0.21; 0.89, 5.0,
+22.7 s a point, nodes^1.70, before the interface band's coarse space; the whole study ~18 min at
+load ~1, the 525 k level's cold starts 79-97 CPU s each).
 """
 
 from __future__ import annotations
