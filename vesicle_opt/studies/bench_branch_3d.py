@@ -212,37 +212,30 @@ def _fits(levels: dict) -> dict:
     return {q: exponents(nodes, [v[q] for v in levels.values()]) for q in (*QUANTITIES, "cpu_s_per_v")}
 
 
+WINDOWS = {"warm": (WARM_FROM, STEADY_FROM), "steady": (STEADY_FROM, math.inf), "all_warm": (WARM_FROM, math.inf)}
+SUMMARY_KEYS = {"warm": ("levels", "exponents"), "steady": ("steady", "exponents_steady"),
+                "all_warm": ("all_warm", "exponents_all_warm")}  # a window's medians and fits in the JSON
+
+
 def summary(rows: list[dict], case_list: list[dict]) -> dict:
     """Per level the medians over the warm points (``WARM`` of them from ``WARM_FROM``) and, in
-    ``steady``, over the points after them, in ``all_warm`` over both; the repeats pooled; the
-    exponents in the node count (docstring), and each repeat's own (``_by_repeat``)."""
-    levels, steady, every = {}, {}, {}
-    for e in dict.fromkeys(c["epsilon"] for c in case_list):  # the levels, once each (cases repeat them)
-        if (w := _window(rows, e, WARM_FROM, STEADY_FROM)) is not None:
-            levels[e] = w
-        if (w := _window(rows, e, STEADY_FROM, math.inf)) is not None:
-            steady[e] = w
-        if (w := _window(rows, e, WARM_FROM, math.inf)) is not None:
-            every[e] = w
-    out: dict = {"levels": {f"{e:g}": v for e, v in levels.items()}}
-    if len(levels) >= 2:
-        out["exponents"] = _fits(levels)
-        top = sorted(levels.values(), key=lambda v: v["nodes"])[-2:]
-        out["exponents_two_largest"] = {q: exponents([v["nodes"] for v in top], [v[q] for v in top])
-                                        for q in QUANTITIES}
-    if steady:
-        out["steady"] = {f"{e:g}": v for e, v in steady.items()}
-    if len(steady) >= 2:
-        out["exponents_steady"] = _fits(steady)
-    if every:
-        out["all_warm"] = {f"{e:g}": v for e, v in every.items()}
-    if len(every) >= 2:
-        out["exponents_all_warm"] = _fits(every)
+    ``steady``, over the points after them, in ``all_warm`` over both (``WINDOWS``); the repeats
+    pooled; the exponents in the node count (docstring), and each repeat's own (``_by_repeat``)."""
+    eps = list(dict.fromkeys(c["epsilon"] for c in case_list))  # the levels, once each (cases repeat them)
+    out: dict = {}
+    for name, (first, last) in WINDOWS.items():
+        found = {e: w for e in eps if (w := _window(rows, e, first, last)) is not None}
+        medians, fits = SUMMARY_KEYS[name]
+        if found or name == "warm":
+            out[medians] = {f"{e:g}": v for e, v in found.items()}
+        if len(found) >= 2:
+            out[fits] = _fits(found)
+            if name == "warm":
+                top = sorted(found.values(), key=lambda v: v["nodes"])[-2:]
+                out["exponents_two_largest"] = {q: exponents([v["nodes"] for v in top], [v[q] for v in top])
+                                                for q in QUANTITIES}
     out.update(_by_repeat(rows, case_list))
     return out
-
-
-WINDOWS = {"warm": (WARM_FROM, STEADY_FROM), "steady": (STEADY_FROM, math.inf), "all_warm": (WARM_FROM, math.inf)}
 
 
 def _by_repeat(rows: list[dict], case_list: list[dict]) -> dict:
