@@ -146,3 +146,40 @@ def test_newton_without_oversolving_takes_fewer_gmres_iterations_to_the_same_roo
     assert np.linalg.norm(r) <= tol * np.linalg.norm(model.b)
     # both within the error bound of the root: |u_new - u_old| <= |H^-1| (|r_new| + |r_old|), |H^-1| <= 1/(4 - 3.8)
     assert np.linalg.norm(new.phi - old.phi) <= 2 * tol * np.linalg.norm(model.b) / 0.2
+
+
+class ProfileModel:
+    """r = atanh(u) - c on n unknowns, no constraints, p fixed: H = diag(1 / (1 - u^2)), P = H (GMRES
+    exact in one iteration). In the profile's coordinate T = atanh the residual is linear, so a
+    Newton step taken there (``advance``: ``model.profile.step``) lands on the root u = tanh(c)."""
+
+    def __init__(self, c, advance=None):
+        self.c = np.asarray(c, float)
+        if advance is not None:
+            self.advance = advance
+
+    def at(self, u, lam, p):
+        d = 1.0 / (1.0 - u * u)
+        return kb.Linearization(r=np.arctanh(u) - self.c, c=np.zeros(0), hvp=lambda v: d * v,
+                                pinv=lambda q: q / d, G=[], r_p=None, c_p=np.zeros(0),
+                                error=lambda r_, c_: float(np.max(np.abs(r_))))
+
+
+def test_newton_takes_its_step_through_the_models_advance():
+    """From u = tanh(c - 0.4) (T below the cap 0.5 from the root in every component): with the
+    profile's step one Newton step reaches the root to round-off; the plain step phi + dphi needs
+    several (the same root)."""
+    from vesicle_opt.model import profile
+
+    rng = np.random.default_rng(5)
+    c = rng.uniform(-2.5, 2.5, 40)
+    u0 = np.tanh(c - 0.4)
+    n = c.size
+
+    def run(model):
+        return kb.newton(model, u0, (), 0.0, np.zeros(n), 1.0, 0.0, np.ones(n), 1e-12)
+    along, plain = run(ProfileModel(c, profile.step)), run(ProfileModel(c))
+    assert along.converged and along.iterations == 1
+    assert np.max(np.abs(along.phi - np.tanh(c))) < 1e-14  # tanh(atanh) round-off
+    assert plain.converged and plain.iterations >= 3  # quadratic from T-error 0.4, near |u| = 1 slowly (measured 6)
+    assert np.max(np.abs(plain.phi - np.tanh(c))) < 1e-12

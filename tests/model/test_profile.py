@@ -38,3 +38,37 @@ def test_a_bulk_node_drifting_across_the_band_edge_jumps():
     ellipse at eps 0.4, a bulk node at -1.0023, then -0.9975, is extrapolated by k = 1.13 to -0.76."""
     got = profile.interface_secant(np.array([-1.0022598]), np.array([-0.9974993]), 1.1267)[0]
     assert -0.8 < got < -0.7, got
+
+
+def test_a_step_along_the_profile_shifts_a_tanh_interface():
+    """The Newton step of a shift delta, dphi = -delta phi' (the linearised shift): ``step`` gives the
+    shifted profile exactly where T moves by less than the cap; phi + dphi errs by ~ (delta / w)^2."""
+    x = np.linspace(-1.0, 1.0, 801)
+    w = np.sqrt(2) * 0.05
+    delta = 0.02  # 0.28 eps-widths w of shift: a = delta / w = 0.28 < STEP_CAP
+    phi = np.tanh(x / w)
+    dphi = -(delta / w) * (1 - phi**2)
+    want = np.tanh((x - delta) / w)
+    got = profile.step(phi, dphi)
+    band = np.maximum(np.abs(phi), np.abs(want)) < profile.C
+    assert np.max(np.abs(got - want)[band]) < 1e-12  # the same coordinate, advanced exactly: round-off
+    assert np.max(np.abs(phi + dphi - want)) > 1e-2  # measured 0.031, ~ (delta / w)^2 / 2 = 0.04
+
+
+def test_a_step_along_the_profile_is_newtons_to_first_order():
+    """|step(phi, t d) - (phi + t d)| = O(t^2): Newton's local (quadratic) convergence is kept. Fitted
+    on t = 1e-4 .. 1e-6 (below the cap: T' t |d| <= 500 x 4e-4) for a random d on a band, bulk and offset nodes; beyond the band the linear
+    step exactly; no node moves more than the cap in T beyond the linear step."""
+    rng = np.random.default_rng(3)
+    phi = np.concatenate([np.tanh(rng.uniform(-4, 4, 200)), [-1.0023, 1.0, 0.9995, -0.9991]])
+    d = rng.standard_normal(phi.size)
+    ts = np.array([1e-4, 1e-5, 1e-6])
+    defect = [np.max(np.abs(profile.step(phi, t * d) - (phi + t * d))) for t in ts]
+    order = np.polyfit(np.log(ts), np.log(defect), 1)[0]
+    assert 1.9 < order < 2.1, (order, defect)  # second order: the coordinate's curvature times t^2
+    bulk = np.array([-1.05, 1.002, 1.3])  # all beyond C, and so after a small step
+    db = np.array([0.01, -0.0005, 0.1])
+    assert np.array_equal(profile.step(bulk, db), bulk + db)  # T linear there: the same floats
+    big = profile.step(phi, 10 * d)  # T' d up to 500 x 10: clipped to the cap
+    # in the band field(T + a) and phi both lie in [-1, 1] and |a / T'| <= cap (1 - phi^2) <= 0.5; beyond it 0
+    assert np.all(np.isfinite(big)) and np.max(np.abs(big - (phi + 10 * d))) <= 2.5

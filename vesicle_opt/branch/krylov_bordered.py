@@ -31,8 +31,10 @@ Newton: inexact, forcing term eta = min(ETA_MAX, max(sqrt(error), OVERSOLVE tol 
 (Eisenstat-Walker, as the fixed-p steps, without oversolving the last step: ``forcing``), a step
 capped at STEP_CAP in any nodal value, halved while the error grows more than
 ``GROWTH`` (a safeguard, not a line search on a merit function: J's solution is a saddle).
-``model.at(phi, lam, p)`` gives what one step needs (``Linearization``); ``model`` knows nothing of
-the walk. Nothing here knows about vesicles: ``tests/branch/test_krylov_bordered.py`` runs it on a
+``model.at(phi, lam, p)`` gives what one step needs (``Linearization``); where the model has
+``advance(phi, dphi)``, that is the iterate after the step dphi (a step taken in another coordinate,
+equal to phi + dphi to first order: ``model.profile.step`` on the vesicle walks), else phi + dphi;
+``model`` knows nothing of the walk. Nothing here knows about vesicles: ``tests/branch/test_krylov_bordered.py`` runs it on a
 closed-form fold and checks the linear solve against dense LU.
 """
 
@@ -185,6 +187,7 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
         ph = np.array([float(t @ (phi - phi_pred)) for t in T])
         return lin, r, N, ph, lin.error(r, lin.c)
 
+    advance = getattr(model, "advance", None) or (lambda x, dx: x + dx)
     lin, r, N, ph, err = evaluate(phi, lam, p, mu)
     if start is not None:  # the candidate start (``model.profile.interface_secant`` on the vesicle walks)
         phi_s = np.array(start, float)
@@ -214,7 +217,7 @@ def newton(model, phi_pred, lam_pred, p_pred: float, t_phi, t_p: float, theta: f
             return Free(phi, p, tuple(lam), False, k, tuple(cnt.krylov), "non-finite step", tuple(mu))
         s = min(1.0, STEP_CAP / max(float(np.max(np.abs(dx))), np.finfo(float).tiny))
         for _ in range(HALVINGS + 1):
-            phi_t, lam_t = phi + s * dx, lam + s * dy[:nc]
+            phi_t, lam_t = advance(phi, s * dx), lam + s * dy[:nc]
             p_t, mu_t = p + s * dy[nc], mu + s * dy[nc + 1:]
             lin_t, r_t, N_t, ph_t, err_t = evaluate(phi_t, lam_t, p_t, mu_t)
             if np.isfinite(err_t) and err_t <= GROWTH * err:

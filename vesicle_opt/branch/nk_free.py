@@ -31,6 +31,11 @@ right-hand side of a unit step in p, one GMRES solve to ``TANGENT_RTOL``; the wa
 along it with p free (``branch.arclength``), where a natural first step (p fixed, the previous field)
 fails near a fold.
 
+Newton's iterate after a step dphi is ``model.profile.step`` (the step taken in the profile's coordinate
+T(phi) ~ d / (sqrt(2) eps), clipped; phi + dphi to first order): phi + dphi blurs a moving interface as
+a linear predictor does, and at small eps that blur stalled Newton every other step at the prolate's
+pole (``docs/guide/large-3d.md``).
+
 Stop: the relative dual stationarity (P0's dual norm, as ``nk.solve`` measures it) <= ``STOP`` x tol
 and the relative constraint residual (IPOPT's scaling) 100x below it (``CONSTRAINT_WEIGHT``): the fixed-p Newton-Krylov
 solve at the p found (``branch.nk_corrector``), started there with these multipliers, then meets
@@ -51,6 +56,7 @@ from vesicle_opt.branch.krylov_bordered import Free, Linearization, border, bord
 from vesicle_opt.mesh.cosine import KIND as MIRROR_KIND
 from vesicle_opt.model.lumped import PhaseField
 from vesicle_opt.model.band_coarse import Lagged
+from vesicle_opt.model import profile
 
 CERTIFY_MAX_ITER = 10  # the certifying fixed-p solve's Newton budget, a safeguard: from a point Newton
 # converged it takes 0 steps; one that needs many is off, and on a saddle sheet the minimiser then drifts
@@ -78,7 +84,10 @@ LAG_CB = 0.1  # relative change of -lambda_B (the model's cB S term) that a fact
 
 
 class VesicleKKT:
-    """``krylov_bordered``'s model of one branch: the KKT residual and its linearisation at (phi, lam, p)."""
+    """``krylov_bordered``'s model of one branch: the KKT residual and its linearisation at (phi, lam, p);
+    a Newton step moves phi along the interface's profile (``advance``: ``model.profile.step``)."""
+
+    advance = staticmethod(profile.step)
 
     def __init__(self, setup, scene, affine: Affine):
         self.disc, pf, self.prec, self.translations = setup
