@@ -72,3 +72,14 @@ def test_a_step_along_the_profile_is_newtons_to_first_order():
     big = profile.step(phi, 10 * d)  # T' d up to 500 x 10: clipped to the cap
     # in the band field(T + a) and phi both lie in [-1, 1] and |a / T'| <= cap (1 - phi^2) <= 0.5; beyond it 0
     assert np.all(np.isfinite(big)) and np.max(np.abs(big - (phi + 10 * d))) <= 2.5
+
+
+def test_a_step_at_round_off_level_is_the_plain_step():
+    """dphi ~ 1e-12 (the last Newton steps of a point certified at tol 1e-10): the step's increment is
+    formed without a round trip through atanh, so the iterate is phi + dphi's own float. The round trip
+    T^{-1}(T(phi) + a) left half an ulp (1.1e-16), and with it the spectral 128^2 branch's first point
+    (tests/verify/test_kkt_dual.py) stalled at error 5.29e-12 against its stop 5e-12 under two BLAS threads."""
+    rng = np.random.default_rng(3)
+    phi = np.concatenate([np.tanh(rng.uniform(-4, 4, 2000)), [-1.0023, 1.0, 0.9995, -0.9991]])
+    d = 1e-12 * rng.standard_normal(phi.size)
+    assert np.max(np.abs(profile.step(phi, d) - (phi + d))) < np.spacing(1.0) / 2  # measured 0
