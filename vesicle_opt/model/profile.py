@@ -74,7 +74,7 @@ def step(phi: np.ndarray, dphi: np.ndarray, cap: float = STEP_CAP) -> np.ndarray
     t = slope(phi)
     a = np.clip(t * dphi, -cap, cap)
     y = coordinate(phi)
-    out = field(y + a) + (dphi - a / t)  # a node crossing the band's edge
+    out = phi + dphi  # the bulk beyond the band, T linear on both ends: the plain step, the same floats
     band = (np.abs(phi) <= C) & (np.abs(y + a) <= _YC)
     # in the band phi + (tanh(y + a) - tanh(y)), the difference as sinh(a) / (cosh(y + a) cosh(y)): no
     # round trip through atanh, so a step at round-off level is phi + dphi to round-off (a branch point
@@ -82,7 +82,8 @@ def step(phi: np.ndarray, dphi: np.ndarray, cap: float = STEP_CAP) -> np.ndarray
     yb, ab = y[band], a[band]
     out[band] = phi[band] + (np.sinh(ab) / (np.cosh(yb + ab) * np.cosh(yb)) + (dphi[band] - ab / t[band]))
     bulk = (np.abs(phi) > C) & (np.abs(y + a) > _YC) & (np.sign(y + a) == np.sign(phi))
-    out[bulk] = phi[bulk] + dphi[bulk]  # T linear on both ends: the plain step, the same floats
+    cross = ~(band | bulk)  # a node crossing the band's edge
+    out[cross] = field(y[cross] + a[cross]) + (dphi[cross] - a[cross] / t[cross])
     return out
 
 
