@@ -11,7 +11,7 @@ arclength hyperplane, the phase conditions). Its Jacobian is the Hessian of the 
 G the constraint gradients (dA, dB), r_p the stationarity's derivative in p, c_p the constraints'
 (- d alpha/dp, - d beta/dp), T the phase conditions' vectors (weighted translations). J is
 indefinite (a saddle-point matrix, and H itself indefinite past a fold or on a saddle branch) and,
-through the hyperplane row, not symmetric: GMRES (scipy.sparse.linalg), not CG or MINRES.
+through the hyperplane row, not symmetric: GMRES (``nk.gmres``), not CG or MINRES.
 
 Preconditioner: the same border around the Newton-Krylov model P of H (``nk.precond``, SPD: the
 constant-coefficient model cE/eps S M_L^{-1} S + cB S, floored), inverted exactly by the Schur
@@ -45,7 +45,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-import scipy.sparse.linalg as spla
+
+from vesicle_opt.nk.gmres import gmres
 
 MAX_NEWTON = 25
 ETA_MAX = 0.01  # GMRES relative tolerance cap per Newton step (as ``nk.newton_cg.ETA_MAX``)
@@ -121,15 +122,8 @@ def bordered_solve(hvp, pinv, cols, rows, corner, f, g, eta: float, max_iter: in
         bottom = np.array([float(rw @ x) for rw in rows]) + _corner_product(corner, y)
         return precond(top, bottom)
 
-    op = spla.LinearOperator((n + k, n + k), matvec=matvec, dtype=float)
-    rhs = precond(f, g)
-    count = [0]
-
-    def cb(_):
-        count[0] += 1
-    sol, info = spla.gmres(op, rhs, rtol=eta, atol=0.0, restart=min(RESTART, max_iter),
-                           maxiter=max(1, -(-max_iter // RESTART)), callback=cb, callback_type="pr_norm")
-    return sol[:n], sol[n:], count[0], info == 0
+    out = gmres(matvec, precond(f, g), eta, max_iter, RESTART)
+    return out.x[:n], out.x[n:], out.iterations, out.converged
 
 
 def border(lin: Linearization, T: list, arc_row: np.ndarray, t_p: float) -> tuple[list, list, np.ndarray]:
