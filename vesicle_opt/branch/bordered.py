@@ -45,8 +45,12 @@ from vesicle_opt.verify.second_order import translation_modes
 MAX_NEWTON = 30  # steps, Newton or chord
 CHORD_RATIO = 0.25  # a step reuses the last factorisation (chord) while the steps shrink at least
 # this fast, else the Jacobian is refreshed (Newton): at 128^2 a factorisation is ~0.9 s, a solve ~0.05 s
-ORDERING = "MMD_AT_PLUS_A"  # SuperLU's symmetric ordering for this symmetric pattern: measured at 128^2
-# 0.85 s and 5.0e6 factor entries against COLAMD's 1.33 s and 7.7e6 (residual 2e-10 for both)
+ORDERING = "COLAMD"  # SuperLU's column ordering, robust to its row pivoting. The symmetric MMD_AT_PLUS_A was
+# faster where the pivots stay on the diagonal (128^2: 0.85 s and 5.0e6 factor entries against 1.33 s and
+# 7.7e6), but off-diagonal pivots wreck a symmetric ordering's fill: on the eps 0.03 meridian branch out of
+# the oblate's odd branch point (19.7 k unknowns, ``_stomatocyte.switched``) one Jacobian took 88 s and
+# 1.2e8 entries against COLAMD's 0.29 s and 5.4e6 (residual 4.9e-8 and 4.8e-8 of a unit right-hand side),
+# and that walk's LUs averaged 2.8 s (measured)
 HALVINGS = 12  # a merit-guarded (deflated) step is halved at most this often (to 2.4e-4 of itself)
 STEP_TOL = 1e-10  # |d phi|_w <= STEP_TOL |phi|_w and |d p| <= STEP_TOL max(1, |p|) ends Newton: the
 # step after it is ~STEP_TOL^2 (quadratic convergence), far below IPOPT's tol 1e-8 on the polish
@@ -131,10 +135,12 @@ class BorderedCorrector:
         n = self.n
         for _ in range(HALVINGS + 1):
             zt, mt = z + du[: n + 3], mu + du[n + 3:]
-            R = np.asarray(self._res(zt[:n], zt[n], zt[n + 1], zt[n + 2])).ravel()
-            R[:n] -= sum(m * t for m, t in zip(mt, trans)) if len(trans) else 0.0
-            N = theta**2 * float(self.disc.weights @ ((zt[:n] - phi_pred) * t_phi)) + (zt[n + 2] - p_pred) * t_p
-            g = merit(zt[:n]) * np.linalg.norm(np.concatenate([R, [N], [float(t @ (zt[:n] - phi_pred)) for t in trans]]))
+            with np.errstate(over="ignore", invalid="ignore"):  # a trial far out may overflow: halved below
+                R = np.asarray(self._res(zt[:n], zt[n], zt[n + 1], zt[n + 2])).ravel()
+                R[:n] -= sum(m * t for m, t in zip(mt, trans)) if len(trans) else 0.0
+                N = theta**2 * float(self.disc.weights @ ((zt[:n] - phi_pred) * t_phi)) + (zt[n + 2] - p_pred) * t_p
+                g = merit(zt[:n]) * np.linalg.norm(np.concatenate([R, [N], [float(t @ (zt[:n] - phi_pred))
+                                                                            for t in trans]]))
             if np.isfinite(g) and g < g0:
                 return du
             du = du / 2
@@ -184,12 +190,15 @@ class BorderedCorrector:
                 return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), False, k, "non-finite step")
             if deflation is not None:  # the deflated Newton step: the same direction, rescaled
                 du = du * deflation(z[:n], du[:n])
-            if merit is not None:
-                du = self._backtrack(z, mu, du, trans, phi_pred, t_phi, theta, t_p, p_pred, merit,
-                                     merit(z[:n]) * np.linalg.norm(rhs))
-            z = z + du[: n + 3]
-            mu = mu + du[n + 3:]
-            dphi = np.sqrt(w @ (du[:n] ** 2))
+            with np.errstate(over="ignore", invalid="ignore"):  # a diverging iterate: refused below
+                if merit is not None:
+                    du = self._backtrack(z, mu, du, trans, phi_pred, t_phi, theta, t_p, p_pred, merit,
+                                         merit(z[:n]) * np.linalg.norm(rhs))
+                z = z + du[: n + 3]
+                mu = mu + du[n + 3:]
+                dphi = np.sqrt(w @ (du[:n] ** 2))
+            if not (np.isfinite(dphi) and np.all(np.isfinite(z))):
+                return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), False, k, "non-finite step")
             if dphi <= STEP_TOL * scale and abs(du[n + 2]) <= STEP_TOL * max(1.0, abs(z[n + 2])):
                 return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), True, k)
             if dphi > CHORD_RATIO * last:  # the chord contracts too slowly: a fresh Jacobian next
