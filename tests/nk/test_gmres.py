@@ -72,3 +72,16 @@ def test_zero_right_hand_side_and_the_budget():
     assert zero.converged and zero.iterations == 0 and not zero.x.any()
     short = gmres(lambda v: A @ v, b, 1e-14, 4, 50)  # 4 steps leave 0.026 of |b| (measured), far above 1e-14
     assert short.iterations == 4 and not short.converged and short.residual > 1e-14
+
+
+def test_a_non_finite_product_ends_the_solve_unconverged():
+    """A NaN from the operator (a diverged linearisation) ends GMRES at once, not converged, instead of
+    running its budget on NaNs (the caller reports the step as non-finite)."""
+    calls = []
+
+    def bad(v):
+        calls.append(1)
+        return np.full_like(v, np.nan) if len(calls) > 2 else 2.0 * v + np.roll(v, 1)
+    with np.errstate(invalid="ignore"):
+        out = gmres(bad, np.ones(20) + np.arange(20.0), 1e-12, 400, 200)
+    assert not out.converged and out.iterations == 3 and len(calls) == 3

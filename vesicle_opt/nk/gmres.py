@@ -81,6 +81,8 @@ def gmres(matvec, b: np.ndarray, rtol: float, max_iter: int, restart: int) -> Gm
                 gemv(-1.0, V[:j + 1].T, h2, w)
                 h += h2
                 after = float(np.linalg.norm(w))
+            if not np.isfinite(after):  # a non-finite product: no solution in this space
+                return GmresResult(x, its, False, float("nan"))
             H[:j + 1, j] = h
             H[j + 1, j] = after
             breakdown = after <= np.finfo(float).eps * max(before, np.finfo(float).tiny)
