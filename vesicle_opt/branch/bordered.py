@@ -130,17 +130,23 @@ class BorderedCorrector:
         discrete problem; Newton converges to the KKT point whatever its inertia."""
         return self.solve(phi0, p, lam0, np.zeros(self.n), 1.0, 0.0, deflation, merit)
 
+    def _rows(self, z, mu, R, trans, phi_pred, t_phi, theta, t_p, p_pred) -> np.ndarray:
+        """The bordered system's residual at (z, mu) from the KKT rows R there: stationarity less the
+        phase multipliers' forces, the hyperplane row, the phase rows."""
+        n = self.n
+        R = np.asarray(R).ravel()
+        R[:n] -= sum(m * t for m, t in zip(mu, trans)) if len(trans) else 0.0
+        N = theta**2 * float(self.disc.weights @ ((z[:n] - phi_pred) * t_phi)) + (z[n + 2] - p_pred) * t_p
+        return np.concatenate([R, [N], [float(t @ (z[:n] - phi_pred)) for t in trans]])
+
     def _backtrack(self, z, mu, du, trans, phi_pred, t_phi, theta, t_p, p_pred, merit, g0) -> np.ndarray:
-        """du halved until merit(phi) |R| at z + du is below g0 (``solve``); du itself if none is."""
+        """du halved until merit(phi) |R| at z + du is below g0 (``solve``, which evaluates it with
+        overflow ignored: a trial far out is non-finite and halved); du itself if none is."""
         n = self.n
         for _ in range(HALVINGS + 1):
             zt, mt = z + du[: n + 3], mu + du[n + 3:]
-            with np.errstate(over="ignore", invalid="ignore"):  # a trial far out may overflow: halved below
-                R = np.asarray(self._res(zt[:n], zt[n], zt[n + 1], zt[n + 2])).ravel()
-                R[:n] -= sum(m * t for m, t in zip(mt, trans)) if len(trans) else 0.0
-                N = theta**2 * float(self.disc.weights @ ((zt[:n] - phi_pred) * t_phi)) + (zt[n + 2] - p_pred) * t_p
-                g = merit(zt[:n]) * np.linalg.norm(np.concatenate([R, [N], [float(t @ (zt[:n] - phi_pred))
-                                                                            for t in trans]]))
+            R = self._res(zt[:n], zt[n], zt[n + 1], zt[n + 2])
+            g = merit(zt[:n]) * np.linalg.norm(self._rows(zt, mt, R, trans, phi_pred, t_phi, theta, t_p, p_pred))
             if np.isfinite(g) and g < g0:
                 return du
             du = du / 2
@@ -163,16 +169,15 @@ class BorderedCorrector:
         scale = np.sqrt(w @ (z[:n] ** 2))
         T = sp.csc_matrix(np.column_stack(trans)) if d else None
         lu, last = None, np.inf
+
+        def result(converged: bool, k: int, why: str = "") -> Newton:
+            return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), converged, k, why)
         for k in range(1, MAX_NEWTON + 1):
             if lu is None:
                 R, J = self._fun(z[:n], z[n], z[n + 1], z[n + 2])
             else:
                 R = self._res(z[:n], z[n], z[n + 1], z[n + 2])
-            R = np.asarray(R).ravel()
-            R[:n] -= sum(m * t for m, t in zip(mu, trans)) if d else 0.0
-            N = theta**2 * float(w @ ((z[:n] - phi_pred) * t_phi)) + (z[n + 2] - p_pred) * t_p
-            phase = [float(t @ (z[:n] - phi_pred)) for t in trans]
-            rhs = -np.concatenate([R, [N], phase])
+            rhs = -self._rows(z, mu, R, trans, phi_pred, t_phi, theta, t_p, p_pred)
             if lu is None:
                 J = sp.csc_matrix(J.sparse())
                 if d:
@@ -184,13 +189,13 @@ class BorderedCorrector:
                 try:
                     lu = spla.splu(sp.bmat(rows, format="csc"), permc_spec=ORDERING)
                 except RuntimeError as exc:  # an exactly singular bordered matrix: not a simple fold
-                    return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), False, k, str(exc))
+                    return result(False, k, str(exc))
             du = lu.solve(rhs)
             if not np.all(np.isfinite(du)):
-                return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), False, k, "non-finite step")
+                return result(False, k, "non-finite step")
             if deflation is not None:  # the deflated Newton step: the same direction, rescaled
                 du = du * deflation(z[:n], du[:n])
-            with np.errstate(over="ignore", invalid="ignore"):  # a diverging iterate: refused below
+            with np.errstate(over="ignore", invalid="ignore"):  # a diverging iterate or trial: refused below
                 if merit is not None:
                     du = self._backtrack(z, mu, du, trans, phi_pred, t_phi, theta, t_p, p_pred, merit,
                                          merit(z[:n]) * np.linalg.norm(rhs))
@@ -198,11 +203,10 @@ class BorderedCorrector:
                 mu = mu + du[n + 3:]
                 dphi = np.sqrt(w @ (du[:n] ** 2))
             if not (np.isfinite(dphi) and np.all(np.isfinite(z))):
-                return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), False, k, "non-finite step")
+                return result(False, k, "non-finite step")
             if dphi <= STEP_TOL * scale and abs(du[n + 2]) <= STEP_TOL * max(1.0, abs(z[n + 2])):
-                return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), True, k)
+                return result(True, k)
             if dphi > CHORD_RATIO * last:  # the chord contracts too slowly: a fresh Jacobian next
                 lu = None
             last = dphi
-        return Newton(z[:n], float(z[n + 2]), (float(z[n]), float(z[n + 1])), False, MAX_NEWTON,
-                      f"no convergence in {MAX_NEWTON} Newton steps")
+        return result(False, MAX_NEWTON, f"no convergence in {MAX_NEWTON} Newton steps")

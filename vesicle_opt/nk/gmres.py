@@ -70,7 +70,8 @@ def gmres(matvec, b: np.ndarray, rtol: float, max_iter: int, restart: int) -> Gm
         H[:] = 0.0
         j, done = 0, False
         while j < m and its < max_iter:
-            w = np.asarray(matvec(V[j]), float).copy()
+            w = V[j + 1]  # the new basis vector, orthogonalised and normalised in place
+            w[:] = matvec(V[j])
             its += 1
             before = float(np.linalg.norm(w))
             h = V[:j + 1] @ w
@@ -87,7 +88,7 @@ def gmres(matvec, b: np.ndarray, rtol: float, max_iter: int, restart: int) -> Gm
             H[j + 1, j] = after
             breakdown = after <= np.finfo(float).eps * max(before, np.finfo(float).tiny)
             if not breakdown:
-                np.multiply(w, 1.0 / after, out=V[j + 1])
+                w *= 1.0 / after
             for i in range(j):  # the previous rotations on the new column
                 c, s = rot[i]
                 H[i, j], H[i + 1, j] = c * H[i, j] + s * H[i + 1, j], -s * H[i, j] + c * H[i + 1, j]
