@@ -29,7 +29,19 @@ preconditions; with cells 5H wide, 250 transforms instead of 54, the counts were
 
 The preconditioner is the additive two-level one, P^{-1} r = P_bulk^{-1} r + Z Hc^{-1} Z^T r, symmetric
 positive definite; Hc by a sparse LU, Z and Z^T applied in their tensor form (``restrict``,
-``extend``). Hc is affine in cB, so a new tension re-factors it on the same space (``with_tension``);
+``extend``).
+
+Where the solve need not be symmetric positive definite (GMRES on the bordered systems of
+``branch.nk_free``), Hc is the Galerkin matrix of the Hessian itself, Z^T H Z with
+H = cE H_E + cB H_B (``hessian``: the diagonals of ``PhaseField.hessian_parts``; the same probed D,
+the tension cB taken as it is, not floored, and the r g'' term of H_E kept; no GN_DELTA share unless the
+LU finds it exactly singular). P_GN's Galerkin matrix misses those terms on the very modes the coarse
+space is for: on the 31 k-node octant prolate the generalised eigenvalues of (Z^T H Z, Hc) span
+0.09-7.9 for P_GN's and 0.39-1.4 for the Hessian's (``tests/model/test_band_coarse.py``), and the
+bordered Newton systems of the 205 k-node walk took 15 / 21 / 27 GMRES iterations to 1e-2 / 1e-4 / 1e-6
+against 7 / 13 / 18. What is left is the probing's error (4 % of Hc in norm with 3 colours an axis,
+4e-4 with 4: 3 / 6 / 10 iterations, the count of Z^T H Z from k products, but a build 3x dearer:
+2.1 against 0.7 CPU s at 205 k nodes, where it is kept at 3). Hc is affine in cB, so a new tension re-factors it on the same space (``with_tension``);
 ``Lagged`` is the reuse policy of the p-free corrector (``branch.nk_free``) and of the Newton-CG solve
 (``nk.solve``). Measured (the bordered tangent system of ``branch.nk_free`` at the octant prolate
 v = 0.71, eps / h = 2.5, GMRES to 1e-8): 39 / 81 / 133 iterations with the bulk model at 31 k / 98 k /
@@ -75,15 +87,26 @@ class BandCoarse:
     both formed on the first ``correction`` (a Newton step's trial points whose system is never solved
     cost nothing)."""
 
-    def __init__(self, grid, m: float, eps: float, phi: np.ndarray, g_prime: np.ndarray, cE: float, cB: float):
+    def __init__(self, grid, m: float, eps: float, phi: np.ndarray, g_prime: np.ndarray, cE: float, cB: float,
+                 hessian: tuple | None = None):
         self.grid, self.m, self.eps = grid, float(m), float(eps)
-        self.g_prime, self.cE, self.cB = np.asarray(g_prime, float), float(cE), max(float(cB), 0.0)
+        self.hessian = hessian  # (dE_diag, dB_diag) of ``PhaseField.hessian_parts``: Hc = Z^T H Z (``_split``)
+        self.g_prime, self.cE, self.cB = np.asarray(g_prime, float), float(cE), self._tension(cB)
         self._weight = 1.0 - np.asarray(phi, float) ** 2
         self.Z = self.factor = self._parts = None
 
+    def _tension(self, cB: float) -> float:
+        """P_GN floors cB at 0 (positive definite); the Hessian's own Galerkin matrix takes it as it is."""
+        return float(cB) if self.hessian is not None else max(float(cB), 0.0)
+
     def build(self) -> "BandCoarse":
         if self.factor is None:
-            self.factor = spla.splu(sp.csc_matrix(self._galerkin()))
+            Hc = self._galerkin()
+            try:
+                self.factor = spla.splu(sp.csc_matrix(Hc))
+            except RuntimeError:  # Z^T H Z exactly singular (H indefinite: a zero eigenvalue on the space);
+                # P_GN's bulk share (GN_DELTA) makes it regular, as P_GN is
+                self.factor = spla.splu(sp.csc_matrix(Hc + self._bulk_share()))
         return self
 
     def with_tension(self, cB: float) -> "BandCoarse":
@@ -91,7 +114,7 @@ class BandCoarse:
         redone (the space, the probed Laplacians and the products are shared)."""
         self._split()
         other = copy.copy(self)
-        other.cB, other.factor = max(float(cB), 0.0), None
+        other.cB, other.factor = self._tension(cB), None
         return other
 
     def _axes(self) -> list[np.ndarray]:
@@ -170,7 +193,10 @@ class BandCoarse:
 
     def _split(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
         """Hc's two parts, Z^T ((cE/eps) m L^2 + GN_DELTA ...) Z and Z^T S Z (symmetrised), from
-        D = eps Delta_h Z (``_laplacians``): L Z = D + g' Z, S Z = -m (D - (2/eps) Z). Formed once."""
+        D = eps Delta_h Z (``_laplacians``): L Z = D + g' Z, S Z = -m (D - (2/eps) Z). Formed once.
+        With ``hessian`` = (dE_diag, dB_diag) they are the Hessian's own, H = cE H_E + cB H_B
+        (``PhaseField.hvp_operator``): Z^T ((cE/eps) m L^2 + cE diag(dE_diag)) Z and
+        Z^T (-eps m Delta_h + diag(dB_diag)) Z = -m Z^T D + Z^T diag(dB_diag) Z."""
         if self._parts is None:
             if self.Z is None:
                 self.Z, self.lattice = self._space(self._weight)
@@ -178,15 +204,27 @@ class BandCoarse:
             D = self._laplacians()
             Z = sp.csr_matrix(self.Z)
             LZ = D + sp.diags(self.g_prime) @ Z
-            bulk = D - (2.0 / eps) * Z
             a = (self.cE / eps) * m
-            E = a * (LZ.T @ LZ) + (GN_DELTA * a) * (bulk.T @ bulk)
-            S = -m * (bulk.T @ Z)
+            if self.hessian is None:
+                bulk = D - (2.0 / eps) * Z
+                E = a * (LZ.T @ LZ) + (GN_DELTA * a) * (bulk.T @ bulk)
+                S = -m * (bulk.T @ Z)
+            else:
+                dE, dB = (np.broadcast_to(np.asarray(x, float), (Z.shape[0],)) for x in self.hessian)
+                E = a * (LZ.T @ LZ) + self.cE * (Z.T @ sp.diags(dE) @ Z)
+                S = -m * (Z.T @ D) + Z.T @ sp.diags(dB) @ Z
             self._parts = (0.5 * (E + E.T), 0.5 * (S + S.T))
         return self._parts
 
+    def _bulk_share(self) -> sp.csr_matrix:
+        """GN_DELTA Z^T (cE/eps) m (eps Delta_h - 2/eps)^2 Z, P_GN's bulk share (a regulariser)."""
+        D, Z = self._laplacians(), sp.csr_matrix(self.Z)
+        bulk = D - (2.0 / self.eps) * Z
+        share = (GN_DELTA * (self.cE / self.eps) * self.m) * (bulk.T @ bulk)
+        return 0.5 * (share + share.T)
+
     def _galerkin(self) -> sp.csr_matrix:
-        """Hc = Z^T P_GN Z = (``_split``'s first part) + cB (its second)."""
+        """Hc = Z^T P_GN Z (or Z^T H Z: ``hessian``) = (``_split``'s first part) + cB (its second)."""
         E, S = self._split()
         return E + self.cB * S if self.cB else E
 
@@ -230,10 +268,11 @@ class Lagged:
         self.held = None
         self.made = 0  # factorizations made (benchmarks and tests)
 
-    def band_coarse(self, grid, phi: np.ndarray, g_prime: np.ndarray, cE: float, cB: float) -> BandCoarse:
-        """The mirror grid's coarse space at one state (``BandCoarse``, node weight ``grid.cell``) under
-        these rules, re-tensioned where only cB moved."""
-        return self.get(g_prime, cB, lambda: BandCoarse(grid, grid.cell, self.eps, phi, g_prime, cE, cB),
+    def band_coarse(self, grid, phi: np.ndarray, g_prime: np.ndarray, cE: float, cB: float,
+                    hessian: tuple | None = None) -> BandCoarse:
+        """The mirror grid's coarse space at one state (``BandCoarse``, node weight ``grid.cell``; with
+        ``hessian``, the Hessian's own Galerkin matrix) under these rules, re-tensioned where only cB moved."""
+        return self.get(g_prime, cB, lambda: BandCoarse(grid, grid.cell, self.eps, phi, g_prime, cE, cB, hessian),
                         BandCoarse.with_tension)
 
     def get(self, g_prime: np.ndarray, cB: float, make, retension=None):
