@@ -123,31 +123,43 @@ class BandCoarse:
         return [h * (np.arange(n) + 0.5) / (SPACING * self.eps) for h, n in zip(g.h, g.shape)]
 
     def _space(self, w: np.ndarray):
+        """(Z as CSR, the lattice indices of its columns) on the band w > W_MIN, and Z's tensor form:
+        per axis the dense (n_a x count_a) spline matrix (mirror images summed), ``restrict``/``extend``."""
         g = self.grid
         counts = [int(np.ceil(L / (SPACING * self.eps))) + 2 for L in g.lengths]
+        self._factors = []
+        for t, count in zip(self._axes(), counts):
+            c, v = bspline_1d(t, 0.0, 1.0, count)
+            dense = np.zeros((t.size, count))
+            np.add.at(dense, (np.repeat(np.arange(t.size), 3), c.ravel()), v.ravel())
+            self._factors.append(dense)
         band = np.flatnonzero(w > W_MIN)
-        idx = np.unravel_index(band, g.shape)
-        splines = [bspline_1d(t, 0.0, 1.0, counts[a]) for a, t in enumerate(self._axes())]  # (cols, vals) an axis
-        cols, vals = np.zeros((band.size, 1), int), w[band][:, None]
-        for a, (c, v) in enumerate(splines):
-            c, v = c[idx[a]], v[idx[a]]
-            cols = (cols[:, :, None] * counts[a] + c[:, None, :]).reshape(band.size, -1)
-            vals = (vals[:, :, None] * v[:, None, :]).reshape(band.size, -1)
-        rows = np.repeat(band, cols.shape[1])
-        Z = sp.csc_matrix((vals.ravel(), (rows, cols.ravel())), shape=(g.size, int(np.prod(counts))))
-        Z.eliminate_zeros()  # (the conversion summed the mirror-image duplicates: column norms from its data)
-        norms = np.sqrt(np.add.reduceat(np.r_[Z.data**2, 0.0], np.minimum(Z.indptr[:-1], Z.data.size)))
-        norms[np.diff(Z.indptr) == 0] = 0.0
+        idx, d = np.unravel_index(band, g.shape), len(counts)
+        total = int(np.prod(counts))
+        itype = np.int32 if total < 2**31 else np.int64
+        stride = np.cumprod([1] + counts[:0:-1])[::-1]  # the flat index's radix an axis
+        cols, vals = itype(0), w[band].reshape([band.size] + [1] * d)
+        for a, B in enumerate(self._factors):
+            c = np.argsort(B == 0.0, axis=1, kind="stable")[:, :3]  # a node's (at most 3) splines, ascending
+            v = np.take_along_axis(B, c, axis=1)
+            shape = [band.size] + [1] * d
+            shape[1 + a] = 3
+            cols = cols + (c.astype(itype) * itype(stride[a]))[idx[a]].reshape(shape)
+            vals = vals * v[idx[a]].reshape(shape)
+        cols, vals = cols.reshape(band.size, -1), vals.reshape(band.size, -1)  # a node's columns: distinct, ascending
+        norms = np.sqrt(np.bincount(cols.ravel(), weights=(vals * vals).ravel(), minlength=total))
         keep = np.flatnonzero(norms >= KEEP * norms.max())
+        column = -np.ones(total, np.int64)
+        column[keep] = np.arange(keep.size)
+        cols = column[cols]
+        nz = (cols >= 0) & (vals != 0.0)
+        per_row = np.zeros(g.size, np.int64)
+        per_row[band] = nz.sum(axis=1)
+        Z = sp.csr_matrix((vals[nz], cols[nz], np.concatenate([[0], np.cumsum(per_row)])), shape=(g.size, keep.size))
         lattice = np.stack(np.unravel_index(keep, counts), axis=1)  # (k, d) lattice indices of the columns
         self.counts, self._keep = tuple(counts), keep
-        self._factors = []  # Z's tensor form: per axis the dense (n_a x count_a) spline matrix (``correction``)
-        for (c, v), count in zip(splines, counts):
-            dense = np.zeros((c.shape[0], count))
-            np.add.at(dense, (np.repeat(np.arange(c.shape[0]), 3), c.ravel()), v.ravel())
-            self._factors.append(dense)
         self._band_weight = np.where(w > W_MIN, w, 0.0).reshape(g.shape)
-        return sp.csc_matrix(Z[:, keep]), lattice
+        return Z, lattice
 
     def gauss_newton(self, v: np.ndarray) -> np.ndarray:
         """P_GN v (module docstring), matrix-free: three Laplacians, six transforms (the definition the
@@ -162,34 +174,37 @@ class BandCoarse:
         out += GN_DELTA * (self.cE / eps) * m * (eps * g.laplacian(bulk) - (2.0 / eps) * bulk)
         return out
 
-    def _laplacians(self) -> sp.csr_matrix:
-        """eps Delta_h Z, probed: one Laplacian per colour (lattice indices equal mod ``STRIDE``), each
-        node read as the column of that colour whose cell (the nearest lattice point) holds it."""
+    def _laplacians(self) -> sp.csc_matrix:
+        """eps Delta_h Z, probed: one Laplacian per colour (lattice indices equal mod ``STRIDE``) of the
+        sum of its columns, each node read as the column of that colour whose cell (the nearest lattice
+        point of the colour: a box of nodes) holds it. Assembled column by column, each its cell's box."""
         g, eps = self.grid, self.eps
         k, d = self.lattice.shape
-        where = -np.ones(self.counts, int)  # lattice index -> column (or -1)
-        where[tuple(self.lattice.T)] = np.arange(k)
         code = np.ravel_multi_index((self.lattice % STRIDE).T, (STRIDE,) * d)
-        t = self._axes()
-        rows, cols, vals = [], [], []
+        cells = []  # per axis: (first, end) node of lattice index J's cell, for J's own residue
+        for t, count in zip(self._axes(), self.counts):
+            J = np.arange(count)
+            r = J % STRIDE
+            near = np.rint((t[:, None] - np.arange(STRIDE)) / STRIDE).astype(int) * STRIDE + np.arange(STRIDE)
+            cells.append((np.array([np.searchsorted(near[:, ri], j, "left") for j, ri in zip(J, r)]),
+                          np.array([np.searchsorted(near[:, ri], j, "right") for j, ri in zip(J, r)])))
+        lo = np.stack([cells[a][0][self.lattice[:, a]] for a in range(d)], axis=1)  # (k, d) each column's box
+        hi = np.stack([cells[a][1][self.lattice[:, a]] for a in range(d)], axis=1)
+        indptr = np.concatenate([[0], np.cumsum(np.prod(hi - lo, axis=1))])
+        data, indices = np.empty(indptr[-1]), np.empty(indptr[-1], np.int32 if g.size < 2**31 else np.int64)
+        flat = np.arange(g.size).reshape(g.shape)
         for c in range(STRIDE**d):
             members = np.flatnonzero(code == c)
             if members.size == 0:
                 continue
-            y = eps * g.laplacian(np.asarray(self.Z[:, members].sum(axis=1)).ravel())
-            cvec = np.unravel_index(c, (STRIDE,) * d)
-            near = [np.rint((ta - ca) / STRIDE).astype(int) * STRIDE + ca for ta, ca in zip(t, cvec)]
-            inside = [(j >= 0) & (j < nc) for j, nc in zip(near, self.counts)]  # per axis: the nearest colour-c
-            col = where[np.ix_(*[np.where(o, j, 0) for j, o in zip(near, inside)])]  # index, if on the lattice
-            ok = np.ones(col.shape, bool)
-            for a, o in enumerate(inside):  # (np.ix_ would read a boolean array as the indices of its Trues)
-                ok = ok & o.reshape([-1 if b == a else 1 for b in range(d)])
-            col = np.where(ok, col, -1).ravel()
-            hit = np.flatnonzero(col >= 0)
-            rows.append(hit)
-            cols.append(col[hit])
-            vals.append(y[hit])
-        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(g.size, k))
+            y = np.zeros(k)
+            y[members] = 1.0
+            y = (eps * g.laplacian(self.extend(y))).reshape(g.shape)
+            for j in members:
+                box = tuple(slice(a, b) for a, b in zip(lo[j], hi[j]))
+                data[indptr[j]:indptr[j + 1]] = y[box].ravel()
+                indices[indptr[j]:indptr[j + 1]] = flat[box].ravel()
+        return sp.csc_matrix((data, indices, indptr), shape=(g.size, k))
 
     def _split(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
         """Hc's two parts, Z^T ((cE/eps) m L^2 + GN_DELTA ...) Z and Z^T S Z (symmetrised), from
@@ -201,9 +216,8 @@ class BandCoarse:
             if self.Z is None:
                 self.Z, self.lattice = self._space(self._weight)
             eps, m = self.eps, self.m
-            D = self._laplacians()
-            Z = sp.csr_matrix(self.Z)
-            LZ = D + sp.diags(self.g_prime) @ Z
+            D, Z = self._laplacians().tocsr(), self.Z
+            LZ = D + _rows_scaled(Z, self.g_prime)
             a = (self.cE / eps) * m
             if self.hessian is None:
                 bulk = D - (2.0 / eps) * Z
@@ -211,8 +225,9 @@ class BandCoarse:
                 S = -m * (bulk.T @ Z)
             else:
                 dE, dB = (np.broadcast_to(np.asarray(x, float), (Z.shape[0],)) for x in self.hessian)
-                E = a * (LZ.T @ LZ) + self.cE * (Z.T @ sp.diags(dE) @ Z)
-                S = -m * (Z.T @ D) + Z.T @ sp.diags(dB) @ Z
+                ZT = Z.T.tocsr()
+                E = a * (LZ.T @ LZ) + ZT @ _rows_scaled(Z, self.cE * dE)
+                S = ZT @ _rows_scaled(Z, dB) - m * (ZT @ D)
             self._parts = (0.5 * (E + E.T), 0.5 * (S + S.T))
         return self._parts
 
@@ -254,6 +269,11 @@ class BandCoarse:
     def additive(self, bulk_inv):
         """r -> P_bulk^{-1} r + Z Hc^{-1} Z^T r."""
         return lambda r: bulk_inv(r) + self.correction(r)
+
+
+def _rows_scaled(A: sp.csr_matrix, x: np.ndarray) -> sp.csr_matrix:
+    """diag(x) A for a CSR matrix A, without a sparse product."""
+    return sp.csr_matrix((A.data * np.repeat(np.asarray(x, float), np.diff(A.indptr)), A.indices, A.indptr), shape=A.shape)
 
 
 class Lagged:
