@@ -37,12 +37,14 @@ H = cE H_E + cB H_B (``hessian``: the diagonals of ``PhaseField.hessian_parts``;
 the tension cB taken as it is, not floored, and the r g'' term of H_E kept; no GN_DELTA share unless the
 LU finds it exactly singular). P_GN's Galerkin matrix misses those terms on the very modes the coarse
 space is for: on the 31 k-node octant prolate the generalised eigenvalues of (Z^T H Z, Hc) span
-0.09-7.9 for P_GN's and 0.39-1.4 for the Hessian's (``tests/model/test_band_coarse.py``), and the
-bordered Newton systems of the 205 k-node walk took 15 / 21 / 27 GMRES iterations to 1e-2 / 1e-4 / 1e-6
+0.09-7.9 for P_GN's and 0.39-1.4 for the Hessian's (``tests/model/test_band_coarse.py``), and a
+bordered Newton system of the 205 k-node walk took 15 / 21 / 27 GMRES iterations to 1e-2 / 1e-4 / 1e-6
 against 7 / 13 / 18. What is left is the probing's error (4 % of Hc in norm with 3 colours an axis,
-4e-4 with 4: 3 / 6 / 10 iterations, the count of Z^T H Z from k products, but a build 3x dearer:
-2.1 against 0.7 CPU s at 205 k nodes, where it is kept at 3). Hc is affine in cB, so a new tension re-factors it on the same space (``with_tension``);
-``Lagged`` is the reuse policy of the p-free corrector (``branch.nk_free``) and of the Newton-CG solve
+4e-4 with 4: 3 / 6 / 10 iterations, the count of Z^T H Z from k products, but a build 3x dearer, as
+the sparse products grow as the square of the columns a node is read into: ``STRIDE`` stays 3).
+
+Hc is affine in cB, so a new tension re-factors it on the same space (``with_tension``); ``Lagged`` is
+the reuse policy of the p-free corrector (``branch.nk_free``) and of the Newton-CG solve
 (``nk.solve``). Measured (the bordered tangent system of ``branch.nk_free`` at the octant prolate
 v = 0.71, eps / h = 2.5, GMRES to 1e-8): 39 / 81 / 133 iterations with the bulk model at 31 k / 98 k /
 205 k nodes (eps 0.14 / 0.07 / 0.05), 29 / - / 32 with the coarse space; a random right-hand side
@@ -233,7 +235,7 @@ class BandCoarse:
 
     def _bulk_share(self) -> sp.csr_matrix:
         """GN_DELTA Z^T (cE/eps) m (eps Delta_h - 2/eps)^2 Z, P_GN's bulk share (a regulariser)."""
-        D, Z = self._laplacians(), sp.csr_matrix(self.Z)
+        D, Z = self._laplacians().tocsr(), self.Z
         bulk = D - (2.0 / self.eps) * Z
         share = (GN_DELTA * (self.cE / self.eps) * self.m) * (bulk.T @ bulk)
         return 0.5 * (share + share.T)
@@ -273,7 +275,8 @@ class BandCoarse:
 
 def _rows_scaled(A: sp.csr_matrix, x: np.ndarray) -> sp.csr_matrix:
     """diag(x) A for a CSR matrix A, without a sparse product."""
-    return sp.csr_matrix((A.data * np.repeat(np.asarray(x, float), np.diff(A.indptr)), A.indices, A.indptr), shape=A.shape)
+    data = A.data * np.repeat(np.asarray(x, float), np.diff(A.indptr))
+    return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
 
 
 class Lagged:

@@ -24,14 +24,16 @@ through the two largest); ``steady`` and ``exponents_steady``: the same over the
 the medians pool the repeats, and ``by_repeat`` / ``exponent_spread`` give each round's own CPU
 exponents. ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25, 0.2
 (9 k and 13 k nodes, 4 points each, one round; ~2 min). Measured figures: ``docs/guide/large-3d.md``
-(three rounds, points 2-9, with ``nk.gmres``: 0.49, 1.60, 4.19, 17.0 CPU s at 31 k, 98 k, 205 k, 525 k
-nodes, nodes^1.26, and the previous commit, scipy's GMRES, run straight before it 0.51, 1.72, 4.45,
+(three rounds, points 2-9, with the Hessian's Galerkin matrix in the corrector's coarse space: 0.43,
+1.38, 3.45, 12.7 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.19, the commit before it run straight
+after 0.49, 1.57, 4.08, 16.6 s, nodes^1.24, DCTs a point nodes^0.17 against 0.21; a unit of v 41, 136,
+346, 1461 s; with ``nk.gmres`` 0.49, 1.60, 4.19, 17.0 s, nodes^1.26, and the previous commit, scipy's GMRES, run straight before it 0.51, 1.72, 4.45,
 18.2 s, also 1.26, the same Newton and GMRES counts; with Newton's step along the profile 0.50, 1.67,
 4.58, 19.0 s, nodes^1.28, and the plain step 0.54, 1.77, 4.97, 19.7 s, also 1.28, where the day before
 it had measured 1.16-1.18 with the same DCTs: the machine's pace at the small levels moves the CPU
 exponent by ~0.1; the DCTs a point nodes^0.21 in all of them; a unit of v 47, 158, 421, 2168 s; 0.89,
 5.0, 22.7 s a point, nodes^1.70, before the interface band's coarse space; the whole study ~15 min at
-load ~1, the 525 k level's cold starts 59-64 CPU s each).
+load ~1, the 525 k level's cold starts 55-64 CPU s each).
 """
 
 from __future__ import annotations
