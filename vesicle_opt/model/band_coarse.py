@@ -108,7 +108,8 @@ class BandCoarse:
                 self.factor = spla.splu(sp.csc_matrix(Hc))
             except RuntimeError:  # Z^T H Z exactly singular (H indefinite: a zero eigenvalue on the space);
                 # P_GN's bulk share (GN_DELTA) makes it regular, as P_GN is
-                self.factor = spla.splu(sp.csc_matrix(Hc + self._bulk_share()))
+                share = self._bulk_share(self._laplacians().tocsr() - (2.0 / self.eps) * self.Z)
+                self.factor = spla.splu(sp.csc_matrix(Hc + 0.5 * (share + share.T)))
         return self
 
     def with_tension(self, cB: float) -> "BandCoarse":
@@ -223,7 +224,7 @@ class BandCoarse:
             a = (self.cE / eps) * m
             if self.hessian is None:
                 bulk = D - (2.0 / eps) * Z
-                E = a * (LZ.T @ LZ) + (GN_DELTA * a) * (bulk.T @ bulk)
+                E = a * (LZ.T @ LZ) + self._bulk_share(bulk)
                 S = -m * (bulk.T @ Z)
             else:
                 dE, dB = (np.broadcast_to(np.asarray(x, float), (Z.shape[0],)) for x in self.hessian)
@@ -233,12 +234,10 @@ class BandCoarse:
             self._parts = (0.5 * (E + E.T), 0.5 * (S + S.T))
         return self._parts
 
-    def _bulk_share(self) -> sp.csr_matrix:
-        """GN_DELTA Z^T (cE/eps) m (eps Delta_h - 2/eps)^2 Z, P_GN's bulk share (a regulariser)."""
-        D, Z = self._laplacians().tocsr(), self.Z
-        bulk = D - (2.0 / self.eps) * Z
-        share = (GN_DELTA * (self.cE / self.eps) * self.m) * (bulk.T @ bulk)
-        return 0.5 * (share + share.T)
+    def _bulk_share(self, bulk: sp.csr_matrix) -> sp.csr_matrix:
+        """GN_DELTA Z^T (cE/eps) m (eps Delta_h - 2/eps)^2 Z from bulk = D - (2/eps) Z: P_GN's bulk share
+        (in ``_split``; in ``build`` the regulariser of an exactly singular Z^T H Z), not symmetrised."""
+        return (GN_DELTA * ((self.cE / self.eps) * self.m)) * (bulk.T @ bulk)
 
     def _galerkin(self) -> sp.csr_matrix:
         """Hc = Z^T P_GN Z (or Z^T H Z: ``hessian``) = (``_split``'s first part) + cB (its second)."""
