@@ -119,7 +119,9 @@ def test_the_correction_inverts_the_galerkin_matrix_on_the_coarse_space():
     r = coarse.Z @ y
     u = coarse.factor.solve(coarse.Z.T @ r)
     assert np.linalg.norm(Hc @ u - coarse.Z.T @ r) <= 1e-9 * np.linalg.norm(coarse.Z.T @ r)
-    assert np.allclose(coarse.correction(r), coarse.Z @ u, rtol=1e-14, atol=0.0)
+    # the tensor-form restrict sums Z^T r in another order than the sparse product (measured 1e-15 of it),
+    # which the solve amplifies by cond(Hc) (measured 5e3): 4e-15 of the correction measured
+    assert np.linalg.norm(coarse.correction(r) - coarse.Z @ u) <= 1e-12 * np.linalg.norm(coarse.Z @ u)
 
 
 @pytest.fixture(scope="module")

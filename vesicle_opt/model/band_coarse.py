@@ -26,6 +26,10 @@ Laplacian of the sum (two transforms) is taken, and each node is read as the col
 cell (the nearest lattice point of that colour, 3H wide) holds it. The cells hold the splines'
 supports (1.5 H either side); what is lost is the spectral Laplacian's tail beyond them (it only
 preconditions; with cells 5H wide, 250 transforms instead of 54, the counts were the same to 10 %).
+The same sum read on a cell is that column of Z exactly (one colour's supports are disjoint), so Z is
+formed on D's pattern and every factor of the Galerkin products is an array of values there: L Z,
+Z's nonzeros, the diagonals' rows; no sparse sums or COO conversions (``_split``; a build at 525 k
+nodes, synthetic prolate, k = 1997: 1.76-1.92 -> 1.34-1.46 CPU s, the same matrix to 7e-16).
 
 The preconditioner is the additive two-level one, P^{-1} r = P_bulk^{-1} r + Z Hc^{-1} Z^T r, symmetric
 positive definite; Hc by a sparse LU, Z and Z^T applied in their tensor form (``restrict``,
@@ -41,7 +45,11 @@ space is for: on the 31 k-node octant prolate the generalised eigenvalues of (Z^
 bordered Newton system of the 205 k-node walk took 15 / 21 / 27 GMRES iterations to 1e-2 / 1e-4 / 1e-6
 against 7 / 13 / 18. What is left is the probing's error (4 % of Hc in norm with 3 colours an axis,
 4e-4 with 4: 3 / 6 / 10 iterations, the count of Z^T H Z from k products, but a build 3x dearer, as
-the sparse products grow as the square of the columns a node is read into: ``STRIDE`` stays 3).
+the sparse products grow as the square of the columns a node is read into: ``STRIDE`` stays 3). With 4
+colours and each column read only on its support and 0.2 H beyond (where nearly all the tail lies: 4 /
+7 / 12 iterations, 205 k nodes, the count of the exact matrix), a build cost 1.7-1.8x this one and the
+walk gained only at 525 k nodes (points 2-5: 45.0 against 48.5 CPU s; points 2-7 at 31 k and 205 k:
+11 % and 6 % slower): left out.
 
 Hc is affine in cB, so a new tension re-factors it on the same space (``with_tension``); ``Lagged`` is
 the reuse policy of the p-free corrector (``branch.nk_free``) and of the Newton-CG solve
@@ -125,9 +133,11 @@ class BandCoarse:
         g = self.grid
         return [h * (np.arange(n) + 0.5) / (SPACING * self.eps) for h, n in zip(g.h, g.shape)]
 
-    def _space(self, w: np.ndarray):
-        """(Z as CSR, the lattice indices of its columns) on the band w > W_MIN, and Z's tensor form:
-        per axis the dense (n_a x count_a) spline matrix (mirror images summed), ``restrict``/``extend``."""
+    def _space(self, w: np.ndarray) -> np.ndarray:
+        """The lattice indices (k, d) of the kept columns on the band w > W_MIN, and Z's tensor form: per
+        axis the dense (n_a x count_a) spline matrix (mirror images summed), ``restrict``/``extend``. The
+        columns' norms are one such contraction of w^2 with the squared splines (Z itself is formed on
+        the probing's boxes: ``_probe``)."""
         g = self.grid
         counts = [int(np.ceil(L / (SPACING * self.eps))) + 2 for L in g.lengths]
         self._factors = []
@@ -136,33 +146,14 @@ class BandCoarse:
             dense = np.zeros((t.size, count))
             np.add.at(dense, (np.repeat(np.arange(t.size), 3), c.ravel()), v.ravel())
             self._factors.append(dense)
-        band = np.flatnonzero(w > W_MIN)
-        idx, d = np.unravel_index(band, g.shape), len(counts)
-        total = int(np.prod(counts))
-        itype = np.int32 if total < 2**31 else np.int64
-        stride = np.cumprod([1] + counts[:0:-1])[::-1]  # the flat index's radix an axis
-        cols, vals = itype(0), w[band].reshape([band.size] + [1] * d)
-        for a, B in enumerate(self._factors):
-            c = np.argsort(B == 0.0, axis=1, kind="stable")[:, :3]  # a node's (at most 3) splines, ascending
-            v = np.take_along_axis(B, c, axis=1)
-            shape = [band.size] + [1] * d
-            shape[1 + a] = 3
-            cols = cols + (c.astype(itype) * itype(stride[a]))[idx[a]].reshape(shape)
-            vals = vals * v[idx[a]].reshape(shape)
-        cols, vals = cols.reshape(band.size, -1), vals.reshape(band.size, -1)  # a node's columns: distinct, ascending
-        norms = np.sqrt(np.bincount(cols.ravel(), weights=(vals * vals).ravel(), minlength=total))
-        keep = np.flatnonzero(norms >= KEEP * norms.max())
-        column = -np.ones(total, np.int64)
-        column[keep] = np.arange(keep.size)
-        cols = column[cols]
-        nz = (cols >= 0) & (vals != 0.0)
-        per_row = np.zeros(g.size, np.int64)
-        per_row[band] = nz.sum(axis=1)
-        Z = sp.csr_matrix((vals[nz], cols[nz], np.concatenate([[0], np.cumsum(per_row)])), shape=(g.size, keep.size))
-        lattice = np.stack(np.unravel_index(keep, counts), axis=1)  # (k, d) lattice indices of the columns
-        self.counts, self._keep = tuple(counts), keep
         self._band_weight = np.where(w > W_MIN, w, 0.0).reshape(g.shape)
-        return Z, lattice
+        u = self._band_weight**2
+        for B in self._factors:
+            u = np.tensordot(u, B * B, axes=(0, 0))
+        norms = np.sqrt(u.ravel())
+        keep = np.flatnonzero(norms >= KEEP * norms.max())
+        self.counts, self._keep = tuple(counts), keep
+        return np.stack(np.unravel_index(keep, counts), axis=1)
 
     def gauss_newton(self, v: np.ndarray) -> np.ndarray:
         """P_GN v (module docstring), matrix-free: three Laplacians, six transforms (the definition the
@@ -177,24 +168,34 @@ class BandCoarse:
         out += GN_DELTA * (self.cE / eps) * m * (eps * g.laplacian(bulk) - (2.0 / eps) * bulk)
         return out
 
-    def _laplacians(self) -> sp.csc_matrix:
-        """eps Delta_h Z, probed: one Laplacian per colour (lattice indices equal mod ``STRIDE``) of the
-        sum of its columns, each node read as the column of that colour whose cell (the nearest lattice
-        point of the colour: a box of nodes) holds it. Assembled column by column, each its cell's box."""
-        g, eps = self.grid, self.eps
-        k, d = self.lattice.shape
-        code = np.ravel_multi_index((self.lattice % STRIDE).T, (STRIDE,) * d)
-        cells = []  # per axis: (first, end) node of lattice index J's cell, for J's own residue
+    def _cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each kept column's cell, (first, end) node per axis, each (k, d): the nodes whose nearest
+        lattice point of the column's colour is the column's. One colour's cells are disjoint."""
+        ends = []
         for t, count in zip(self._axes(), self.counts):
             J = np.arange(count)
             r = J % STRIDE
             near = np.rint((t[:, None] - np.arange(STRIDE)) / STRIDE).astype(int) * STRIDE + np.arange(STRIDE)
-            cells.append((np.array([np.searchsorted(near[:, ri], j, "left") for j, ri in zip(J, r)]),
-                          np.array([np.searchsorted(near[:, ri], j, "right") for j, ri in zip(J, r)])))
-        lo = np.stack([cells[a][0][self.lattice[:, a]] for a in range(d)], axis=1)  # (k, d) each column's box
-        hi = np.stack([cells[a][1][self.lattice[:, a]] for a in range(d)], axis=1)
+            ends.append((np.array([np.searchsorted(near[:, ri], j, "left") for j, ri in zip(J, r)]),
+                         np.array([np.searchsorted(near[:, ri], j, "right") for j, ri in zip(J, r)])))
+        d = self.lattice.shape[1]
+        lo = np.stack([ends[a][0][self.lattice[:, a]] for a in range(d)], axis=1)
+        hi = np.stack([ends[a][1][self.lattice[:, a]] for a in range(d)], axis=1)
+        return lo, hi
+
+    def _probe(self) -> tuple[sp.csc_matrix, np.ndarray]:
+        """D = eps Delta_h Z, probed, and Z's values on D's pattern: one Laplacian per colour (lattice
+        indices equal mod ``STRIDE``) of the sum of its columns, each column read on its cell
+        (``_cells``). A colour's cells are disjoint and each holds its column's support, so the sum read
+        on a cell is that column of Z exactly; D's read is its column up to the Laplacian's tails (its
+        own beyond the cell, the colour's other columns' within it). Assembled column by column (CSC)."""
+        g, eps = self.grid, self.eps
+        k, d = self.lattice.shape
+        code = np.ravel_multi_index((self.lattice % STRIDE).T, (STRIDE,) * d)
+        lo, hi = self._cells()
         indptr = np.concatenate([[0], np.cumsum(np.prod(hi - lo, axis=1))])
-        data, indices = np.empty(indptr[-1]), np.empty(indptr[-1], np.int32 if g.size < 2**31 else np.int64)
+        data, zdata = np.empty(indptr[-1]), np.empty(indptr[-1])
+        indices = np.empty(indptr[-1], np.int32 if g.size < 2**31 else np.int64)
         flat = np.arange(g.size).reshape(g.shape)
         for c in range(STRIDE**d):
             members = np.flatnonzero(code == c)
@@ -202,42 +203,65 @@ class BandCoarse:
                 continue
             y = np.zeros(k)
             y[members] = 1.0
-            y = (eps * g.laplacian(self.extend(y))).reshape(g.shape)
+            z = self.extend(y)
+            y = (eps * g.laplacian(z)).reshape(g.shape)
+            z = z.reshape(g.shape)
             for j in members:
                 box = tuple(slice(a, b) for a, b in zip(lo[j], hi[j]))
                 data[indptr[j]:indptr[j + 1]] = y[box].ravel()
+                zdata[indptr[j]:indptr[j + 1]] = z[box].ravel()
                 indices[indptr[j]:indptr[j + 1]] = flat[box].ravel()
-        return sp.csc_matrix((data, indices, indptr), shape=(g.size, k))
+        return sp.csc_matrix((data, indices, indptr), shape=(g.size, k)), zdata
+
+    def _laplacians(self) -> sp.csc_matrix:
+        """D = eps Delta_h Z, probed (``_probe``)."""
+        return self._probe()[0]
 
     def _split(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
         """Hc's two parts, Z^T ((cE/eps) m L^2 + GN_DELTA ...) Z and Z^T S Z (symmetrised), from
-        D = eps Delta_h Z (``_laplacians``): L Z = D + g' Z, S Z = -m (D - (2/eps) Z). Formed once.
+        D = eps Delta_h Z (``_probe``): L Z = D + g' Z, S Z = -m (D - (2/eps) Z). Formed once.
         With ``hessian`` = (dE_diag, dB_diag) they are the Hessian's own, H = cE H_E + cB H_B
         (``PhaseField.hvp_operator``): Z^T ((cE/eps) m L^2 + cE diag(dE_diag)) Z and
-        Z^T (-eps m Delta_h + diag(dB_diag)) Z = -m Z^T D + Z^T diag(dB_diag) Z."""
+        Z^T (-eps m Delta_h + diag(dB_diag)) Z = -m Z^T D + Z^T diag(dB_diag) Z.
+
+        Every factor lives on D's pattern (CSC), so each is its values there: L Z, Z's own values (the
+        CSC of its nonzeros: zero beyond its support and the band), the diagonals' rows scaled; A^T is
+        then CSR as stored, and each product converts only its right factor."""
         if self._parts is None:
             if self.Z is None:
-                self.Z, self.lattice = self._space(self._weight)
+                self.lattice = self._space(self._weight)
             eps, m = self.eps, self.m
-            D, Z = self._laplacians().tocsr(), self.Z
-            LZ = D + _rows_scaled(Z, self.g_prime)
+            D, zdata = self._probe()
+            rows = D.indices  # each stored entry's node
+
+            def on_d(values, nonzero=False):  # a matrix on D's pattern (CSC) from its values
+                pattern = (D.indices.copy(), D.indptr.copy()) if nonzero else (D.indices, D.indptr)
+                out = sp.csc_matrix((values, *pattern), shape=D.shape)
+                if nonzero:
+                    out.eliminate_zeros()  # in place: on its own copies of the shared pattern
+                return out
+            Z = on_d(zdata.copy(), nonzero=True)
+            if self.Z is None:
+                self.Z = Z
             a = (self.cE / eps) * m
+            LZ = on_d(D.data + self.g_prime[rows] * zdata)
+            E = a * (LZ.T @ LZ)
             if self.hessian is None:
-                bulk = D - (2.0 / eps) * Z
-                E = a * (LZ.T @ LZ) + self._bulk_share(bulk)
-                S = -m * (bulk.T @ Z)
+                bulk = on_d(D.data - (2.0 / eps) * zdata)
+                E = E + self._bulk_share(bulk)
+                S = -m * (Z.T @ bulk)
             else:
-                dE, dB = (np.broadcast_to(np.asarray(x, float), (Z.shape[0],)) for x in self.hessian)
-                ZT = Z.T.tocsr()
-                E = a * (LZ.T @ LZ) + ZT @ _rows_scaled(Z, self.cE * dE)
-                S = ZT @ _rows_scaled(Z, dB) - m * (ZT @ D)
+                dE, dB = (np.broadcast_to(np.asarray(x, float), (D.shape[0],)) for x in self.hessian)
+                E = E + Z.T @ on_d(self.cE * dE[rows] * zdata, nonzero=True)
+                S = Z.T @ on_d(dB[rows] * zdata - m * D.data)
             self._parts = (0.5 * (E + E.T), 0.5 * (S + S.T))
         return self._parts
 
-    def _bulk_share(self, bulk: sp.csr_matrix) -> sp.csr_matrix:
-        """GN_DELTA Z^T (cE/eps) m (eps Delta_h - 2/eps)^2 Z from bulk = D - (2/eps) Z: P_GN's bulk share
-        (in ``_split``; in ``build`` the regulariser of an exactly singular Z^T H Z), not symmetrised."""
-        return (GN_DELTA * ((self.cE / self.eps) * self.m)) * (bulk.T @ bulk)
+    def _bulk_share(self, bulk, right=None) -> sp.csr_matrix:
+        """GN_DELTA Z^T (cE/eps) m (eps Delta_h - 2/eps)^2 Z from bulk = D - (2/eps) Z (``right``: the
+        same matrix in another sparse format, for the product): P_GN's bulk share (in ``_split``; in
+        ``build`` the regulariser of an exactly singular Z^T H Z), not symmetrised."""
+        return (GN_DELTA * ((self.cE / self.eps) * self.m)) * (bulk.T @ (bulk if right is None else right))
 
     def _galerkin(self) -> sp.csr_matrix:
         """Hc = Z^T P_GN Z (or Z^T H Z: ``hessian``) = (``_split``'s first part) + cB (its second)."""
