@@ -24,7 +24,9 @@ through the two largest); ``steady`` and ``exponents_steady``: the same over the
 the medians pool the repeats, and ``by_repeat`` / ``exponent_spread`` give each round's own CPU
 exponents. ``main(out, quick)`` writes ``bench_branch_3d.csv`` and ``.json``; quick: eps = 0.25, 0.2
 (9 k and 13 k nodes, 4 points each, one round; ~2 min). Measured figures: ``docs/guide/large-3d.md``
-(three rounds, points 2-9, with the Hessian's Galerkin matrix in the corrector's coarse space: 0.43,
+(three rounds, points 2-9, with the coarse space's assembly on the probed pattern: 0.40, 1.27, 3.06,
+11.3 CPU s, nodes^1.18, the commit before it run straight after 0.385, 1.26, 3.32, 11.9 s, nodes^1.22,
+the same counts; with the Hessian's Galerkin matrix in the corrector's coarse space: 0.43,
 1.38, 3.45, 12.7 CPU s at 31 k, 98 k, 205 k, 525 k nodes, nodes^1.19, the commit before it run straight
 after 0.49, 1.57, 4.08, 16.6 s, nodes^1.24, DCTs a point nodes^0.17 against 0.21; a unit of v 41, 136,
 346, 1461 s; with ``nk.gmres`` 0.49, 1.60, 4.19, 17.0 s, nodes^1.26, and the previous commit, scipy's GMRES, run straight before it 0.51, 1.72, 4.45,
@@ -33,7 +35,7 @@ after 0.49, 1.57, 4.08, 16.6 s, nodes^1.24, DCTs a point nodes^0.17 against 0.21
 it had measured 1.16-1.18 with the same DCTs: the machine's pace at the small levels moves the CPU
 exponent by ~0.1; the DCTs a point nodes^0.21 in all of them; a unit of v 47, 158, 421, 2168 s; 0.89,
 5.0, 22.7 s a point, nodes^1.70, before the interface band's coarse space; the whole study ~15 min at
-load ~1, the 525 k level's cold starts 55-64 CPU s each).
+load ~1, the 525 k level's cold starts 49-64 CPU s each).
 """
 
 from __future__ import annotations
