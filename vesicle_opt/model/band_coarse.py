@@ -137,7 +137,7 @@ class BandCoarse:
         """The lattice indices (k, d) of the kept columns on the band w > W_MIN, and Z's tensor form: per
         axis the dense (n_a x count_a) spline matrix (mirror images summed), ``restrict``/``extend``. The
         columns' norms are one such contraction of w^2 with the squared splines (Z itself is formed on
-        the probing's boxes: ``_probe``)."""
+        the probing's cells: ``_probe``)."""
         g = self.grid
         counts = [int(np.ceil(L / (SPACING * self.eps))) + 2 for L in g.lengths]
         self._factors = []
@@ -228,8 +228,7 @@ class BandCoarse:
         CSC of its nonzeros: zero beyond its support and the band), the diagonals' rows scaled; A^T is
         then CSR as stored, and each product converts only its right factor."""
         if self._parts is None:
-            if self.Z is None:
-                self.lattice = self._space(self._weight)
+            self.lattice = self._space(self._weight)  # Z is formed here, with the parts
             eps, m = self.eps, self.m
             D, zdata = self._probe()
             rows = D.indices  # each stored entry's node
@@ -240,9 +239,7 @@ class BandCoarse:
                 if nonzero:
                     out.eliminate_zeros()  # in place: on its own copies of the shared pattern
                 return out
-            Z = on_d(zdata.copy(), nonzero=True)
-            if self.Z is None:
-                self.Z = Z
+            self.Z = Z = on_d(zdata.copy(), nonzero=True)
             a = (self.cE / eps) * m
             LZ = on_d(D.data + self.g_prime[rows] * zdata)
             E = a * (LZ.T @ LZ)
@@ -257,11 +254,10 @@ class BandCoarse:
             self._parts = (0.5 * (E + E.T), 0.5 * (S + S.T))
         return self._parts
 
-    def _bulk_share(self, bulk, right=None) -> sp.csr_matrix:
-        """GN_DELTA Z^T (cE/eps) m (eps Delta_h - 2/eps)^2 Z from bulk = D - (2/eps) Z (``right``: the
-        same matrix in another sparse format, for the product): P_GN's bulk share (in ``_split``; in
-        ``build`` the regulariser of an exactly singular Z^T H Z), not symmetrised."""
-        return (GN_DELTA * ((self.cE / self.eps) * self.m)) * (bulk.T @ (bulk if right is None else right))
+    def _bulk_share(self, bulk) -> sp.csr_matrix:
+        """GN_DELTA Z^T (cE/eps) m (eps Delta_h - 2/eps)^2 Z from bulk = D - (2/eps) Z: P_GN's bulk share
+        (in ``_split``; in ``build`` the regulariser of an exactly singular Z^T H Z), not symmetrised."""
+        return (GN_DELTA * ((self.cE / self.eps) * self.m)) * (bulk.T @ bulk)
 
     def _galerkin(self) -> sp.csr_matrix:
         """Hc = Z^T P_GN Z (or Z^T H Z: ``hessian``) = (``_split``'s first part) + cB (its second)."""
@@ -294,12 +290,6 @@ class BandCoarse:
     def additive(self, bulk_inv):
         """r -> P_bulk^{-1} r + Z Hc^{-1} Z^T r."""
         return lambda r: bulk_inv(r) + self.correction(r)
-
-
-def _rows_scaled(A: sp.csr_matrix, x: np.ndarray) -> sp.csr_matrix:
-    """diag(x) A for a CSR matrix A, without a sparse product."""
-    data = A.data * np.repeat(np.asarray(x, float), np.diff(A.indptr))
-    return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
 
 
 class Lagged:
