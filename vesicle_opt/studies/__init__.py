@@ -48,8 +48,8 @@ DESCRIPTIONS = {
     "torus_section5": "Section 5 by the gradient flow: a flat disk pinches into a torus (Figures 1-2)",
 }
 STUDIES = tuple(sorted(DESCRIPTIONS))  # the registry: a study is registered by its description
-NOT_STUDIES = ("_common", "_escape", "_flowkit", "_hlevel", "_meridian", "_pd_figure", "_pear", "_same_state", "_stomatocyte", "runner",
-               "bare_casadi")
+NOT_STUDIES = ("_common", "_escape", "_flowkit", "_hlevel", "_landing", "_meridian", "_pd_figure", "_pear",
+               "_same_state", "_stomatocyte", "runner", "bare_casadi")
 
 
 def study(name: str) -> ModuleType:

@@ -1,10 +1,12 @@
 """The stomatocyte cases of the ``phase_diagram`` study (c0 = 0): the sharp branch (eps = 0 rows,
 ``sharp.stomatocyte``) and the phase-field branch at one eps on the meridian half-plane.
 
-Phase field: the branch is SEEDED (column ``seed``): the first point of each walk, at v = ``V_SEED``
-(the lower side of the fold), starts from the tanh profile of the sharp stomatocyte there
-(``io.meridian.phase_field_of``, on a mesh refined about it: ``studies._meridian``), as the prolate
-and oblate cases start from their sharp shapes. The sharp stomatocyte itself is reached without a
+Phase field: the first point of each walk, at v = ``V_SEED`` (the lower side of the fold), starts
+from the tanh profile of a meridian curve there (``io.meridian.phase_field_of``, on a mesh refined
+about it: ``studies._meridian``; column ``seed``): the sharp stomatocyte's (a SEED, as the prolate and
+oblate cases start from their sharp shapes), or the phi = 0 curve of the phase field's own seedless
+landing (``studies._landing``: ``switched`` + ``down_in_v`` below, at eps 0.03; the full study's
+default, ``phase_diagram.FULL["stomatocyte_start"]``), which at eps 0.04-0.025 reaches the seeded cup. The sharp stomatocyte itself is reached without a
 seed, by switching at the sharp oblate's branch point (``sharp.stomatocyte_switch``: v = 0.51044);
 the phase field has no such route here yet: at the eps this machine affords (>= 0.025) the meridian
 oblate's dimples meet (a torus) above v = 0.51 (at v = 0.58 for eps = 0.03, measured).
@@ -124,10 +126,12 @@ def sharp_case(case: dict) -> list[dict]:
     return rows
 
 
-def phase_case(case: dict, point_row) -> list[dict]:
+def phase_case(case: dict, point_row, start_curve=None) -> list[dict]:
     """The phase-field stomatocyte at ``case["epsilon"]``, the walk ``case["walk"]`` (up / down, or
     "both": up over ``vs``, then down over ``vs_down`` from the same first point) from the seed at
-    vs[0] = ``V_SEED`` (module docstring), or with ``case["seedless"]`` from the detour in c0
+    vs[0] = ``V_SEED`` (module docstring), or from ``start_curve`` = (r, z, label) there (a meridian
+    curve in the seed's place, the label the first row's ``seed``: ``studies._landing``'s seedless
+    one), or with ``case["seedless"]`` from the detour in c0
     (``seedless``: its solves are rows of kind "detour", their c0 their own; the seed where it is not
     reached, the column ``seed`` saying so);
     ``point_row(res, v, eps, lay, sharp_f, seed, side, walk)`` makes a study row (side "lower":
@@ -136,6 +140,8 @@ def phase_case(case: dict, point_row) -> list[dict]:
     seed_pt = sharp_s.start_point(case["vs"][0], 0.0, case["n_modes"])  # the sharp reference (and the seed)
     r, z = seed_pt.meridian(2048)
     rows, start, first = [], None, f"sharp stomatocyte at v = {case['vs'][0]} (a seed)"
+    if start_curve is not None:
+        r, z, first = start_curve
     if case.get("seedless"):
         d, lay = seedless(case["vs"][0], eps, case["eps_over_h"], case.get("refine", True), name=f"{name}-detour")
         for st in d.steps:

@@ -6,12 +6,13 @@ in the literature's units (f, v; Seifert, Berndl & Lipowsky, Phys. Rev. A 44, 11
 
 Meshes: interface-refined meridian meshes (``mesh.refine = "interface"``, ``studies._meridian``),
 eps/h = 4 in a band of 8 eps about the interface, coarse cells of 4 eps elsewhere, walls ``WALL`` eps
-from the sharp shapes. Every walk is SEEDED with the tanh profile of the sharp shape at its first v
-(``io.meridian.phase_field_of``, the mesh refined about that shape; the column ``seed`` says so): the
-tanh ellipsoid start reached another state at eps = 0.02 (f 1.502 against 1.284 from the sharp seed,
-measured). The phase-field stomatocyte has a seedless route (``_stomatocyte.switched``, a continuous
-switch at the oblate's odd branch point in c0; at eps 0.03 on a uniform eps/h = 2 mesh it lands on the
-seeded cup's mirror image) that no case calls yet: the walks here are on refined eps/h = 4 meshes.
+from the sharp shapes. The prolate and oblate walks are SEEDED with the tanh profile of the sharp shape
+at their first v (``io.meridian.phase_field_of``, the mesh refined about that shape; the column
+``seed`` says so): the tanh ellipsoid start reached another state at eps = 0.02 (f 1.502 against 1.284
+from the sharp seed, measured). The stomatocyte walks start with no seed (``FULL["stomatocyte_start"]``
+= "landing"): from the phi = 0 curve of the phase field's own cup, reached by a continuous switch at
+the oblate's odd branch point in c0 at eps 0.03 (``studies._landing``: computed once, kept in
+``states/``), the same way at every eps; "seed" starts them from the sharp stomatocyte instead.
 R0 = 1 (area 4 pi), exact constraints, IPOPT, second-order checked (axisymmetric perturbations only).
 
 Cases, one per (branch, eps, part), run in parallel through the study runner (``runner.run_cases``:
@@ -63,6 +64,7 @@ from vesicle_opt.io.meridian import meridian_curves
 from vesicle_opt.sharp import axisymmetric as sharp
 from vesicle_opt.studies._meridian import layout, walk
 from vesicle_opt.studies import _hlevel as hl
+from vesicle_opt.studies import _landing as landing
 from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.studies._pd_figure import figure
 from vesicle_opt.studies.runner import run_into
@@ -91,7 +93,10 @@ FULL = {"epsilons": (0.05, 0.04, 0.03, 0.025), "eps_over_h": 4.0, "refine": True
         # ending below that crossing. eps = 0.02: its stomatocyte seed (v = 0.62) converged in 129 IPOPT
         # iterations, 65 CPU s, on the box centred where the pin holds it (``_meridian.layout``), in 178 on the
         # former box (past the former 150-iteration cap, where it had ended, kkt 0.36): ``SEED_MAX_ITER``, measured
-        "low_extra": (0.02,), "down_extra_min": 0.57}
+        "low_extra": (0.02,), "down_extra_min": 0.57,
+        # the stomatocyte walks' first curve: "landing" (no seed: ``_landing``, the phase field's own cup reached by
+        # switching at eps 0.03; the sharp seed's cup to f 3e-8 at eps 0.04-0.025, measured) or "seed" (the sharp one)
+        "stomatocyte_start": "landing"}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "refine": False, "n_modes": 8, "near": (0.7, 0.65)}
 EXTENSIONS: tuple[str, ...] = ("_pear",)  # c0 = 2.4 (full run only); the hook: private modules of this package (e.g. "_pear") with
 # cases(quick) -> [case], run(case) -> [row] and summary(rows) -> dict; their cases carry "extension"
@@ -125,7 +130,8 @@ def cases(quick: bool, states=None) -> list[dict]:
 
         def walk_case(eps, v_min=0.0):  # both walks from one seed (``_stomatocyte.phase_case``)
             return {"case": f"stomatocyte-eps{eps:g}", "branch": "stomatocyte", "epsilon": eps, "walk": "both",
-                    "vs": list(cfg["stomatocyte_up"]), "vs_down": [v for v in cfg["stomatocyte_down"] if v >= v_min], **st}
+                    "vs": list(cfg["stomatocyte_up"]), "vs_down": [v for v in cfg["stomatocyte_down"] if v >= v_min],
+                    "start": cfg["stomatocyte_start"], **st}
         out = [{"case": "stomatocyte-sharp", "branch": "stomatocyte", "epsilon": 0.0, "n_modes": cfg["stomatocyte_modes"]}] \
             + out + [walk_case(eps, cfg["down_extra_min"] if eps in cfg["low_extra"] else 0.0)
                      for eps in sorted(cfg["low_extra"]) + order]
@@ -196,7 +202,11 @@ def _run(case: dict) -> list[dict]:
     if case["branch"] == "stomatocyte":
         if case["epsilon"] == 0:
             return stoma.sharp_case(case)
-        return stoma.phase_case(case, _stomatocyte_row)
+        start, missed = landing.start(case)
+        rows = stoma.phase_case(case, _stomatocyte_row, start)
+        if missed and rows:
+            rows[0]["seed"] = f"{rows[0]['seed']}; {missed}"
+        return rows
     eps, which, vs = case["epsilon"], case["branch"], case["vs"]
     refs = sharp.branch(vs, which, case["n_modes"], second_order=False) if case["part"] != "far" else \
         [sharp.solve(v, which, case["n_modes"], second_order=False) for v in vs]
