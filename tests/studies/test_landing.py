@@ -129,3 +129,22 @@ def test_the_landing_curve_reaches_the_seeded_cup_at_another_eps(tmp_path):
     c = same.compare(*got)
     assert c["f_rel"] < 1e-7  # two meshes refined about two curves of one state: measured 2.6e-12 (1e-7: IPOPT's tol)
     assert max(c["distance"]) < 1e-4  # the same state; another one (a torus) lies at ~0.08 (measured)
+
+
+def test_the_h_levels_walk_from_the_landing_where_states_hold_it(monkeypatch, tmp_path):
+    """``_hlevel._walked`` (a state's field was not saved): the stomatocyte's walk starts from the
+    landing's curve kept beside the states, else from the sharp stomatocyte."""
+    from vesicle_opt.studies import _hlevel as hl
+
+    r, z = _cup_curve()
+    seen = []
+    monkeypatch.setattr(hl, "layout", lambda meridians, eps, eoh: {"h": eps / eoh})
+    monkeypatch.setattr(hl, "walk", lambda lay, eps, vs, first, name, stop=None: seen.append(first) or iter(()))
+    sharp = (np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, -1.0]))
+    monkeypatch.setattr(hl.sharp_s, "start_point", lambda v, c0, n: type("P", (), {"meridian": lambda self, m: sharp})())
+    case = {"case": "h-fold-stomatocyte0-eps0.03", "epsilon": 0.03, "walk_vs": [S.V_SEED, 0.63],
+            "branch": "stomatocyte", "v": 0.63, "state": str(tmp_path / "stomatocyte-eps0.03-v0.63.npz")}
+    hl._walked(case)
+    L.write(tmp_path / L.FILE, r, z, "no seed")
+    hl._walked(case)
+    assert seen[0] is sharp and np.array_equal(seen[1][0], r) and np.array_equal(seen[1][1], z)

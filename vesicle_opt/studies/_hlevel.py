@@ -42,6 +42,7 @@ from vesicle_opt.mesh import discretize, refine
 from vesicle_opt.sharp import axisymmetric as sharp
 from vesicle_opt.sharp import stomatocyte as sharp_s
 from vesicle_opt.studies._meridian import layout, scene, solve_quiet, state_path, walk
+from vesicle_opt.studies import _landing as landing
 from vesicle_opt.studies._stomatocyte import V_SEED, fold_of
 from vesicle_opt.verify.metrics import richardson, richardson_fixed
 from vesicle_opt.studies._common import num as _num
@@ -123,11 +124,14 @@ def _walked(case: dict) -> tuple[dict, dict]:
     """({v: Result}, layout): the eps/h = 4 states at the case's points where no saved field is there,
     from ONE walk (``_meridian.walk``) over ``case["walk_vs"]`` from the sharp shape at its first v (the
     prolate and oblate: the sharp shape at v itself; the stomatocyte: from ``_stomatocyte.V_SEED``, its
-    up or down grid as the study's own walks), stopped at the first point that fails."""
+    up or down grid as the study's own walks, from the seedless landing's curve where ``states`` holds
+    it (``studies._landing``: the walks' own start), else from the sharp stomatocyte), stopped at the
+    first point that fails."""
 
     eps, vs, b = case["epsilon"], case["walk_vs"], case["branch"]
     if b == "stomatocyte":
-        meridians = [sharp_s.start_point(vs[0], 0.0, 24).meridian(2048)]
+        found = landing.read(Path(case["state"]).parent / landing.FILE) if case.get("state") else None
+        meridians = [found[:2] if found is not None else sharp_s.start_point(vs[0], 0.0, 24).meridian(2048)]
     else:  # the box of the walks' own: about the sharp shapes of their whole grid (``layout_vs``)
         grid = case.get("layout_vs") or vs
         meridians = [ref.meridian(2048) for ref in sharp.branch(grid, b, 16, second_order=False)]
