@@ -148,3 +148,25 @@ def test_the_h_levels_walk_from_the_landing_where_states_hold_it(monkeypatch, tm
     L.write(tmp_path / L.FILE, r, z, "no seed")
     hl._walked(case)
     assert seen[0] is sharp and np.array_equal(seen[1][0], r) and np.array_equal(seen[1][1], z)
+
+
+def test_prepare_makes_the_landing_once_before_the_cases(tmp_path, route, monkeypatch):
+    """``prepare`` (the study's process, before its parallel cases): the route once, the cases read its
+    file; where it does not land, the landing's cases start from the seed and carry why, and no case
+    runs the route again."""
+    calls, r, z = route
+    cs = [{"case": f"stomatocyte-eps{e:g}", "start": "landing", "states": str(tmp_path)} for e in (0.03, 0.02)]
+    cs.append({"case": "oblate-low-eps0.03", "states": str(tmp_path)})
+    assert L.prepare(cs) == cs and len(calls) == 1
+    assert all(np.array_equal(L.start(c)[0][0], r) for c in cs[:2]) and len(calls) == 1
+
+    def fail():
+        calls.append(1)
+        raise L.NotReached("the switched branch did not reach c0 = 0 (CPU budget)")
+    monkeypatch.setattr(L, "compute", fail)
+    (tmp_path / L.FILE).unlink()
+    got = L.prepare(cs)
+    assert len(calls) == 2 and got[2] == cs[2] and all(c["start"] == "seed" for c in got[:2])
+    why = "the seedless landing was not reached: the switched branch did not reach c0 = 0 (CPU budget)"
+    assert [L.start(c) for c in got[:2]] == [(None, why)] * 2
+    assert len(calls) == 2

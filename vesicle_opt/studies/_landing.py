@@ -16,8 +16,9 @@ distance (``_same_state``) 1e-6 to 3e-6; at 0.05 both reach the same up-down sym
 exists there). The route itself: ~190 CPU s (168 s to c0 = 0, then the walk in v).
 
 The curve is kept in the walks' ``states`` directory (``FILE``: written whole or not at all, via a
-temporary file and a rename), so the study's cases compute it once and a resumed run reads it; a
-file that cannot be read (damaged, truncated, from another layout) is computed again and replaced.
+temporary file and a rename), made once before the cases run (``prepare``, in the study's process), so
+parallel cases and a resumed run read it; a file that cannot be read (damaged, truncated, not a curve
+from the axis to the axis) is computed again and replaced.
 """
 
 from __future__ import annotations
@@ -45,11 +46,29 @@ class NotReached(RuntimeError):
     """The route did not end on a certified cup at V_SEED (the message says where it stopped)."""
 
 
+def prepare(case_list: list[dict]) -> list[dict]:
+    """The landing made once, before the cases run in parallel (each worker would make it again):
+    where a case starts from it and its ``states`` has no readable curve, ``curve`` runs the route
+    here. Where the route does not land, those cases start from the seed instead and carry why
+    (``missed``), so that no case runs the route again."""
+    want = [c for c in case_list if c.get("start") == "landing" and c.get("states") is not None]
+    if not want:
+        return case_list
+    try:
+        curve(want[0]["states"])
+    except NotReached as exc:
+        log.warning(f"the seedless landing was not reached ({exc}): the stomatocyte walks start from the seed")
+        missed = f"the seedless landing was not reached: {exc}"
+        return [{**c, "start": "seed", "missed": missed} if c.get("start") == "landing" else c for c in case_list]
+    return case_list
+
+
 def start(case: dict):
     """(a ``phase_case`` start curve or None, why the landing is missing or ''): with ``case["start"]``
-    = "landing" the landing's curve (``curve``, kept in ``case["states"]``); else None (the seed)."""
+    = "landing" the landing's curve (``curve``, kept in ``case["states"]``); else None (the seed), with
+    ``case["missed"]`` (``prepare``) as the reason."""
     if case.get("start") != "landing":
-        return None, ""
+        return None, case.get("missed", "")
     try:
         return curve(case.get("states")), ""
     except NotReached as exc:

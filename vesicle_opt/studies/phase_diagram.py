@@ -359,8 +359,8 @@ def stomatocyte_summary(rows: list[dict], sh: dict | None = None) -> dict:
 def main(out, quick: bool = False, executor=None, workers: int = 1) -> int:
     columns = COLUMNS + [c for n in EXTENSIONS for c in _extension(n).COLUMNS if c not in COLUMNS]
     states = Path(out) / hl.STATES
-    out, rows, good = run_into(NAME, cases(quick, states), run, out, executor=executor, workers=workers,
-                               extra_columns=columns)
+    first = landing.prepare(cases(quick, states))  # the stomatocyte walks' seedless start, made once
+    out, rows, good = run_into(NAME, first, run, out, executor=executor, workers=workers, extra_columns=columns)
     # stage two: the states at the transitions located on those rows, on finer and coarser bands
     second = hl.cases(good, summarise(good), states, {"up": FULL["stomatocyte_up"], "down": FULL["stomatocyte_down"],
                                                       "low": FULL["oblate_low"], "near": FULL["near"]})
