@@ -206,3 +206,38 @@ def test_stage_two_levels_eps_over_h_8_at_the_coarsest_eps_only(tmp_path, monkey
     assert {(c["epsilon"], tuple(c["levels"])) for c in cs} == {(0.05, H.LEVELS), (0.04, H.CHEAP_LEVELS)}
     monkeypatch.setattr(H, "ORDER_FROM", "all")
     assert {tuple(c["levels"]) for c in H.cases(rows, summary, tmp_path, grids)} == {H.LEVELS}
+
+
+def test_stage_three_observes_the_order_one_eps_down_where_the_coarsest_refused_eps_over_h_2(tmp_path):
+    """``order_cases``: the coarsest eps (0.05) refused eps/h = 2, so stage two skipped eps/h = 8 there and
+    no state has three levels: eps/h = 8 is asked at 0.04 (both states have eps/h = 2 and 4), the levels
+    (1,) alone under new case names; with those rows the summary carries 0.04's order (exact on the closed
+    form) to 0.03, and the corrected crossings are the h = 0 ones. Nothing is asked where the order was
+    observed, nor at an eps whose eps/h = 2 is missing."""
+    rows = [r for r in _rows() if not (r["kind"] == "h_level" and r["eps_over_h"] == 8.0)]
+    for r in rows:
+        if r["kind"] == "h_level" and r["epsilon"] == 0.05 and r["eps_over_h"] == 2.0:
+            r["converged"] = "False"  # refused
+    pts = [r for r in rows if r["kind"] == "point"]
+    for r in pts:
+        r["case"] = f"{r['branch']}-eps{r['epsilon']:g}"
+    summary = {"crossings": {f"{e:g}": {"v": 0.6, "f": 1.2} for e in (0.05, 0.04, 0.03)}}
+    staged = H.cases(pts, summary, tmp_path, {"up": [], "down": [], "low": [], "near": [0.6]})
+    third = H.order_cases(rows, staged)
+    assert sorted(c["case"] for c in third) == ["h-crossing-oblate-eps0.04-order", "h-crossing-prolate-eps0.04-order"]
+    assert all(c["levels"] == [1] and c["epsilon"] == 0.04 for c in third)
+    # the eps/h = 8 rows they give: the summary takes the order at 0.04 and carries it to 0.03
+    done = rows + [r for r in _rows() if r["kind"] == "h_level" and r["eps_over_h"] == 8.0 and r["epsilon"] == 0.04]
+    assert H.order_cases(done, staged) == []
+    s = P.summarise(done)
+    assert s["h_levels"]["0.03"]["prolate"]["order_from_eps"] == 0.04
+    assert s["h_levels"]["0.03"]["prolate"]["order"] == pytest.approx(2.0, abs=1e-8)  # brentq on p at 0.04
+    for e in ("0.04", "0.03"):
+        _, _, v0, f0 = _branches(float(e), 0.0)
+        x = s["crossings_h_corrected"][e]
+        assert x["v"] == pytest.approx(v0, abs=1e-12) and x["f"] == pytest.approx(f0, abs=1e-12)  # brentq xtol
+    # an eps whose eps/h = 2 is missing for a state is passed over: 0.04's prolate refused, so 0.03
+    for r in rows:
+        if r["kind"] == "h_level" and r["epsilon"] == 0.04 and r["eps_over_h"] == 2.0 and r["branch"] == "prolate":
+            r["converged"] = "False"
+    assert {c["epsilon"] for c in H.order_cases(rows, staged)} == {0.03}

@@ -25,7 +25,9 @@ delta = y_4 - y_0 (y_0: the h -> 0 limit):
 
 Stage two of the study (``cases``): built from the transitions located on the eps/h = 4 rows, the
 states read from the walks' saved fields (``_meridian.save``: one npz per converged point, ``STATES`` under the
-output directory); a case per (transition, eps, state), its rows of kind ``h_level``.
+output directory); a case per (transition, eps, state), its rows of kind ``h_level``. Stage three
+(``order_cases``): where the coarsest eps refused eps/h = 2 (the fold at eps 0.04), eps/h = 8 at the next
+eps down, so that the order is observed and not replaced by p = 2.
 """
 
 from __future__ import annotations
@@ -272,6 +274,33 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
         coarsest[c["transition"]] = max(coarsest.get(c["transition"], 0.0), c["epsilon"])
     for c in out:  # eps/h = 8 where it is cheapest (``ORDER_FROM``): the order observed there serves every eps
         c["levels"] = list(LEVELS if ORDER_FROM == "all" or c["epsilon"] == coarsest[c["transition"]] else CHEAP_LEVELS)
+    return out
+
+
+def order_cases(rows: list[dict], staged: list[dict]) -> list[dict]:
+    """Stage three: for a transition none of whose states has eps/h = 2, 4 and 8 certified at any eps
+    (its coarsest eps refused eps/h = 2, so ``LEVELS`` skipped eps/h = 8 there and every share fell
+    back to p = 2: measured at the fold, eps 0.04), eps/h = 8 at the next eps down whose states all
+    have eps/h = 2 and 4 certified: those ``staged`` cases again with the levels (1,) alone (warm from
+    the saved state, as each level is) and the name suffix "-order" (the runner's resume key).
+    ``shares`` then reads the order there. [] where no transition needs it."""
+    got: dict = {}
+    for r in rows:
+        if r.get("kind") == "h_level" and str(r.get("converged")) == "True":
+            key = (r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"]))
+            got.setdefault(key, set()).add(_num(r["eps_over_h"]))
+    out = []
+    for t in dict.fromkeys(c["transition"] for c in staged):
+        if any(k[0] == t and {2.0, 4.0, 8.0} <= lv for k, lv in got.items()):
+            continue  # the order is observed at some eps
+        mine = [c for c in staged if c["transition"] == t]
+        tried = {c["epsilon"] for c in mine if 1 in c.get("levels", LEVELS)}
+        for eps in sorted({c["epsilon"] for c in mine} - tried, reverse=True):
+            cs = [c for c in mine if c["epsilon"] == eps]
+            if all({2.0, 4.0} <= got.get((t, c["branch"] + str(q.get("point") or ""), eps), set())
+                   for c in cs for q in _points(c)):
+                out += [{**c, "case": f"{c['case']}-order", "levels": [1]} for c in cs]
+                break
     return out
 
 
