@@ -9,11 +9,13 @@ meshes. So the landing is handed on as a shape: its phi = 0 meridian curve (``io
 ``_meridian.seed`` turns into the tanh profile at any eps on the mesh refined about that curve, as it
 does with a sharp shape. No hand-made shape enters: the curve is the phase field's own.
 
-Measured (this module's curve, v = 0.62, eps/h = 4 refined, IPOPT, 24-mode sharp seed for the
-comparison): at eps 0.04 / 0.03 / 0.025 the landing's curve and the sharp seed reach the same certified
-cup, f 1.9699170065 / 1.9683407758 / 1.9677507813 (relative differences 2.6e-12 / 2.7e-8 / 6.8e-9), field
-distance (``_same_state``) 1e-6 to 3e-6; at 0.05 both reach the same up-down symmetric torus (no cup
-exists there). The route itself: ~190 CPU s (168 s to c0 = 0, then the walk in v).
+Measured (this module's curve, v = 0.62, eps/h = 4 refined, IPOPT, the study's 24-mode sharp seed for
+the comparison): at eps 0.04 / 0.03 / 0.025 / 0.02 the landing's curve and the sharp seed reach the same
+certified cup, f 1.9699170065 / 1.9683407758 / 1.9677507813 / 1.9672810941 (relative differences 2.6e-12
+/ 2.6e-8 / 5.5e-11 / 1.2e-10), field distance (``_same_state``) 1e-7 to 2e-6; at 0.05 both reach the
+same up-down symmetric torus (no cup exists there). The study's walks from either start agree point by
+point to <= 1.2e-7 in f (docs/guide/bifurcation.md). The route itself: ~190 CPU s (168 s to c0 = 0,
+then the walk in v).
 
 The curve is kept in the walks' ``states`` directory (``FILE``: written whole or not at all, via a
 temporary file and a rename), made once before the cases run (``prepare``, in the study's process), so

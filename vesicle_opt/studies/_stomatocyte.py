@@ -6,8 +6,8 @@ from the tanh profile of a meridian curve there (``io.meridian.phase_field_of``,
 about it: ``studies._meridian``; column ``seed``): the sharp stomatocyte's (a SEED, as the prolate and
 oblate cases start from their sharp shapes), or the phi = 0 curve of the phase field's own seedless
 landing (``studies._landing``: ``switched`` + ``down_in_v`` below, at eps 0.03; the full study's
-default, ``phase_diagram.FULL["stomatocyte_start"]``), which at eps 0.04-0.025 reaches the seeded cup. The sharp stomatocyte itself is reached without a
-seed, by switching at the sharp oblate's branch point (``sharp.stomatocyte_switch``: v = 0.51044);
+default, ``phase_diagram.FULL["stomatocyte_start"]``), which at eps 0.04-0.02 reaches the seeded cup.
+The sharp stomatocyte itself is reached without a seed, by switching at the sharp oblate's branch point (``sharp.stomatocyte_switch``: v = 0.51044);
 the phase field has no such route here yet: at the eps this machine affords (>= 0.025) the meridian
 oblate's dimples meet (a torus) above v = 0.51 (at v = 0.58 for eps = 0.03, measured).
 ``seedless`` tries another (``branch.detour``): the oblate walked out in c0 at fixed v to where its odd

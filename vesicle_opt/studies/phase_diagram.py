@@ -95,7 +95,7 @@ FULL = {"epsilons": (0.05, 0.04, 0.03, 0.025), "eps_over_h": 4.0, "refine": True
         # former box (past the former 150-iteration cap, where it had ended, kkt 0.36): ``SEED_MAX_ITER``, measured
         "low_extra": (0.02,), "down_extra_min": 0.57,
         # the stomatocyte walks' first curve: "landing" (no seed: ``_landing``, the phase field's own cup reached by
-        # switching at eps 0.03; the sharp seed's cup to f 3e-8 at eps 0.04-0.025, measured) or "seed" (the sharp one)
+        # switching at eps 0.03; the sharp seed's cup to f 3e-8 at eps 0.04-0.02, measured) or "seed" (the sharp one)
         "stomatocyte_start": "landing"}
 QUICK = {"epsilons": (0.1,), "eps_over_h": 2.0, "refine": False, "n_modes": 8, "near": (0.7, 0.65)}
 EXTENSIONS: tuple[str, ...] = ("_pear",)  # c0 = 2.4 (full run only); the hook: private modules of this package (e.g. "_pear") with
