@@ -277,6 +277,12 @@ def cases(rows: list[dict], summary: dict, states, grids: dict) -> list[dict]:
     return out
 
 
+def _state_key(r: dict) -> tuple:
+    """(transition, branch + point, eps): one state of a transition at one eps, as its h-level rows (and
+    its case's points) name it."""
+    return r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])
+
+
 def order_cases(rows: list[dict], staged: list[dict]) -> list[dict]:
     """Stage three: for a transition none of whose states has eps/h = 2, 4 and 8 certified at any eps
     (its coarsest eps refused eps/h = 2, so ``LEVELS`` skipped eps/h = 8 there and every share fell
@@ -287,8 +293,7 @@ def order_cases(rows: list[dict], staged: list[dict]) -> list[dict]:
     got: dict = {}
     for r in rows:
         if r.get("kind") == "h_level" and str(r.get("converged")) == "True":
-            key = (r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"]))
-            got.setdefault(key, set()).add(_num(r["eps_over_h"]))
+            got.setdefault(_state_key(r), set()).add(_num(r["eps_over_h"]))
     out = []
     for t in dict.fromkeys(c["transition"] for c in staged):
         if any(k[0] == t and {2.0, 4.0, 8.0} <= lv for k, lv in got.items()):
@@ -297,7 +302,7 @@ def order_cases(rows: list[dict], staged: list[dict]) -> list[dict]:
         tried = {c["epsilon"] for c in mine if 1 in c.get("levels", LEVELS)}
         for eps in sorted({c["epsilon"] for c in mine} - tried, reverse=True):
             cs = [c for c in mine if c["epsilon"] == eps]
-            if all({2.0, 4.0} <= got.get((t, c["branch"] + str(q.get("point") or ""), eps), set())
+            if all({2.0, 4.0} <= got.get(_state_key({**c, "point": q.get("point")}), set())
                    for c in cs for q in _points(c)):
                 out += [{**c, "case": f"{c['case']}-order", "levels": [1]} for c in cs]
                 break
@@ -333,8 +338,8 @@ def shares(rows: list[dict]) -> dict:
     alone, is left out (one with eps/h = 4 and 8 only gets the p = 2 share: ``share``)."""
     out, two = {}, {}
     hl = [r for r in rows if r.get("kind") == "h_level" and str(r.get("converged")) == "True"]
-    for key in sorted({(r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])) for r in hl}):
-        sel = [r for r in hl if (r["transition"], r["branch"] + str(r.get("point") or ""), _num(r["epsilon"])) == key]
+    for key in sorted({_state_key(r) for r in hl}):
+        sel = [r for r in hl if _state_key(r) == key]
         sel = list({_num(r["eps_over_h"]): r for r in reversed(sel)}.values())  # one a level: the first row's
         got = {_num(r["eps_over_h"]) for r in sel}
         if 4.0 not in got or len(got) < 2:

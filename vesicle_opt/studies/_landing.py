@@ -59,8 +59,7 @@ def prepare(case_list: list[dict]) -> list[dict]:
     try:
         curve(want[0]["states"])
     except NotReached as exc:
-        log.warning(f"the seedless landing was not reached ({exc}): the stomatocyte walks start from the seed")
-        missed = f"the seedless landing was not reached: {exc}"
+        missed = _missed(exc, "the stomatocyte walks")
         return [{**c, "start": "seed", "missed": missed} if c.get("start") == "landing" else c for c in case_list]
     return case_list
 
@@ -74,8 +73,13 @@ def start(case: dict):
     try:
         return curve(case.get("states")), ""
     except NotReached as exc:
-        log.warning(f"{case.get('case')}: the seedless landing was not reached ({exc}); the seed instead")
-        return None, f"the seedless landing was not reached: {exc}"
+        return None, _missed(exc, str(case.get("case")))
+
+
+def _missed(exc: NotReached, who: str) -> str:
+    """The rows' line for a route that did not land (logged once for ``who``, which starts from the seed)."""
+    log.warning(f"{who}: the seedless landing was not reached ({exc}); the seed instead")
+    return f"the seedless landing was not reached: {exc}"
 
 
 def curve(states=None) -> tuple[np.ndarray, np.ndarray, str]:
