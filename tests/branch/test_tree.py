@@ -136,18 +136,39 @@ WALL = COLUMNS.index("wall_time_s")
 
 def test_a_mode_within_its_bound_of_zero_is_passed_over():
     """Two far components have a soft relative translation (measured on a deflated 2D branch:
-    -1e-3 ... +5e-5 mu_ref, bound ~2e-3). It is not counted in the index, and the location follows
-    the eigenvalue that crosses, g(p) = p - 0.3, not the soft one, sorted first near the root."""
+    -1e-3 ... +5e-5 mu_ref, bound ~2e-3). It is certified negative (index 2 -> 1: a Ritz value below
+    -TOL_REL) but not decidedly (the events' count 1 -> 0), and the location follows the eigenvalue
+    that crosses, g(p) = p - 0.3, not the soft one, sorted first near the root."""
     def point(p):
         eig = sorted([p - 0.3, -8e-4])
         err = [2e-3 if mu == -8e-4 else 1e-9 for mu in eig]
         return events.Point(p, np.zeros(2), 0.0, tuple(eig), tuple(err))
     a, b = point(0.0), point(0.6)
-    assert (a.index, b.index) == (1, 0)
+    assert (a.decided, b.decided) == (1, 0) and (a.index, b.index) == (2, 1)
     assert events.critical_values(a, b) == (-0.3, pytest.approx(0.3))
     loc = events.locate_branch_point(lambda p, phi, lam: point(p), a, b, 1e-9)
     assert abs(loc.p - 0.3) <= 1e-9 and loc.located_by == "illinois"  # |g| <= its bound 1e-9 or the bracket
     assert loc.eigenvalue == pytest.approx(loc.p - 0.3, abs=0)
+
+
+def test_the_index_is_the_verdicts_count_and_the_decided_count_within_it():
+    """The CSV's index counts what the certificate calls negative: for a point's least eigenvalue,
+    index >= 1 exactly where ``verdict.classify`` reads "saddle" (a Ritz value bounds its eigenvalue
+    from above, so one below -TOL_REL is negative whatever its bound: the matrix-free check stops once
+    a saddle is decided, bounds 0.05-0.3 against mu -3e-4 ... -6e-3 on the meridian cup past its
+    fold, measured), 0 where it reads "minimum"; the events' decided count is at most the index and
+    needs mu < -err as well. Ritz values and bounds on both sides of every threshold."""
+    from vesicle_opt.verify.verdict import TOL_REL, classify
+    mus = [-0.3, -6e-3, -2.7e-4, -2e-6, -TOL_REL, -5e-7, 0.0, 5e-7, TOL_REL, 2e-6, 8e-4, 0.2]
+    errs = [0.0, 1e-11, 1e-7, TOL_REL, 6.6e-6, 0.055, 0.3, float("nan"), float("inf")]
+    for mu in mus:
+        for err in errs:
+            verdict = classify(mu, err)[0]
+            i, d = events.index((mu, 0.5), (err, 0.0)), events.decided((mu, 0.5), (err, 0.0))
+            assert (i == 1) == (verdict == "saddle") and i in (0, 1), (mu, err, verdict, i)
+            finite = err == err and abs(err) < float("inf")
+            assert d <= i and d == (1 if finite and mu < -max(err, TOL_REL) else 0), (mu, err, d)
+            assert verdict != "minimum" or i == 0
 
 
 def test_an_end_undecided_within_tol_rel_of_the_other_sign_is_located_past_it():
@@ -211,18 +232,20 @@ def test_a_one_point_blip_is_no_crossing_and_a_zigzag_is_one_turn():
     creeps round the top (a zigzag of ~1e-6), one point's critical eigenvalue (the relative
     translation of the two droplets it has become; measured when the check excluded the rotation)
     is negative beyond its bound (-8.4e-7, bound 1.5e-7) but above the certificate's saddle threshold
-    (``verdict.TOL_REL`` = 1e-6: marginal), between undecided and positive ones: index 0 throughout,
-    one turn, no crossing; the same point ten times lower (decidedly negative) is a one-point blip:
-    still no crossing."""
+    (``verdict.TOL_REL`` = 1e-6: marginal), between undecided and positive ones: no decided negative,
+    one turn, no crossing (two points, -2.2e-6 and -2.7e-6 with bound 4.9e-3, are certified negative,
+    index 1, their verdict "saddle", but not decidedly); the same point ten times lower (decidedly
+    negative) is a one-point blip: still no crossing."""
     ps = [0.73437251, 0.73464357, 0.73474587, 0.73476515, 0.73476171, 0.73475984, 0.73476227, 0.73476518,
           0.73475825, 0.73471667, 0.73459087]
     mus = [1.3e-3, 4.0e-4, 7.7e-5, 1.6e-6, -2.2e-6, -1.6e-7, -2.7e-6, -8.4e-7, 3.4e-5, 1.7e-4, 5.6e-4]
     errs = [2.3e-4, 1.9e-4, 7.7e-5, 1.5e-6, 4.9e-3, 4.6e-7, 4.9e-3, 1.5e-7, 2.9e-5, 1.7e-4, 2.0e-4]
     pts = [events.Point(p, np.zeros(1), 0.0, (mu, 4.7), (e, 1e-3)) for p, mu, e in zip(ps, mus, errs)]
-    assert [q.index for q in pts].count(1) == 0 and events.crossings(pts) == []
+    assert [q.decided for q in pts].count(1) == 0 and events.crossings(pts) == []
+    assert [k for k, q in enumerate(pts) if q.index] == [4, 6]
     blip = [events.Point(p, np.zeros(1), 0.0, (mu * (10 if k == 7 else 1), 4.7), (e, 1e-3))
             for k, (p, mu, e) in enumerate(zip(ps, mus, errs))]
-    assert [q.index for q in blip].count(1) == 1 and events.crossings(blip) == []
+    assert [q.decided for q in blip].count(1) == 1 and events.crossings(blip) == []
     assert events.turns(pts) == [3]
     loc = events.locate_fold_parabola(pts[2:5], np.ones(1), 1.0)
     assert abs(loc.p - 0.734765) < 5e-6  # the vertex within the zigzag's amplitude

@@ -3,12 +3,25 @@
 Every point of a branch carries the least few eigenvalues mu_1 <= mu_2 <= ... of the reduced
 Hessian (the Hessian of the Lagrangian of (6)-(8) on the tangent space of the constraints (7), (8),
 symmetry modes excluded as the second-order check decides, ``verify.verdict``), in mu_ref units, and
-their error bounds. Its *index* is the number of decidedly negative ones (mu < -err: a mode within
-its bound of zero, e.g. the relative translation of two far components, counts for neither side).
-Between two accepted points whose indices differ one eigenvalue has crossed zero: the *critical*
-one (``critical_values``: the largest decidedly negative on one side, the least decidedly positive
-on the other), followed through the trials by continuity (``tracked``: the eigenvalue nearest the
-linear interpolation of its end values).
+their error bounds. Two counts of negative ones:
+
+* the *index* (``index``, the CSV's ``index``): the eigenvalues certified negative by the
+  certificate's own rule (``verify.verdict.classify``), mu < -TOL_REL whatever the bound, since a Ritz
+  value from exact products on T bounds its eigenvalue from above (Poincare: the k-th Ritz value >=
+  the k-th eigenvalue). A lower bound of the Morse index; 1 or more exactly where the verdict reads
+  "saddle". (Until this release it was the count below, so a matrix-free check that stops once its
+  saddle is decided, with bounds 0.05-0.3 against mu -3e-4 ... -6e-3 on the meridian cup past its fold,
+  wrote "saddle" beside index 0.)
+* the *decided* count (``decided``), which the events use: mu < -max(err, TOL_REL), a change beyond
+  the eigenvalue's bound on both sides of zero. A mode within its bound of zero, e.g. the relative
+  translation of two far components, or the asymmetric mode near a symmetric turning point (the 2D
+  ellipse's in c0: -2.0e-6 ... -2.4e-6, bound 1.2e-5 ... 6.8e-5, on three points at its top, between
+  positive ones), counts for neither side and makes no event.
+
+Between two accepted points whose decided counts differ one eigenvalue has crossed zero: the
+*critical* one (``critical_values``: the largest decidedly negative on one side, the least decidedly
+positive on the other), followed through the trials by continuity (``tracked``: the eigenvalue
+nearest the linear interpolation of its end values).
 
 * **Classification** (``classify``): at a fold (saddle-node) the branch turns in p, so the
   tangent's parameter component changes sign: some secant of the three around the bracket has dp
@@ -57,16 +70,29 @@ class Point:
     def index(self) -> int:
         return index(self.eigenvalues, self.errors)
 
+    @property
+    def decided(self) -> int:
+        return decided(self.eigenvalues, self.errors)
+
+
+def _pairs(eigenvalues, errors):
+    errs = tuple(errors) + (0.0,) * (len(eigenvalues) - len(errors))
+    return [(mu, e) for mu, e in zip(eigenvalues, errs) if mu is not None and math.isfinite(mu)]
+
 
 def index(eigenvalues, errors=()) -> int:
+    """The number of eigenvalues certified negative (module docstring): mu < -TOL_REL with a finite
+    error bound (without one the eigensolver's result is not trusted: the verdict's "not checked")."""
+    return sum(1 for mu, e in _pairs(eigenvalues, errors) if e is not None and math.isfinite(e) and mu < -TOL_REL)
+
+
+def decided(eigenvalues, errors=()) -> int:
     """The number of eigenvalues decidedly negative: mu < -max(err, TOL_REL) (its error bound, and the
     certificate's own threshold of a saddle, ``verify.verdict.TOL_REL``: a mode within either of zero, such
     as the relative translation of two far components or the rotation on a spectral grid, is not counted;
     the rotation's -5.3e-8 / +3.8e-8 mu_ref on the 48^2 spectral elastica, bound ~1e-9, flipped sign
-    with the BLAS kernel and read as a branch point: measured)."""
-    errs = tuple(errors) + (0.0,) * (len(eigenvalues) - len(errors))
-    return int(sum(1 for mu, e in zip(eigenvalues, errs)
-                   if mu is not None and math.isfinite(mu) and mu < -_floor(e)))
+    with the BLAS kernel and read as a branch point: measured). At most ``index``."""
+    return sum(1 for mu, e in _pairs(eigenvalues, errors) if e is not None and math.isfinite(e) and mu < -_floor(e))
 
 
 def _floor(e: float) -> float:
@@ -93,7 +119,7 @@ def critical_values(a: Point, b: Point) -> tuple[float, float]:
     def least_positive(q):
         pos = [mu for i, mu in enumerate(q.eigenvalues) if mu > _err(q, i)]
         return min(pos) if pos else max(q.eigenvalues)
-    if a.index > b.index:
+    if a.decided > b.decided:
         return largest_negative(a), least_positive(b)
     return least_positive(a), largest_negative(b)
 
@@ -106,15 +132,15 @@ def tracked(point: Point, target: float) -> tuple[int, float, float]:
 
 
 def crossings(points: list[Point]) -> list[int]:
-    """k such that the index changes between points[k - 1] and points[k] and keeps its new value at
+    """k such that the decided count changes between points[k - 1] and points[k] and keeps its new value at
     points[k + 1] (the last point: kept). A one-point blip is no crossing: measured at a symmetric
     turning point in c0 (2D ellipse, nu = 0.8, 48^2) the critical eigenvalue (the relative
     translation of its two droplets; the rotation, kept in the check, is below it) touches zero, +1.6e-6,
     -2.7e-6, -8.4e-7 (bound 1.5e-7: one point decidedly negative), +3.4e-5, and rises again."""
-    out, confirmed = [], points[0].index if points else 0
+    out, confirmed = [], points[0].decided if points else 0
     for k in range(1, len(points)):
-        i = points[k].index
-        if i != confirmed and (k + 1 == len(points) or points[k + 1].index == i):
+        i = points[k].decided
+        if i != confirmed and (k + 1 == len(points) or points[k + 1].decided == i):
             out.append(k)
             confirmed = i
     return out
@@ -138,10 +164,10 @@ def _undecided(q: Point) -> int:
 
 
 def bracket(points: list[Point], k: int, reach: int = 3) -> tuple[int, int]:
-    """(a, b), a < k <= b: the index change between points[k - 1] and points[k], widened so that
-    the critical eigenvalue is decided at both ends. The index counts the decidedly negative
-    eigenvalues only, so on the side with the lower index the crossing eigenvalue may still be
-    within its bound of zero; that end moves on (up to ``reach`` points, the index unchanged) to
+    """(a, b), a < k <= b: the change of the decided count between points[k - 1] and points[k], widened so
+    that the critical eigenvalue is decided at both ends. The count takes the decidedly negative
+    eigenvalues only, so on the side with the lower count the crossing eigenvalue may still be
+    within its bound of zero; that end moves on (up to ``reach`` points, the count unchanged) to
     the first point with no more undecided eigenvalues than the other end has (a soft mode within
     its bound at both ends, such as the relative translation of far components, is not the
     crossing one). Measured on the switched branch of the
@@ -149,15 +175,15 @@ def bracket(points: list[Point], k: int, reach: int = 3) -> tuple[int, int]:
     the parameter turning at the third: the bracket is the first and the third, not the first two
     (whose ends' critical values would be -1.1e-5 and the next mode, +0.078)."""
     a, b = k - 1, k
-    if points[k].index < points[k - 1].index:  # the low side after the change: b moves on
+    if points[k].decided < points[k - 1].decided:  # the low side after the change: b moves on
         soft = _undecided(points[k - 1])
         while b + 1 < len(points) and b - k < reach and _undecided(points[b]) > soft and \
-                points[b + 1].index == points[k].index:
+                points[b + 1].decided == points[k].decided:
             b += 1
     else:
         soft = _undecided(points[k])
         while a - 1 >= 0 and k - 1 - a < reach and _undecided(points[a]) > soft and \
-                points[a - 1].index == points[k - 1].index:
+                points[a - 1].decided == points[k - 1].decided:
             a -= 1
     return a, b
 

@@ -7,7 +7,7 @@ eigenvalue crossing zero and the tangent's p-component dp/ds changes sign with i
 eigenvalue is negative on both sheets (on the 2D pair of droplets below nu_c ~ 0.802: their
 relative rotation, a near-symmetry mode of the periodic box) the least eigenvalue keeps its sign
 and the fold is invisible to a test on it (``branch.fold_continuation`` wants minima beside the
-fold); what changes is the *index*, the count of decidedly negative eigenvalues, 1 -> 2 across it,
+fold); what changes is the count of decidedly negative eigenvalues (``events.decided``), 1 -> 2 across it,
 and the eigenvalue that crosses is the one ``branch.events.critical_values`` picks at the two ends
 (the largest decidedly negative on one side, the least decidedly positive on the other), followed
 by continuity. The other modes are not touched: the rotation stays in the check and is passed over
@@ -106,18 +106,18 @@ def locate(solver, q: float, centre, p_pred: float, t, h: float, theta: float = 
                     None if loc is None else loc.critical, math.nan if loc is None else loc.bracket,
                     None if a is None else (a.p, b.p), vx, solver.solves - s0, time.perf_counter() - t0,
                     time.process_time() - c0, pt, chord, reason)
-    tried = []  # (h, index on both sides) or (h, None: a side had no point)
+    tried = []  # (h, decided count on both sides) or (h, None: a side had no point)
     for k in WIDTHS:
         a = free(centre - k * h * t, p_pred, t, 0.0, theta)
         b = free(centre + k * h * t, p_pred, t, 0.0, theta)
-        if a is not None and b is not None and a.index != b.index:
+        if a is not None and b is not None and a.decided != b.decided:
             h *= k
             break
-        tried.append((k * h, None if a is None or b is None else a.index))
+        tried.append((k * h, None if a is None or b is None else a.decided))
     else:
-        said = "; ".join(f"+-{x:.3g}: " + ("no point on a side" if i is None else f"index {i} on both sides")
+        said = "; ".join(f"+-{x:.3g}: " + ("no point on a side" if i is None else f"decided count {i} on both sides")
                          for x, i in tried)
-        return done(f"no index change between the sides ({said}): no fold there")
+        return done(f"no change of the decided count between the sides ({said}): no fold there")
     loc = ev.locate_on_chord(free, a, b, w, theta, TAU_TOL)
     if loc.point is None:
         return done(f"the location failed ({loc.located_by})", a=a, b=b)

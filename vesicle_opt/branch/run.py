@@ -38,8 +38,10 @@ Per accepted point the row also holds
   the reduced Hessian, symmetry modes excluded) changes sign from the previous accepted point;
   ``Branch.events`` classifies each as a ``fold`` (the parameter turns back within one interval of
   it) or a ``bifurcation``; ``second_order_eigenvalues`` / ``second_order_errors`` hold the check's
-  least few (';'-joined) and ``index`` the number of negative ones;
-* the diagram (``branch.tree``): every change of ``index`` is located (a ``locate`` row, ``event``
+  least few (';'-joined) and ``index`` the number certified negative (below -TOL_REL: ``events.index``,
+  1 or more exactly where the verdict reads saddle);
+* the diagram (``branch.tree``): every change of the count negative beyond its error bound
+  (``events.decided``, at most ``index``) is located (a ``locate`` row, ``event``
   ``fold`` or ``branch point``, ``Branch.located``), and with ``switch`` the branches leaving each
   branch point are followed in both directions, recursively to ``depth`` levels (``branch`` the id,
   ``parent`` the branch left); with ``deflate`` = N, where switching found none, up to N other

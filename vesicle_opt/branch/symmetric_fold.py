@@ -243,7 +243,7 @@ def locate(solver: SymmetricSolver, q: float, p_pred: float, dp: float, phi0, la
         if lo is None or hi is None:
             return done(f"no symmetric point at p = {p_pred:.8g} -+ {dp:.3g}", pt=mid)
         for x, y in ((lo, mid), (mid, hi)):
-            if x.index != y.index:  # one decidedly negative, the other not (``events.index``)
+            if x.decided != y.decided:  # one decidedly negative, the other not (``events.decided``)
                 a, b = x, y
         if a is not b:
             break

@@ -3,7 +3,7 @@
 ``grow(problem, depth, switch, deflate)``, breadth first:
 
 1. the root (branch 0) is walked from the start (``branch.arclength``);
-2. on each walked branch of level d the changes of index (``branch.events``) are located, and the
+2. on each walked branch of level d the changes of the decided count (``branch.events.decided``) are located, and the
    turns in p with none (a fold whose critical eigenvalue only touches zero, located by the parabola
    through the three points around the turn): a row per event (``event`` = ``fold`` or ``branch point``, ``detected_at`` the accepted point after the
    change, the located parameter, energy, critical eigenvalue and its error bound, and
