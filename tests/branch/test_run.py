@@ -95,6 +95,18 @@ def test_every_point_certified_with_its_columns(tmp_path):
 
 
 @pytest.mark.slow
+def test_a_stability_change_reads_the_verdicts_sign():
+    """The walk's ``stability change`` compares the least eigenvalue's certified signs (``events.sign``,
+    the verdict's): a saddle's Ritz value is negative whatever its bound (the matrix-free check's
+    0.05 past the meridian cup's fold, measured); a positive one within its bound of zero ("marginal")
+    is no reference; a row without bounds reads as the assembled check's round-off (~1e-11)."""
+    from vesicle_opt.branch.vesicle import _least_sign
+    assert _least_sign(-2.7e-4, "0.055;0.24;0.027") == -1 and _least_sign(-2.7e-4, (0.055,)) == -1
+    assert _least_sign(5e-5, "0.001;0.1") == 0 and _least_sign(-5e-7, "1e-11") == 0  # marginal either side
+    assert _least_sign(5e-5, "1e-11;0.1") == 1 and _least_sign(5e-5, None) == 1
+    assert _least_sign(None, "") == 0 and _least_sign(0.1, "nan") == 0  # no check, no finite bound
+
+
 def test_the_circle_saddle_switches_along_its_critical_mode(tmp_path):
     """The circle start converges to a symmetric saddle; the walk, the tree's fixed-p/free switch
     from the saddle's branch point and the located events hold together (every row certified)."""

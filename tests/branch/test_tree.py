@@ -157,7 +157,8 @@ def test_the_index_is_the_verdicts_count_and_the_decided_count_within_it():
     from above, so one below -TOL_REL is negative whatever its bound: the matrix-free check stops once
     a saddle is decided, bounds 0.05-0.3 against mu -3e-4 ... -6e-3 on the meridian cup past its
     fold, measured), 0 where it reads "minimum"; the events' decided count is at most the index and
-    needs mu < -err as well. Ritz values and bounds on both sides of every threshold."""
+    needs mu < -err as well; ``events.sign`` (the walk's "stability change") is the verdict's. Ritz values
+    and bounds on both sides of every threshold."""
     from vesicle_opt.verify.verdict import TOL_REL, classify
     mus = [-0.3, -6e-3, -2.7e-4, -2e-6, -TOL_REL, -5e-7, 0.0, 5e-7, TOL_REL, 2e-6, 8e-4, 0.2]
     errs = [0.0, 1e-11, 1e-7, TOL_REL, 6.6e-6, 0.055, 0.3, float("nan"), float("inf")]
@@ -169,6 +170,7 @@ def test_the_index_is_the_verdicts_count_and_the_decided_count_within_it():
             finite = err == err and abs(err) < float("inf")
             assert d <= i and d == (1 if finite and mu < -max(err, TOL_REL) else 0), (mu, err, d)
             assert verdict != "minimum" or i == 0
+            assert events.sign(mu, err) == {"saddle": -1, "minimum": 1}.get(verdict, 0), (mu, err, verdict)
 
 
 def test_an_end_undecided_within_tol_rel_of_the_other_sign_is_located_past_it():

@@ -80,10 +80,19 @@ def _pairs(eigenvalues, errors):
     return [(mu, e) for mu, e in zip(eigenvalues, errs) if mu is not None and math.isfinite(mu)]
 
 
+def sign(mu, err) -> int:
+    """The verdict's sign of one eigenvalue (``verify.verdict.classify``): -1 where mu < -TOL_REL (its
+    "saddle"), +1 where mu - err >= TOL_REL (its "minimum"), else 0 (undecided, "marginal" or "not
+    checked"; so is a value without a finite bound)."""
+    if mu is None or err is None or not (math.isfinite(mu) and math.isfinite(err)):
+        return 0
+    return -1 if mu < -TOL_REL else (1 if mu - abs(err) >= TOL_REL else 0)
+
+
 def index(eigenvalues, errors=()) -> int:
     """The number of eigenvalues certified negative (module docstring): mu < -TOL_REL with a finite
     error bound (without one the eigensolver's result is not trusted: the verdict's "not checked")."""
-    return sum(1 for mu, e in _pairs(eigenvalues, errors) if e is not None and math.isfinite(e) and mu < -TOL_REL)
+    return sum(1 for mu, e in _pairs(eigenvalues, errors) if sign(mu, e) < 0)
 
 
 def decided(eigenvalues, errors=()) -> int:

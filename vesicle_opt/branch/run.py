@@ -35,7 +35,8 @@ Per accepted point the row also holds
   difference of E along the branch, O(Delta p^2) (the trapezoid rule's error; ``Branch.envelope_central``
   gives the three-point form at interior points);
 * ``event`` = ``stability change`` where ``second_order_min_eigenvalue`` (the least eigenvalue of
-  the reduced Hessian, symmetry modes excluded) changes sign from the previous accepted point;
+  the reduced Hessian, symmetry modes excluded) changes its certified sign (the verdict's: below
+  -TOL_REL, or positive beyond its error bound; ``events.sign``) from the last accepted point that had one;
   ``Branch.events`` classifies each as a ``fold`` (the parameter turns back within one interval of
   it) or a ``bifurcation``; ``second_order_eigenvalues`` / ``second_order_errors`` hold the check's
   least few (';'-joined) and ``index`` the number certified negative (below -TOL_REL: ``events.index``,

@@ -31,12 +31,12 @@ from vesicle_opt.branch import arclength as arc
 from vesicle_opt.branch.bordered import Affine, BorderedCorrector
 from vesicle_opt.branch.corrector import IpoptCorrector, least_squares_multipliers
 from vesicle_opt.branch.deflation import deflated_vesicle
-from vesicle_opt.branch.events import Point
+from vesicle_opt.branch.events import Point, sign
 from vesicle_opt.branch.nk_corrector import NewtonKrylovCorrector
 from vesicle_opt.branch.nk_free import CERTIFY_MAX_ITER, VesicleKKT, free_newton
 from vesicle_opt.branch.nk_free import tangent as nk_tangent
 from vesicle_opt.branch.params import Parameter, explicit_derivative
-from vesicle_opt.branch.problem import TreeProblem
+from vesicle_opt.branch.problem import TreeProblem, split
 from vesicle_opt.branch.store import Store
 from vesicle_opt.branch.symmetry import align as symmetric_image
 from vesicle_opt.branch.symmetry import align_mirror
@@ -49,7 +49,14 @@ from vesicle_opt.scene.schema import Scene
 from vesicle_opt.verify import lobpcg
 from vesicle_opt.verify import verdict as V
 from vesicle_opt.verify.failure import tol_to_certify
-from vesicle_opt.verify.verdict import TOL_REL
+
+
+def _least_sign(mu, errors) -> int:
+    """The certified sign (``events.sign``) of a row's least eigenvalue, its bound the first of
+    ``errors`` (a tuple, or the CSV's ';'-joined text); a row without bounds: 0 (as the assembled
+    check's ~1e-11 would give)."""
+    first = split(errors)[:1] if isinstance(errors, str) or errors is None else tuple(errors)[:1]
+    return sign(mu, first[0] if first else 0.0)
 
 
 class VesicleProblem(TreeProblem):
@@ -293,13 +300,14 @@ class VesicleProblem(TreeProblem):
             q = prev[-1]
             g, dp = (q["dE_dp"] + row["dE_dp"]) / 2, a.p - q["target"]
             row["envelope_residual"] = abs(res.energy - q["energy"] - g * dp) / abs(g * dp) if g * dp else None
-            # signs beyond the verdict's tolerance only (``verify.verdict.TOL_REL``): a flat mode's
-            # +-1e-8 (the rotation on a Fourier grid, "marginal") is no change; the last signed point
-            # is the reference, so minimum -> marginal -> saddle is still seen where the sign flips
-            mus = [r["second_order_min_eigenvalue"] for r in prev]
-            signed = [m for m in mus if m is not None and abs(m) > TOL_REL]
-            mu1 = row["second_order_min_eigenvalue"]
-            if signed and mu1 is not None and abs(mu1) > TOL_REL and signed[-1] * mu1 < 0:
+            # the verdict's signs only (``events.sign``: negative below -TOL_REL, its "saddle"; positive
+            # beyond its error bound, its "minimum"): a flat mode's +-1e-8 (the rotation on a Fourier
+            # grid, "marginal") or an undecided one is no change; the last signed point is the
+            # reference, so minimum -> marginal -> saddle is still seen where the sign flips
+            signs = [s for s in (_least_sign(r["second_order_min_eigenvalue"], r.get("second_order_errors"))
+                                 for r in prev) if s]
+            s1 = _least_sign(row["second_order_min_eigenvalue"], (res.extra or {}).get("second_order_errors"))
+            if signs and s1 and signs[-1] != s1:
                 row["event"] = "stability change"
         if self.reference is not None:
             row["sharp_reduced_energy"] = self.reference(self.par.name, a.p, sc.dim)
