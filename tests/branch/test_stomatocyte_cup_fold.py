@@ -70,6 +70,10 @@ def _passes_a_cup_fold(disc, b, out):
     assert 0 < k < len(v) - 2, v  # a turn inside the walk, points past it
     assert np.all(np.diff(v[: k + 1]) > 0) and np.all(np.diff(v[k:]) < 0)
     assert mu[0] > 0 and mu[-1] < 0  # a minimum below the fold, a saddle past it (the check's least eigenvalue)
+    # the CSV's index is the verdict's count at every point (Newton-Krylov's matrix-free check stops once its
+    # saddle is decided: bounds 0.05-0.3 there, which the events' decided count does not pass)
+    assert all((r["index"] >= 1) == (r["second_order"] == "saddle") for r in pts), [(r["second_order"], r["index"]) for r in pts]
+    assert pts[-1]["index"] == 1
     for r in pts:  # a stomatocyte at every point: one curve, axis to axis, mouth open
         phi = np.asarray(fields.read(out / "points" / f"point-{r['point']:04d}.npz")["phi"])
         assert r["topology"] == "sphere-like (genus 0)" and updown.form(meridian_curves(disc, phi)) == "cup"
