@@ -15,8 +15,8 @@ their error bounds. Two counts of negative ones:
 * the *decided* count (``decided``), which the events use: mu < -max(err, TOL_REL), a change beyond
   the eigenvalue's bound on both sides of zero. A mode within its bound of zero, e.g. the relative
   translation of two far components, or the asymmetric mode near a symmetric turning point (the 2D
-  ellipse's in c0: -2.0e-6 ... -2.4e-6, bound 1.2e-5 ... 6.8e-5, on three points at its top, between
-  positive ones), counts for neither side and makes no event.
+  ellipse's in c0: -2.0e-6 ... -2.4e-6, bound 1.2e-5 ... 6.8e-5, on three points at its top, an
+  undecided one among them, positive ones on both sides), counts for neither side and makes no event.
 
 Between two accepted points whose decided counts differ one eigenvalue has crossed zero: the
 *critical* one (``critical_values``: the largest decidedly negative on one side, the least decidedly
