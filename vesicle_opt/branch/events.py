@@ -76,8 +76,8 @@ class Point:
 
 
 def _pairs(eigenvalues, errors):
-    errs = tuple(errors) + (0.0,) * (len(eigenvalues) - len(errors))
-    return [(mu, e) for mu, e in zip(eigenvalues, errs) if mu is not None and math.isfinite(mu)]
+    """(mu, err) of each eigenvalue, 0 where no bound is given."""
+    return zip(eigenvalues, tuple(errors) + (0.0,) * (len(eigenvalues) - len(errors)))
 
 
 def sign(mu, err) -> int:
@@ -101,11 +101,7 @@ def decided(eigenvalues, errors=()) -> int:
     as the relative translation of two far components or the rotation on a spectral grid, is not counted;
     the rotation's -5.3e-8 / +3.8e-8 mu_ref on the 48^2 spectral elastica, bound ~1e-9, flipped sign
     with the BLAS kernel and read as a branch point: measured). At most ``index``."""
-    return sum(1 for mu, e in _pairs(eigenvalues, errors) if e is not None and math.isfinite(e) and mu < -_floor(e))
-
-
-def _floor(e: float) -> float:
-    return max(abs(e) if math.isfinite(e) else 0.0, TOL_REL)
+    return sum(1 for mu, e in _pairs(eigenvalues, errors) if sign(mu, e) < 0 and mu < -abs(e))
 
 
 def _bound(point: Point, i: int) -> float:

@@ -304,10 +304,10 @@ class VesicleProblem(TreeProblem):
             # beyond its error bound, its "minimum"): a flat mode's +-1e-8 (the rotation on a Fourier
             # grid, "marginal") or an undecided one is no change; the last signed point is the
             # reference, so minimum -> marginal -> saddle is still seen where the sign flips
-            signs = [s for s in (_least_sign(r["second_order_min_eigenvalue"], r.get("second_order_errors"))
-                                 for r in prev) if s]
+            last = next((s for s in (_least_sign(r["second_order_min_eigenvalue"], r.get("second_order_errors"))
+                                     for r in reversed(prev)) if s), 0)
             s1 = _least_sign(row["second_order_min_eigenvalue"], (res.extra or {}).get("second_order_errors"))
-            if signs and s1 and signs[-1] != s1:
+            if last and s1 and last != s1:
                 row["event"] = "stability change"
         if self.reference is not None:
             row["sharp_reduced_energy"] = self.reference(self.par.name, a.p, sc.dim)
