@@ -26,12 +26,12 @@ from the axis to the axis) is computed again and replaced.
 from __future__ import annotations
 
 import logging
-import os
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from vesicle_opt.io.files import save_npz
 from vesicle_opt.io.meridian import meridian_curves
 from vesicle_opt.studies import _stomatocyte as stoma
 from vesicle_opt.verify import updown
@@ -119,12 +119,8 @@ def compute() -> tuple[np.ndarray, np.ndarray, str]:
 
 
 def write(path: Path, r, z, note: str) -> None:
-    """``FILE`` whole or not at all: a temporary file beside it, renamed over it."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        np.savez(fh, r=np.asarray(r, float), z=np.asarray(z, float), note=np.array(note))
-    os.replace(tmp, path)
+    """``FILE`` whole or not at all (``io.files.save_npz``: a temporary file renamed over it)."""
+    save_npz(path, r=np.asarray(r, float), z=np.asarray(z, float), note=np.array(note))
 
 
 def read(path: Path):
